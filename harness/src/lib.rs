@@ -1,0 +1,5 @@
+//! Harness: the headless wgpu renderer, the camera-path runner, image metrics, results
+//! export and plots.
+
+pub mod metrics;
+pub mod plot;

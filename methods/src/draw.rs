@@ -1,0 +1,256 @@
+//! Draw lists: what a method asks the renderer to draw this frame, as plain data.
+//!
+//! A [`DrawList`] holds items of two kinds: cached *chunks* (decoded once through
+//! [`crate::LodMethod::chunk`], then kept in the renderer's LRU GPU cache) and *streams* of
+//! splats generated this frame (QSplat's per-frame traversal output, uploaded every frame).
+//! Splat size is either a pixel size for the whole item or per splat from its object-space
+//! radius, projected in the vertex stage: `px = max(min_px, 2·radius·scale·k / z)`.
+
+use std::collections::HashSet;
+
+use scenes::Attributes;
+
+use crate::MethodError;
+
+/// Identifies a chunk within one opened method instance.
+pub type ChunkId = u64;
+
+/// How large each splat of an item is drawn.
+#[derive(Debug, Clone, Copy, PartialEq, serde::Serialize)]
+pub enum SplatSize {
+    /// Every splat of the item is this many pixels across.
+    Pixels(f32),
+    /// Per splat: diameter `2·radius·scale` in object units, projected; never below `min_px`.
+    Radius {
+        /// Multiplier on the stored radius.
+        scale: f32,
+        /// Smallest size drawn, in pixels.
+        min_px: f32,
+    },
+}
+
+/// The splats a chunk decodes to, or a stream generated this frame. Columns mirror the
+/// cloud's [`Attributes`]: an attribute the scene lacks is `None` and is never uploaded.
+#[derive(Debug, Clone, Default, PartialEq)]
+pub struct SplatBatch {
+    /// Local positions.
+    pub positions: Vec<[f32; 3]>,
+    /// Octahedral-encoded normals ([`crate::octnormal`]).
+    pub normals: Option<Vec<u32>>,
+    /// sRGB colours packed as `r | g<<8 | b<<16 | 255<<24`.
+    pub colors: Option<Vec<u32>>,
+    /// Object-space splat radii.
+    pub radii: Option<Vec<f32>>,
+}
+
+impl SplatBatch {
+    /// An empty batch carrying the given attributes.
+    pub fn with_attributes(attrs: Attributes, capacity: usize) -> Self {
+        Self {
+            positions: Vec::with_capacity(capacity),
+            normals: attrs.normals.then(|| Vec::with_capacity(capacity)),
+            colors: attrs.colors.then(|| Vec::with_capacity(capacity)),
+            radii: attrs.radii.then(|| Vec::with_capacity(capacity)),
+        }
+    }
+    /// Number of splats.
+    pub fn len(&self) -> usize {
+        self.positions.len()
+    }
+    /// True if there are no splats.
+    pub fn is_empty(&self) -> bool {
+        self.positions.is_empty()
+    }
+    /// Which attribute columns are present.
+    pub fn attributes(&self) -> Attributes {
+        Attributes {
+            normals: self.normals.is_some(),
+            colors: self.colors.is_some(),
+            radii: self.radii.is_some(),
+        }
+    }
+    /// Bytes of the columns as uploaded.
+    pub fn byte_size(&self) -> u64 {
+        let n = self.len() as u64;
+        let a = self.attributes();
+        n * (12 + 4 * (a.normals as u64 + a.colors as u64 + a.radii as u64))
+    }
+    /// Checks that every present column has one value per position.
+    pub fn validate(&self) -> Result<(), MethodError> {
+        let n = self.len();
+        let bad = [
+            ("normals", self.normals.as_ref().map(Vec::len)),
+            ("colors", self.colors.as_ref().map(Vec::len)),
+            ("radii", self.radii.as_ref().map(Vec::len)),
+        ]
+        .into_iter()
+        .find(|(_, l)| l.is_some_and(|l| l != n));
+        match bad {
+            Some((name, l)) => Err(MethodError::Limit(format!(
+                "splat batch column {name} has {} values for {n} positions",
+                l.unwrap_or(0)
+            ))),
+            None => Ok(()),
+        }
+    }
+}
+
+/// Packs an sRGB colour for [`SplatBatch::colors`].
+#[inline]
+pub fn pack_color(c: [u8; 3]) -> u32 {
+    c[0] as u32 | (c[1] as u32) << 8 | (c[2] as u32) << 16 | 0xff00_0000
+}
+
+/// One thing to draw.
+#[derive(Debug, Clone, PartialEq)]
+pub enum DrawItem {
+    /// The first `points` splats of cached chunk `id`.
+    Chunk {
+        /// The chunk.
+        id: ChunkId,
+        /// How many splats of it to draw (a prefix; the chunk's length draws it all).
+        points: u32,
+        /// Splat size.
+        size: SplatSize,
+    },
+    /// Splats generated this frame, uploaded every frame.
+    Stream {
+        /// The splats.
+        batch: SplatBatch,
+        /// Splat size.
+        size: SplatSize,
+    },
+}
+
+impl DrawItem {
+    /// Splats this item draws.
+    pub fn points(&self) -> u64 {
+        match self {
+            DrawItem::Chunk { points, .. } => *points as u64,
+            DrawItem::Stream { batch, .. } => batch.len() as u64,
+        }
+    }
+}
+
+/// Everything a method asks for in one frame.
+#[derive(Debug, Clone, Default, PartialEq)]
+pub struct DrawList {
+    /// What to draw.
+    pub items: Vec<DrawItem>,
+    /// Chunks the method would like loaded for later frames (the renderer may ignore them).
+    pub fetch: Vec<ChunkId>,
+    /// Values of the method's extra CSV columns ([`crate::LodMethod::extra_columns`]), same order.
+    pub counters: Vec<f64>,
+}
+
+impl DrawList {
+    /// Total splats drawn.
+    pub fn points(&self) -> u64 {
+        self.items.iter().map(DrawItem::points).sum()
+    }
+    /// Number of cached chunks drawn.
+    pub fn chunks(&self) -> u64 {
+        self.items
+            .iter()
+            .filter(|i| matches!(i, DrawItem::Chunk { .. }))
+            .count() as u64
+    }
+}
+
+/// What the frame asks of the method: a pixel tolerance or a point budget.
+#[derive(Debug, Clone, Copy, PartialEq, serde::Serialize)]
+pub enum Target {
+    /// Largest acceptable screen-space error / splat size in pixels (≥ 0, finite).
+    Tolerance(f32),
+    /// Largest number of splats to draw (≥ 1).
+    Budget(u64),
+}
+
+impl Target {
+    /// A validated tolerance: NaN, ±∞ and negative values are errors.
+    pub fn tolerance(px: f32) -> Result<Self, MethodError> {
+        if !px.is_finite() || px < 0.0 {
+            return Err(MethodError::Target(format!(
+                "--eps must be a finite number of pixels ≥ 0, got {px}"
+            )));
+        }
+        Ok(Target::Tolerance(px))
+    }
+    /// A validated budget: 0 is an error.
+    pub fn budget(points: u64) -> Result<Self, MethodError> {
+        if points == 0 {
+            return Err(MethodError::Target("--budget must be at least 1 point".into()));
+        }
+        Ok(Target::Budget(points))
+    }
+    /// Re-validates (for targets built directly from the enum).
+    pub fn validate(self) -> Result<Self, MethodError> {
+        match self {
+            Target::Tolerance(px) => Self::tolerance(px),
+            Target::Budget(b) => Self::budget(b),
+        }
+    }
+    /// The tolerance in pixels, if this is a tolerance target.
+    pub fn eps_px(self) -> Option<f32> {
+        match self {
+            Target::Tolerance(e) => Some(e),
+            Target::Budget(_) => None,
+        }
+    }
+    /// The budget, if this is a budget target.
+    pub fn budget_points(self) -> Option<u64> {
+        match self {
+            Target::Budget(b) => Some(b),
+            Target::Tolerance(_) => None,
+        }
+    }
+}
+
+/// What the renderer tells the method about the previous frame.
+#[derive(Debug, Clone, Default)]
+pub struct Feedback {
+    /// Index of the frame about to be drawn.
+    pub frame: u64,
+    /// Chunks resident in the GPU cache now.
+    pub cached: HashSet<ChunkId>,
+    /// Chunks found occluded last frame (when occlusion queries ran).
+    pub occluded: HashSet<ChunkId>,
+    /// GPU time of the previous frame, ms.
+    pub last_gpu_ms: Option<f64>,
+    /// Wall time of the previous frame, ms.
+    pub last_wall_ms: Option<f64>,
+    /// True when the camera did not move since the previous frame.
+    pub camera_still: bool,
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    #[test]
+    fn targets_reject_bad_values() {
+        for bad in [f32::NAN, f32::INFINITY, f32::NEG_INFINITY, -1.0] {
+            assert!(Target::tolerance(bad).is_err(), "{bad}");
+        }
+        assert!(Target::tolerance(0.0).is_ok());
+        assert!(Target::budget(0).is_err());
+        assert_eq!(Target::budget(5).unwrap().budget_points(), Some(5));
+    }
+    #[test]
+    fn batch_validation_and_sizes() {
+        let mut b = SplatBatch::with_attributes(
+            Attributes {
+                normals: true,
+                colors: false,
+                radii: true,
+            },
+            2,
+        );
+        b.positions.push([0.0; 3]);
+        b.normals.as_mut().unwrap().push(0);
+        b.radii.as_mut().unwrap().push(1.0);
+        assert!(b.validate().is_ok());
+        assert_eq!(b.byte_size(), 12 + 4 + 4);
+        b.positions.push([0.0; 3]);
+        assert!(b.validate().unwrap_err().to_string().contains("normals"));
+    }
+}

@@ -1,0 +1,56 @@
+//! Errors of the methods crate; each names the file, node, parameter or flag at fault.
+
+use std::path::PathBuf;
+
+/// Errors from building, opening or running a method.
+#[derive(Debug, thiserror::Error)]
+pub enum MethodError {
+    /// I/O on a named file.
+    #[error("{path}: {source}")]
+    Io {
+        /// The file.
+        path: PathBuf,
+        /// The underlying error.
+        source: std::io::Error,
+    },
+    /// On-disk data that fails validation (bad magic, checksum mismatch, truncation).
+    #[error("{path}: corrupt data: {msg}")]
+    Corrupt {
+        /// The file.
+        path: PathBuf,
+        /// What failed, naming the node/chunk.
+        msg: String,
+    },
+    /// A `--param` that is unknown or has a bad value.
+    #[error("--param: {0}")]
+    Param(String),
+    /// An unusable target (tolerance NaN/∞/negative, budget 0).
+    #[error("invalid target: {0}")]
+    Target(String),
+    /// A chunk id the method does not have.
+    #[error("no chunk {0}")]
+    NoChunk(u64),
+    /// A limit that makes the request impossible (e.g. model larger than GPU memory).
+    #[error("{0}")]
+    Limit(String),
+    /// Errors from the scene layer.
+    #[error(transparent)]
+    Scene(#[from] scenes::SceneError),
+}
+
+impl MethodError {
+    /// Shorthand for [`MethodError::Io`].
+    pub fn io(path: impl Into<PathBuf>, source: std::io::Error) -> Self {
+        Self::Io {
+            path: path.into(),
+            source,
+        }
+    }
+    /// Shorthand for [`MethodError::Corrupt`].
+    pub fn corrupt(path: impl Into<PathBuf>, msg: impl Into<String>) -> Self {
+        Self::Corrupt {
+            path: path.into(),
+            msg: msg.into(),
+        }
+    }
+}

@@ -1,0 +1,26 @@
+//! LOD methods, GPU-free.
+//!
+//! Contract: a method *builds* an on-disk representation from a [`scenes::PointCloud`],
+//! *opens* it, and per frame answers "what to draw for this view" as a plain-data
+//! [`DrawList`]. It never touches a GPU: the harness turns draw lists into GPU work, so every
+//! method is testable without one and one renderer serves all of them.
+//!
+//! - [`method`]: the [`LodMethod`] trait, build/open statistics, the `method.json` manifest.
+//! - [`draw`]: draw lists, splat batches (what a chunk decodes to), targets, feedback.
+//! - [`params`]: `--param key=value` pairs into a method's typed, `deny_unknown_fields` params.
+//! - [`registry`]: [`MethodKind`], the one explicit list of methods.
+//! - one module per method: [`full`] (no LOD, the reference), then the four papers' methods.
+
+pub mod draw;
+pub mod error;
+pub mod full;
+pub mod method;
+pub mod octnormal;
+pub mod params;
+pub mod registry;
+
+pub use draw::{ChunkId, DrawItem, DrawList, Feedback, SplatBatch, SplatSize, Target};
+pub use error::MethodError;
+pub use method::{BuildStats, LodMethod, Manifest, MethodStats};
+pub use params::Params;
+pub use registry::MethodKind;

@@ -1,0 +1,125 @@
+//! The [`LodMethod`] trait and what builds and opened instances report.
+//!
+//! Building and opening are static, per method (functions `build` and `open` in each
+//! method's module, dispatched by [`crate::MethodKind`]); an opened instance is a
+//! `Box<dyn LodMethod>` that the runner drives frame by frame.
+
+use std::path::Path;
+
+use scenes::{Attributes, View};
+
+use crate::{ChunkId, DrawList, Feedback, MethodError, SplatBatch, Target};
+
+/// An opened multiresolution representation.
+pub trait LodMethod: Send {
+    /// Which attributes its splats carry (a subset of the scene's, plus a derived radius).
+    fn attributes(&self) -> Attributes;
+    /// Number of input samples the representation was built from.
+    fn input_points(&self) -> u64;
+    /// Selects what to draw for `view` at `target`. Must not touch a GPU.
+    fn frame(
+        &mut self,
+        view: &View,
+        target: Target,
+        feedback: &Feedback,
+    ) -> Result<DrawList, MethodError>;
+    /// Decodes chunk `id` for upload.
+    fn chunk(&self, id: ChunkId) -> Result<SplatBatch, MethodError>;
+    /// Resident memory and structure counters.
+    fn stats(&self) -> MethodStats;
+    /// Names of the extra CSV columns this method appends (values in [`DrawList::counters`]).
+    fn extra_columns(&self) -> &'static [&'static str] {
+        &[]
+    }
+}
+
+/// What `build` reports (written as `build.json`).
+#[derive(Debug, Clone, Default, PartialEq, serde::Serialize, serde::Deserialize)]
+pub struct BuildStats {
+    /// Input samples.
+    pub points_in: u64,
+    /// Nodes (or chunks) in the structure.
+    pub nodes: u64,
+    /// Levels of the hierarchy (1 for a flat structure).
+    pub levels: u32,
+    /// Bytes of the input columns.
+    pub bytes_in: u64,
+    /// Bytes written to the output directory.
+    pub bytes_out: u64,
+    /// `bytes_out · 8 / points_in`.
+    pub bits_per_sample: f64,
+    /// Wall-clock build time.
+    pub seconds: f64,
+    /// `points_in / seconds`.
+    pub points_per_s: f64,
+    /// Method-specific figures.
+    #[serde(default)]
+    pub extra: serde_json::Map<String, serde_json::Value>,
+}
+
+impl BuildStats {
+    /// Fills the derived fields from the raw ones.
+    pub fn finish(mut self) -> Self {
+        self.bits_per_sample = if self.points_in > 0 {
+            self.bytes_out as f64 * 8.0 / self.points_in as f64
+        } else {
+            0.0
+        };
+        self.points_per_s = if self.seconds > 0.0 {
+            self.points_in as f64 / self.seconds
+        } else {
+            0.0
+        };
+        self
+    }
+}
+
+/// Counters of an opened instance.
+#[derive(Debug, Clone, Default, PartialEq, serde::Serialize)]
+pub struct MethodStats {
+    /// Bytes the method holds in memory (index, decoded caches), excluding mapped files.
+    pub resident_bytes: u64,
+    /// Nodes or chunks.
+    pub nodes: u64,
+    /// Levels.
+    pub levels: u32,
+}
+
+/// `method.json`: what a build directory holds, read by `open`.
+#[derive(Debug, Clone, PartialEq, serde::Serialize, serde::Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct Manifest {
+    /// Registry name of the method.
+    pub method: String,
+    /// On-disk format version of that method.
+    pub format_version: u32,
+    /// Parameters used, as given.
+    pub params: crate::Params,
+    /// Attributes stored.
+    pub attributes: Attributes,
+    /// Input samples.
+    pub points: u64,
+    /// The scene's description (spec string and content hash).
+    pub scene: String,
+}
+
+impl Manifest {
+    /// File name inside a build directory.
+    pub const FILE: &'static str = "method.json";
+
+    /// Writes the manifest into `dir`.
+    pub fn write(&self, dir: &Path) -> Result<(), MethodError> {
+        let path = dir.join(Self::FILE);
+        let text = serde_json::to_string_pretty(self).map_err(|e| {
+            MethodError::io(&path, std::io::Error::other(e))
+        })?;
+        std::fs::write(&path, text).map_err(|e| MethodError::io(&path, e))
+    }
+
+    /// Reads the manifest of `dir`.
+    pub fn read(dir: &Path) -> Result<Self, MethodError> {
+        let path = dir.join(Self::FILE);
+        let text = std::fs::read_to_string(&path).map_err(|e| MethodError::io(&path, e))?;
+        serde_json::from_str(&text).map_err(|e| MethodError::corrupt(&path, e.to_string()))
+    }
+}

@@ -1,0 +1,92 @@
+//! `--param key=value` pairs, turned into a method's typed parameters.
+//!
+//! Values are read as TOML values where they parse (`m=2048` is an integer, `occlusion=true`
+//! a bool, `kernel=circle` falls back to a string), then deserialised into the method's
+//! `#[serde(deny_unknown_fields)]` struct: a misspelt key is an error naming the key and the
+//! keys that exist, never a silent default.
+
+use std::collections::BTreeMap;
+
+use serde::de::DeserializeOwned;
+
+use crate::MethodError;
+
+/// Raw parameters, in the order given (keys unique).
+#[derive(Debug, Clone, Default, PartialEq, serde::Serialize, serde::Deserialize)]
+pub struct Params(pub BTreeMap<String, String>);
+
+impl Params {
+    /// Parses `key=value` strings; a missing `=`, an empty key or a repeated key is an error.
+    pub fn parse<S: AsRef<str>>(pairs: &[S]) -> Result<Self, MethodError> {
+        let mut map = BTreeMap::new();
+        for p in pairs {
+            let p = p.as_ref();
+            let (k, v) = p
+                .split_once('=')
+                .ok_or_else(|| MethodError::Param(format!("'{p}' is not key=value")))?;
+            let k = k.trim();
+            if k.is_empty() {
+                return Err(MethodError::Param(format!("'{p}' has an empty key")));
+            }
+            if map.insert(k.to_string(), v.trim().to_string()).is_some() {
+                return Err(MethodError::Param(format!("'{k}' given twice")));
+            }
+        }
+        Ok(Self(map))
+    }
+
+    /// Deserialises into `T` (which should use `deny_unknown_fields` and `default`).
+    pub fn to_typed<T: DeserializeOwned>(&self, method: &str) -> Result<T, MethodError> {
+        let mut table = toml::Table::new();
+        for (k, v) in &self.0 {
+            let value = format!("x = {v}")
+                .parse::<toml::Table>()
+                .ok()
+                .and_then(|mut t| t.remove("x"))
+                .unwrap_or_else(|| toml::Value::String(v.clone()));
+            table.insert(k.clone(), value);
+        }
+        T::deserialize(toml::Value::Table(table))
+            .map_err(|e| MethodError::Param(format!("method '{method}': {}", e.message())))
+    }
+
+    /// True if no parameter was given.
+    pub fn is_empty(&self) -> bool {
+        self.0.is_empty()
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[derive(Debug, serde::Deserialize, PartialEq, Default)]
+    #[serde(deny_unknown_fields, default)]
+    struct P {
+        m: u32,
+        kernel: String,
+        occlusion: bool,
+        scale: f32,
+    }
+
+    #[test]
+    fn typed_values_and_unknown_keys() {
+        let p = Params::parse(&["m=2048", "kernel=circle", "occlusion=true", "scale=0.5"]).unwrap();
+        let t: P = p.to_typed("x").unwrap();
+        assert_eq!(
+            t,
+            P {
+                m: 2048,
+                kernel: "circle".into(),
+                occlusion: true,
+                scale: 0.5
+            }
+        );
+        let e = Params::parse(&["mm=3"]).unwrap().to_typed::<P>("lpc").unwrap_err();
+        assert!(e.to_string().contains("unknown field `mm`"), "{e}");
+        let e = Params::parse(&["m=-3"]).unwrap().to_typed::<P>("lpc").unwrap_err();
+        assert!(e.to_string().contains("lpc"), "{e}");
+        assert!(Params::parse(&["novalue"]).is_err());
+        assert!(Params::parse(&["a=1", "a=2"]).is_err());
+    }
+}

@@ -1,0 +1,86 @@
+//! The one explicit list of methods. Adding a method = a variant here and one arm in each
+//! `match`; nothing registers itself.
+
+use std::path::Path;
+
+use scenes::{PointCloud, Progress};
+
+use crate::{BuildStats, LodMethod, Manifest, MethodError, Params, full};
+
+/// Every registered method.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Hash, clap::ValueEnum, serde::Serialize)]
+#[serde(rename_all = "lowercase")]
+pub enum MethodKind {
+    /// No LOD: every sample drawn with its own spacing. Also the full-resolution reference.
+    Full,
+}
+
+impl MethodKind {
+    /// All methods, in registry order.
+    pub const ALL: &'static [MethodKind] = &[MethodKind::Full];
+
+    /// The registry name (`--method` value, `method.json`).
+    pub fn name(self) -> &'static str {
+        match self {
+            MethodKind::Full => "full",
+        }
+    }
+
+    /// One line describing the method.
+    pub fn describe(self) -> &'static str {
+        match self {
+            MethodKind::Full => "no LOD: every sample as a splat of its own spacing (the reference)",
+        }
+    }
+
+    /// Looks a method up by registry name.
+    pub fn from_name(name: &str) -> Result<Self, MethodError> {
+        Self::ALL
+            .iter()
+            .copied()
+            .find(|k| k.name() == name)
+            .ok_or_else(|| {
+                let known: Vec<_> = Self::ALL.iter().map(|k| k.name()).collect();
+                MethodError::Param(format!(
+                    "unknown method '{name}' (known: {})",
+                    known.join(", ")
+                ))
+            })
+    }
+
+    /// Checks `params` against the method's parameter struct without building.
+    pub fn check_params(self, params: &Params) -> Result<(), MethodError> {
+        match self {
+            MethodKind::Full => params.to_typed::<full::FullParams>(self.name()).map(drop),
+        }
+    }
+
+    /// Builds the method's representation of `cloud` into `dir` (created if missing).
+    pub fn build(
+        self,
+        cloud: &PointCloud,
+        params: &Params,
+        scene: &str,
+        dir: &Path,
+        progress: &dyn Progress,
+    ) -> Result<BuildStats, MethodError> {
+        std::fs::create_dir_all(dir).map_err(|e| MethodError::io(dir, e))?;
+        match self {
+            MethodKind::Full => full::build(cloud, params, scene, dir, progress),
+        }
+    }
+
+    /// Opens a build directory written by [`MethodKind::build`] (of any method).
+    pub fn open(dir: &Path) -> Result<Box<dyn LodMethod>, MethodError> {
+        let manifest = Manifest::read(dir)?;
+        match Self::from_name(&manifest.method)? {
+            MethodKind::Full => Ok(Box::new(full::Full::open(dir, manifest)?)),
+        }
+    }
+}
+
+impl std::fmt::Display for MethodKind {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        f.write_str(self.name())
+    }
+}

@@ -1,0 +1,56 @@
+//! The one error type of the scenes crate. Every variant names what went wrong and where
+//! (file, element, field, index) so a user can fix their input.
+
+use std::path::PathBuf;
+
+/// Errors from building, reading or generating scenes.
+#[derive(Debug, thiserror::Error)]
+pub enum SceneError {
+    /// An I/O error on a named file.
+    #[error("{path}: {source}")]
+    Io {
+        /// The file.
+        path: PathBuf,
+        /// The underlying error.
+        source: std::io::Error,
+    },
+    /// A file whose contents do not follow its format.
+    #[error("{path}: {msg}")]
+    Format {
+        /// The file.
+        path: PathBuf,
+        /// What is wrong, naming the element/field/line.
+        msg: String,
+    },
+    /// A point cloud with invalid contents (NaN coordinates, mismatched columns, …).
+    #[error("invalid point cloud: {0}")]
+    InvalidCloud(String),
+    /// A scene specification that cannot be understood.
+    #[error("invalid scene '{spec}': {msg}")]
+    Spec {
+        /// The spec as given by the user.
+        spec: String,
+        /// What is wrong.
+        msg: String,
+    },
+    /// A camera path or keyframe file that cannot be used.
+    #[error("camera path: {0}")]
+    Path(String),
+}
+
+impl SceneError {
+    /// Shorthand for [`SceneError::Io`].
+    pub fn io(path: impl Into<PathBuf>, source: std::io::Error) -> Self {
+        Self::Io {
+            path: path.into(),
+            source,
+        }
+    }
+    /// Shorthand for [`SceneError::Format`].
+    pub fn format(path: impl Into<PathBuf>, msg: impl Into<String>) -> Self {
+        Self::Format {
+            path: path.into(),
+            msg: msg.into(),
+        }
+    }
+}

@@ -1,0 +1,1 @@
+//! Camera paths. STUB — to be implemented.

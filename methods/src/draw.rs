@@ -53,6 +53,27 @@ impl SplatBatch {
             radii: attrs.radii.then(|| Vec::with_capacity(capacity)),
         }
     }
+    /// The samples `range` of `cloud` with the given radii (one per sample of the cloud),
+    /// converted to the upload format. Only the columns the cloud has are filled.
+    pub fn from_cloud_range(
+        cloud: &scenes::PointCloud,
+        range: std::ops::Range<usize>,
+        radii: Option<&[f32]>,
+    ) -> Self {
+        Self {
+            positions: cloud.positions()[range.clone()].to_vec(),
+            normals: cloud.normals().map(|n| {
+                n[range.clone()]
+                    .iter()
+                    .map(|v| crate::octnormal::encode(glam::Vec3::from(*v)))
+                    .collect()
+            }),
+            colors: cloud
+                .colors()
+                .map(|c| c[range.clone()].iter().map(|c| pack_color(*c)).collect()),
+            radii: radii.map(|r| r[range].to_vec()),
+        }
+    }
     /// Number of splats.
     pub fn len(&self) -> usize {
         self.positions.len()

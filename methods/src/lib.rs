@@ -14,6 +14,7 @@
 pub mod draw;
 pub mod error;
 pub mod full;
+pub mod leaf;
 pub mod method;
 pub mod octnormal;
 pub mod params;

@@ -58,6 +58,21 @@ pub struct BuildStats {
 }
 
 impl BuildStats {
+    /// File name inside a build directory.
+    pub const FILE: &'static str = "build.json";
+
+    /// Writes `build.json` into `dir`.
+    pub fn write(&self, dir: &Path) -> Result<(), MethodError> {
+        write_json(&dir.join(Self::FILE), self)
+    }
+
+    /// Reads `build.json` from `dir`.
+    pub fn read(dir: &Path) -> Result<Self, MethodError> {
+        let path = dir.join(Self::FILE);
+        let text = std::fs::read_to_string(&path).map_err(|e| MethodError::io(&path, e))?;
+        serde_json::from_str(&text).map_err(|e| MethodError::corrupt(&path, e.to_string()))
+    }
+
     /// Fills the derived fields from the raw ones.
     pub fn finish(mut self) -> Self {
         self.bits_per_sample = if self.points_in > 0 {
@@ -109,11 +124,7 @@ impl Manifest {
 
     /// Writes the manifest into `dir`.
     pub fn write(&self, dir: &Path) -> Result<(), MethodError> {
-        let path = dir.join(Self::FILE);
-        let text = serde_json::to_string_pretty(self).map_err(|e| {
-            MethodError::io(&path, std::io::Error::other(e))
-        })?;
-        std::fs::write(&path, text).map_err(|e| MethodError::io(&path, e))
+        write_json(&dir.join(Self::FILE), self)
     }
 
     /// Reads the manifest of `dir`.
@@ -122,4 +133,14 @@ impl Manifest {
         let text = std::fs::read_to_string(&path).map_err(|e| MethodError::io(&path, e))?;
         serde_json::from_str(&text).map_err(|e| MethodError::corrupt(&path, e.to_string()))
     }
+}
+
+/// Writes `value` as pretty JSON to `path` through a temporary file and a rename, so a reader
+/// never sees a half-written file.
+pub fn write_json<T: serde::Serialize>(path: &Path, value: &T) -> Result<(), MethodError> {
+    let text =
+        serde_json::to_string_pretty(value).map_err(|e| MethodError::io(path, std::io::Error::other(e)))?;
+    let tmp = path.with_extension("json.tmp");
+    std::fs::write(&tmp, text).map_err(|e| MethodError::io(&tmp, e))?;
+    std::fs::rename(&tmp, path).map_err(|e| MethodError::io(path, e))
 }

@@ -65,9 +65,11 @@ impl MethodKind {
         progress: &dyn Progress,
     ) -> Result<BuildStats, MethodError> {
         std::fs::create_dir_all(dir).map_err(|e| MethodError::io(dir, e))?;
-        match self {
+        let stats = match self {
             MethodKind::Full => full::build(cloud, params, scene, dir, progress),
-        }
+        }?;
+        stats.write(dir)?;
+        Ok(stats)
     }
 
     /// Opens a build directory written by [`MethodKind::build`] (of any method).

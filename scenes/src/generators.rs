@@ -37,4 +37,9 @@ impl Generator {
         let _ = (n, seed);
         Err(SceneError::Path("not implemented".into()))
     }
+    /// Streams to a column file (STUB).
+    pub fn generate_to_file(self, n: usize, seed: u64, path: &std::path::Path, progress: &dyn crate::Progress) -> Result<PointCloud, SceneError> {
+        let _ = (n, seed, path, progress);
+        Err(SceneError::Path("not implemented".into()))
+    }
 }

@@ -18,6 +18,7 @@ pub mod cloud;
 pub mod colfile;
 pub mod error;
 pub mod generators;
+pub mod hash;
 pub mod las;
 pub mod paths;
 pub mod ply;

@@ -1,1 +1,326 @@
-fn main() {}
+//! `splatbench`: build LOD representations of point clouds, run them along camera paths on a
+//! GPU (wgpu; Mesa's lavapipe where there is none), and record speed and image error.
+//!
+//! Errors print as `Error: {:#}` (the whole context chain) and exit with status 1.
+
+use std::path::PathBuf;
+use std::time::Instant;
+
+use anyhow::{Context as _, bail};
+use clap::{Args, Parser, Subcommand};
+use harness::gpu::Gpu;
+use harness::render::{Kernel, RenderSettings};
+use harness::runner::{RunConfig, Summary};
+use methods::{MethodKind, Params, Target};
+use scenes::SceneSpec;
+use scenes::paths::PathSpec;
+
+/// The scene the demo uses: generated, so it needs no download.
+const DEMO_SCENE: &str = "statue:60000:1";
+
+#[derive(Parser)]
+#[command(name = "splatbench", version, about = "Benchmark harness for multiresolution point rendering (QSplat, SPT, LPC, MWKD)")]
+struct Cli {
+    #[command(subcommand)]
+    command: Command,
+}
+
+#[derive(Subcommand)]
+enum Command {
+    /// List methods, scene generators, camera paths and kernels.
+    List,
+    /// Build a method's representation of a scene into a directory.
+    Build {
+        #[command(flatten)]
+        method: MethodArgs,
+        #[command(flatten)]
+        scene: SceneArgs,
+        /// Output directory.
+        #[arg(long)]
+        out: PathBuf,
+        /// Cache directory for large generated scenes.
+        #[arg(long, default_value = "results/cache")]
+        cache: PathBuf,
+    },
+    /// Build, then run a camera path, writing frames.csv, summary.json and plots.
+    Run(RunArgs),
+    /// Plot run directories (timeline per run, one comparison across them).
+    Plot {
+        /// Run directories (each with frames.csv).
+        #[arg(required = true)]
+        dirs: Vec<PathBuf>,
+        /// Where the comparison plot goes (default: the first directory's parent).
+        #[arg(long)]
+        out: Option<PathBuf>,
+    },
+    /// Every registered method on the embedded scene along a short orbit: CSV + plots.
+    Demo {
+        /// Output directory.
+        #[arg(long, default_value = "results/demo")]
+        out: PathBuf,
+        /// Frames along the orbit.
+        #[arg(long, default_value_t = 24)]
+        frames: usize,
+    },
+}
+
+#[derive(Args, Clone)]
+struct MethodArgs {
+    /// Method.
+    #[arg(long, value_enum)]
+    method: MethodKind,
+    /// Method parameter, `key=value` (repeatable).
+    #[arg(long = "param", value_name = "KEY=VALUE")]
+    params: Vec<String>,
+}
+
+#[derive(Args, Clone)]
+struct SceneArgs {
+    /// Scene: `generator:points[:seed]` (e.g. statue:200000), or a .ply/.las/.laz/.sbc/.toml file.
+    #[arg(long)]
+    scene: String,
+    /// Resample a PLY mesh surface to this many points.
+    #[arg(long)]
+    sample: Option<usize>,
+    /// Seed for generators and resampling that do not name their own.
+    #[arg(long, default_value_t = 1)]
+    seed: u64,
+}
+
+#[derive(Args, Clone)]
+struct RenderArgs {
+    /// Image width, pixels.
+    #[arg(long, default_value_t = 512)]
+    width: u32,
+    /// Image height, pixels.
+    #[arg(long, default_value_t = 512)]
+    height: u32,
+    /// Splat kernel.
+    #[arg(long, value_enum, default_value = "square")]
+    kernel: KernelArg,
+    /// GPU chunk-cache budget, MiB.
+    #[arg(long, default_value_t = 512)]
+    gpu_cache_mb: u64,
+}
+
+#[derive(Clone, Copy, clap::ValueEnum)]
+enum KernelArg {
+    Square,
+    Circle,
+}
+
+#[derive(Args, Clone)]
+#[group(multiple = false)]
+struct TargetArgs {
+    /// Pixel tolerance (default 1).
+    #[arg(long, allow_negative_numbers = true)]
+    eps: Option<f32>,
+    /// Point budget per frame.
+    #[arg(long)]
+    budget: Option<u64>,
+}
+
+#[derive(Args, Clone)]
+struct RunArgs {
+    #[command(flatten)]
+    method: MethodArgs,
+    #[command(flatten)]
+    scene: SceneArgs,
+    #[command(flatten)]
+    render: RenderArgs,
+    #[command(flatten)]
+    target: TargetArgs,
+    /// Camera path: orbit, zoom, flythrough, or a keyframe .toml file.
+    #[arg(long, default_value = "orbit")]
+    path: String,
+    /// Frames along the path.
+    #[arg(long, default_value_t = 60)]
+    frames: usize,
+    /// Save every frame and its reference as PNG under images/.
+    #[arg(long)]
+    save_images: bool,
+    /// Skip the reference and the image metrics (speed only).
+    #[arg(long)]
+    no_metrics: bool,
+    /// Output directory.
+    #[arg(long)]
+    out: PathBuf,
+    /// Cache directory (large scenes, reference builds and images).
+    #[arg(long, default_value = "results/cache")]
+    cache: PathBuf,
+}
+
+fn main() {
+    if let Err(e) = real_main() {
+        eprintln!("Error: {e:#}");
+        std::process::exit(1);
+    }
+}
+
+fn real_main() -> anyhow::Result<()> {
+    let cli = Cli::parse();
+    match cli.command {
+        Command::List => list(),
+        Command::Build {
+            method,
+            scene,
+            out,
+            cache,
+        } => build(&method, &scene, &out, &cache),
+        Command::Run(args) => {
+            let gpu = open_gpu()?;
+            let cfg = run_config(&args)?;
+            let s = harness::runner::run(&cfg, &gpu, &harness::progress::Bar::new())?;
+            let plots = harness::plot::plot_run(&cfg.out)?;
+            print_summary(&s);
+            println!("wrote {}/frames.csv, summary.json and {} plot files", cfg.out.display(), plots.len());
+            Ok(())
+        }
+        Command::Plot { dirs, out } => {
+            for d in &dirs {
+                harness::plot::plot_run(d)?;
+            }
+            let out = out.unwrap_or_else(|| {
+                dirs[0]
+                    .parent()
+                    .map(PathBuf::from)
+                    .unwrap_or_else(|| PathBuf::from("."))
+            });
+            let files = harness::plot::plot_comparison(&dirs, &out)?;
+            for f in files {
+                println!("{}", f.display());
+            }
+            Ok(())
+        }
+        Command::Demo { out, frames } => demo(&out, frames),
+    }
+}
+
+fn list() -> anyhow::Result<()> {
+    println!("methods:");
+    for m in MethodKind::ALL {
+        println!("  {:<12} {}", m.name(), m.describe());
+    }
+    println!("scene generators (generator:points[:seed]):");
+    for g in scenes::generators::Generator::ALL {
+        println!("  {:<12} {}", g.name(), g.describe());
+    }
+    println!("camera paths (or a keyframe .toml file):");
+    for (name, what) in PathSpec::BUILTIN {
+        println!("  {name:<12} {what}");
+    }
+    println!("kernels:");
+    for k in Kernel::ALL {
+        println!("  {}", k.name());
+    }
+    Ok(())
+}
+
+fn build(m: &MethodArgs, s: &SceneArgs, out: &std::path::Path, cache: &std::path::Path) -> anyhow::Result<()> {
+    let params = Params::parse(&m.params)?;
+    m.method.check_params(&params)?;
+    let spec = SceneSpec::parse(&s.scene, s.sample, s.seed)?;
+    let bar = harness::progress::Bar::new();
+    let cloud = spec
+        .load(Some(cache), &bar)
+        .with_context(|| format!("loading scene '{}'", s.scene))?;
+    let stats = m.method.build(&cloud, &params, &spec.label(), out, &bar)?;
+    println!("{}", serde_json::to_string_pretty(&stats)?);
+    Ok(())
+}
+
+fn run_config(a: &RunArgs) -> anyhow::Result<RunConfig> {
+    let params = Params::parse(&a.method.params)?;
+    let target = match (a.target.eps, a.target.budget) {
+        (_, Some(b)) => Target::budget(b)?,
+        (e, None) => Target::tolerance(e.unwrap_or(1.0))?,
+    };
+    Ok(RunConfig {
+        method: a.method.method,
+        params,
+        scene: SceneSpec::parse(&a.scene.scene, a.scene.sample, a.scene.seed)?,
+        path: PathSpec::parse(&a.path)?,
+        frames: a.frames,
+        target,
+        render: RenderSettings {
+            width: a.render.width,
+            height: a.render.height,
+            kernel: match a.render.kernel {
+                KernelArg::Square => Kernel::Square,
+                KernelArg::Circle => Kernel::Circle,
+            },
+            cache_bytes: a.render.gpu_cache_mb.checked_mul(1 << 20).context("--gpu-cache-mb is too large")?,
+        },
+        seed: a.scene.seed,
+        save_images: a.save_images,
+        metrics: !a.no_metrics,
+        out: a.out.clone(),
+        cache: a.cache.clone(),
+    })
+}
+
+fn open_gpu() -> anyhow::Result<Gpu> {
+    match Gpu::new()? {
+        Some(g) => {
+            eprintln!("adapter: {} ({}, {})", g.adapter.name, g.adapter.backend, g.adapter.device_type);
+            Ok(g)
+        }
+        None => bail!(
+            "no GPU adapter found: install Mesa's software Vulkan driver (scripts/setup.sh: \
+             mesa-vulkan-drivers libvulkan1) or run on a machine with a GPU"
+        ),
+    }
+}
+
+fn print_summary(s: &Summary) {
+    let f = |v: Option<f64>| v.map(|v| format!("{v:.4}")).unwrap_or_else(|| "-".into());
+    println!(
+        "{:<8} {:<22} frames {:>4}  points {:>10}  {} ms {:>8}  splats/s {:>12}  flip {:>7}  holes {:>7}",
+        s.method,
+        s.scene.label,
+        s.frames,
+        f(s.medians.points_drawn),
+        s.splats_per_s_basis,
+        f(s.medians.gpu_ms.or(s.medians.wall_ms)),
+        f(s.medians.splats_per_s),
+        f(s.medians.flip_mean),
+        f(s.medians.hole_ratio),
+    );
+}
+
+fn demo(out: &std::path::Path, frames: usize) -> anyhow::Result<()> {
+    let t0 = Instant::now();
+    let gpu = open_gpu()?;
+    let bar = harness::progress::Bar::new();
+    let mut dirs = Vec::new();
+    println!("demo: every method on the embedded scene {DEMO_SCENE}, {frames} frames of orbit, 512x512, eps 1 px");
+    for m in MethodKind::ALL {
+        let dir = out.join(m.name());
+        let cfg = RunConfig {
+            method: *m,
+            params: Params::default(),
+            scene: SceneSpec::parse(DEMO_SCENE, None, 1)?,
+            path: PathSpec::parse("orbit")?,
+            frames,
+            target: Target::tolerance(1.0)?,
+            render: RenderSettings::default(),
+            seed: 1,
+            save_images: false,
+            metrics: true,
+            out: dir.clone(),
+            cache: out.join("cache"),
+        };
+        let s = harness::runner::run(&cfg, &gpu, &bar)?;
+        harness::plot::plot_run(&dir)?;
+        print_summary(&s);
+        dirs.push(dir);
+    }
+    let files = harness::plot::plot_comparison(&dirs, out)?;
+    println!(
+        "demo done in {:.1} s: {} run directories, comparison plots {}",
+        t0.elapsed().as_secs_f64(),
+        dirs.len(),
+        files.iter().map(|f| f.display().to_string()).collect::<Vec<_>>().join(", ")
+    );
+    Ok(())
+}

@@ -1,0 +1,106 @@
+//! The GPU context: one adapter, device and queue, found the way wgpu's examples do
+//! (`WGPU_BACKEND`, `WGPU_ADAPTER_NAME` honoured). On a machine without a GPU, Mesa's
+//! lavapipe (software Vulkan) is the adapter; with none at all, [`Gpu::new`] returns `None`
+//! and callers say so (tests print "skipped: no adapter").
+
+use anyhow::Context as _;
+
+/// What results files record about the adapter.
+#[derive(Debug, Clone, PartialEq, serde::Serialize, serde::Deserialize)]
+pub struct AdapterDesc {
+    /// Adapter name, e.g. `llvmpipe (LLVM 15.0.6, 256 bits)`.
+    pub name: String,
+    /// Backend (Vulkan, Gl, …).
+    pub backend: String,
+    /// Device type (Cpu, DiscreteGpu, …).
+    pub device_type: String,
+    /// Driver name.
+    pub driver: String,
+    /// Driver version string.
+    pub driver_info: String,
+}
+
+/// An opened device.
+pub struct Gpu {
+    /// The device.
+    pub device: wgpu::Device,
+    /// Its queue.
+    pub queue: wgpu::Queue,
+    /// What it is.
+    pub adapter: AdapterDesc,
+    /// Whether timestamp queries are available (GPU time per frame).
+    pub timestamps: bool,
+    /// The device's limits (the adapter's best).
+    pub limits: wgpu::Limits,
+}
+
+impl Gpu {
+    /// Opens the default adapter, or `Ok(None)` when the machine has none.
+    pub fn new() -> anyhow::Result<Option<Gpu>> {
+        let instance =
+            wgpu::Instance::new(wgpu::InstanceDescriptor::new_without_display_handle_from_env());
+        let Ok(adapter) =
+            pollster::block_on(wgpu::util::initialize_adapter_from_env_or_default(&instance, None))
+        else {
+            return Ok(None);
+        };
+        let info = adapter.get_info();
+        let timestamps = adapter.features().contains(wgpu::Features::TIMESTAMP_QUERY);
+        let mut features = wgpu::Features::empty();
+        if timestamps {
+            features |= wgpu::Features::TIMESTAMP_QUERY;
+        }
+        let limits = adapter.limits();
+        let (device, queue) = pollster::block_on(adapter.request_device(&wgpu::DeviceDescriptor {
+            label: Some("splatbench"),
+            required_features: features,
+            required_limits: limits.clone(),
+            ..Default::default()
+        }))
+        .with_context(|| format!("opening a device on adapter '{}'", info.name))?;
+        Ok(Some(Gpu {
+            device,
+            queue,
+            adapter: AdapterDesc {
+                name: info.name,
+                backend: format!("{:?}", info.backend),
+                device_type: format!("{:?}", info.device_type),
+                driver: info.driver,
+                driver_info: info.driver_info,
+            },
+            timestamps,
+            limits,
+        }))
+    }
+
+    /// Waits until all submitted work is done.
+    pub fn wait(&self) -> anyhow::Result<()> {
+        self.device
+            .poll(wgpu::PollType::wait_indefinitely())
+            .context("waiting for the GPU")?;
+        Ok(())
+    }
+}
+
+/// Environment variable that turns "no adapter" in tests from a loud skip into a failure.
+/// CI sets it: lavapipe is installed there, so a missing adapter is a broken machine.
+pub const REQUIRE_GPU_ENV: &str = "SPLATBENCH_REQUIRE_GPU";
+
+/// For tests: the GPU, or `None` after printing a loud "skipped: no adapter" line — unless
+/// [`REQUIRE_GPU_ENV`] is `1`, in which case a missing adapter fails the test.
+pub fn gpu_for_test(test: &str) -> Option<Gpu> {
+    match Gpu::new() {
+        Ok(Some(g)) => Some(g),
+        other => {
+            let why = match other {
+                Err(e) => format!("{e:#}"),
+                _ => "no adapter".into(),
+            };
+            if std::env::var(REQUIRE_GPU_ENV).as_deref() == Ok("1") {
+                panic!("{test}: {why}, and {REQUIRE_GPU_ENV}=1 requires one");
+            }
+            eprintln!("\n*** {test}: skipped: no adapter ({why}) ***\n");
+            None
+        }
+    }
+}

@@ -1,0 +1,668 @@
+//! The headless splat renderer.
+//!
+//! Draws a [`DrawList`] into an offscreen RGBA8 colour target (sRGB-encoded values, alpha = 1
+//! where a splat landed, 0 = background) with a Depth32Float depth test. Splats are instanced
+//! screen-aligned quads (square, or circle by discarding outside the unit disk), sized per
+//! draw in pixels or per splat from the object-space radius (`splat.wgsl`).
+//!
+//! Chunks live in an [`LruCache`] of GPU buffers with a byte budget: a chunk missing from the
+//! cache is decoded by the method and uploaded (counted in `upload_bytes`); streams are
+//! uploaded every frame. GPU time comes from timestamp queries around the render pass (when
+//! the adapter has them); wall time spans upload + encode + submit + wait, excluding the
+//! readback that only metrics need.
+
+pub mod cpu;
+
+use std::collections::HashSet;
+use std::time::Instant;
+
+use anyhow::{Context as _, bail};
+use methods::{ChunkId, DrawItem, DrawList, LodMethod, SplatBatch, SplatSize};
+use scenes::{Attributes, View};
+use wgpu::util::DeviceExt as _;
+
+use crate::cache::LruCache;
+use crate::gpu::Gpu;
+use crate::image::Image;
+
+/// Splat shape.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Default, serde::Serialize, serde::Deserialize)]
+#[serde(rename_all = "lowercase")]
+pub enum Kernel {
+    /// Screen-aligned square (the fastest; QSplat's default).
+    #[default]
+    Square,
+    /// Opaque circle.
+    Circle,
+}
+
+impl Kernel {
+    /// All kernels.
+    pub const ALL: &'static [Kernel] = &[Kernel::Square, Kernel::Circle];
+    /// Name.
+    pub fn name(self) -> &'static str {
+        match self {
+            Kernel::Square => "square",
+            Kernel::Circle => "circle",
+        }
+    }
+}
+
+/// Fixed settings of a renderer.
+#[derive(Debug, Clone, Copy, PartialEq, serde::Serialize)]
+pub struct RenderSettings {
+    /// Target width, pixels.
+    pub width: u32,
+    /// Target height, pixels.
+    pub height: u32,
+    /// Splat shape.
+    pub kernel: Kernel,
+    /// GPU chunk cache budget, bytes.
+    pub cache_bytes: u64,
+}
+
+impl Default for RenderSettings {
+    fn default() -> Self {
+        Self {
+            width: 512,
+            height: 512,
+            kernel: Kernel::Square,
+            cache_bytes: 512 << 20,
+        }
+    }
+}
+
+/// Ambient term of the Lambert shading.
+pub const AMBIENT: f32 = 0.25;
+/// Linear RGB of splats in scenes without colour.
+pub const BASE_COLOR: [f32; 3] = [0.8, 0.8, 0.8];
+
+/// `Frame` uniform of `splat.wgsl`.
+#[repr(C)]
+#[derive(Debug, Clone, Copy, bytemuck::Pod, bytemuck::Zeroable)]
+pub struct FrameUniform {
+    /// offset 0
+    pub view_proj: [[f32; 4]; 4],
+    /// offset 64
+    pub eye: [f32; 3],
+    /// offset 76
+    pub proj_scale: f32,
+    /// offset 80
+    pub viewport: [f32; 2],
+    /// offset 88
+    pub ambient: f32,
+    /// offset 92
+    pub _pad0: f32,
+    /// offset 96
+    pub base_color: [f32; 4],
+}
+const _: () = assert!(std::mem::size_of::<FrameUniform>() == 112);
+
+/// `Draw` uniform of `splat.wgsl`.
+#[repr(C)]
+#[derive(Debug, Clone, Copy, bytemuck::Pod, bytemuck::Zeroable)]
+pub struct DrawUniform {
+    /// offset 0
+    pub size_px: f32,
+    /// offset 4
+    pub radius_scale: f32,
+    /// offset 8
+    pub min_px: f32,
+    /// offset 12
+    pub mode: u32,
+    /// offset 16
+    pub flags: u32,
+    /// offset 20
+    pub _pad: [u32; 3],
+}
+const _: () = assert!(std::mem::size_of::<DrawUniform>() == 32);
+
+impl DrawUniform {
+    /// The uniform for a splat size and the attributes present.
+    pub fn new(size: SplatSize, attrs: Attributes) -> Self {
+        let flags = attrs.normals as u32 | (attrs.colors as u32) << 1 | (attrs.radii as u32) << 2;
+        match size {
+            SplatSize::Pixels(px) => Self {
+                size_px: px,
+                radius_scale: 0.0,
+                min_px: 0.0,
+                mode: 0,
+                flags,
+                _pad: [0; 3],
+            },
+            SplatSize::Radius { scale, min_px } => Self {
+                size_px: 0.0,
+                radius_scale: scale,
+                min_px,
+                mode: 1,
+                flags,
+                _pad: [0; 3],
+            },
+        }
+    }
+}
+
+/// GPU buffers of one batch and their bind group.
+struct GpuBatch {
+    bind_group: wgpu::BindGroup,
+    len: u32,
+    attrs: Attributes,
+    _buffers: Vec<wgpu::Buffer>,
+}
+
+/// What one frame cost.
+#[derive(Debug, Clone, Copy, Default, PartialEq, serde::Serialize)]
+pub struct FrameStats {
+    /// Splats drawn.
+    pub points: u64,
+    /// Cached chunks drawn.
+    pub chunks: u64,
+    /// GPU time of the render pass (timestamps), if available.
+    pub gpu_ms: Option<f64>,
+    /// Upload + encode + submit + wait.
+    pub wall_ms: f64,
+    /// Bytes uploaded this frame (missing chunks + streams).
+    pub upload_bytes: u64,
+    /// Bytes in the chunk cache after the frame.
+    pub cache_bytes: u64,
+}
+
+struct Timestamps {
+    set: wgpu::QuerySet,
+    resolve: wgpu::Buffer,
+    readback: wgpu::Buffer,
+    period_ns: f64,
+}
+
+/// The renderer.
+pub struct Renderer<'g> {
+    gpu: &'g Gpu,
+    settings: RenderSettings,
+    color: wgpu::Texture,
+    color_view: wgpu::TextureView,
+    depth_view: wgpu::TextureView,
+    pipeline: wgpu::RenderPipeline,
+    frame_ubo: wgpu::Buffer,
+    draw_ubo: wgpu::Buffer,
+    draw_capacity: u64,
+    bgl0: wgpu::BindGroupLayout,
+    bgl1: wgpu::BindGroupLayout,
+    dummy: wgpu::Buffer,
+    cache: LruCache<ChunkId, GpuBatch>,
+    timestamps: Option<Timestamps>,
+    draw_stride: u64,
+}
+
+/// Colour target format.
+pub const COLOR_FORMAT: wgpu::TextureFormat = wgpu::TextureFormat::Rgba8Unorm;
+const DEPTH_FORMAT: wgpu::TextureFormat = wgpu::TextureFormat::Depth32Float;
+
+impl<'g> Renderer<'g> {
+    /// Creates targets and pipelines.
+    pub fn new(gpu: &'g Gpu, settings: RenderSettings) -> anyhow::Result<Self> {
+        let d = &gpu.device;
+        let max = gpu.limits.max_texture_dimension_2d;
+        if settings.width == 0 || settings.height == 0 || settings.width > max || settings.height > max {
+            bail!(
+                "--width/--height {}x{} must be between 1 and {max} on adapter '{}'",
+                settings.width,
+                settings.height,
+                gpu.adapter.name
+            );
+        }
+        let size = wgpu::Extent3d {
+            width: settings.width,
+            height: settings.height,
+            depth_or_array_layers: 1,
+        };
+        let color = d.create_texture(&wgpu::TextureDescriptor {
+            label: Some("color"),
+            size,
+            mip_level_count: 1,
+            sample_count: 1,
+            dimension: wgpu::TextureDimension::D2,
+            format: COLOR_FORMAT,
+            usage: wgpu::TextureUsages::RENDER_ATTACHMENT | wgpu::TextureUsages::COPY_SRC,
+            view_formats: &[],
+        });
+        let depth = d.create_texture(&wgpu::TextureDescriptor {
+            label: Some("depth"),
+            size,
+            mip_level_count: 1,
+            sample_count: 1,
+            dimension: wgpu::TextureDimension::D2,
+            format: DEPTH_FORMAT,
+            usage: wgpu::TextureUsages::RENDER_ATTACHMENT,
+            view_formats: &[],
+        });
+        let uniform = |binding, dynamic, size: u64| wgpu::BindGroupLayoutEntry {
+            binding,
+            visibility: wgpu::ShaderStages::VERTEX,
+            ty: wgpu::BindingType::Buffer {
+                ty: wgpu::BufferBindingType::Uniform,
+                has_dynamic_offset: dynamic,
+                min_binding_size: wgpu::BufferSize::new(size),
+            },
+            count: None,
+        };
+        let bgl0 = d.create_bind_group_layout(&wgpu::BindGroupLayoutDescriptor {
+            label: Some("frame+draw"),
+            entries: &[
+                uniform(0, false, std::mem::size_of::<FrameUniform>() as u64),
+                uniform(1, true, std::mem::size_of::<DrawUniform>() as u64),
+            ],
+        });
+        let storage = |binding| wgpu::BindGroupLayoutEntry {
+            binding,
+            visibility: wgpu::ShaderStages::VERTEX,
+            ty: wgpu::BindingType::Buffer {
+                ty: wgpu::BufferBindingType::Storage { read_only: true },
+                has_dynamic_offset: false,
+                min_binding_size: None,
+            },
+            count: None,
+        };
+        let bgl1 = d.create_bind_group_layout(&wgpu::BindGroupLayoutDescriptor {
+            label: Some("splat columns"),
+            entries: &[storage(0), storage(1), storage(2), storage(3)],
+        });
+        let layout = d.create_pipeline_layout(&wgpu::PipelineLayoutDescriptor {
+            label: Some("splat"),
+            bind_group_layouts: &[Some(&bgl0), Some(&bgl1)],
+            immediate_size: 0,
+        });
+        let module = d.create_shader_module(wgpu::include_wgsl!("splat.wgsl"));
+        let pipeline = d.create_render_pipeline(&wgpu::RenderPipelineDescriptor {
+            label: Some("splat"),
+            layout: Some(&layout),
+            vertex: wgpu::VertexState {
+                module: &module,
+                entry_point: Some("vs_main"),
+                compilation_options: Default::default(),
+                buffers: &[],
+            },
+            primitive: wgpu::PrimitiveState::default(),
+            depth_stencil: Some(wgpu::DepthStencilState {
+                format: DEPTH_FORMAT,
+                depth_write_enabled: Some(true),
+                depth_compare: Some(wgpu::CompareFunction::Less),
+                stencil: Default::default(),
+                bias: Default::default(),
+            }),
+            multisample: Default::default(),
+            fragment: Some(wgpu::FragmentState {
+                module: &module,
+                entry_point: Some(match settings.kernel {
+                    Kernel::Square => "fs_square",
+                    Kernel::Circle => "fs_circle",
+                }),
+                compilation_options: Default::default(),
+                targets: &[Some(wgpu::ColorTargetState {
+                    format: COLOR_FORMAT,
+                    blend: None,
+                    write_mask: wgpu::ColorWrites::ALL,
+                })],
+            }),
+            multiview_mask: None,
+            cache: None,
+        });
+        let frame_ubo = d.create_buffer(&wgpu::BufferDescriptor {
+            label: Some("frame"),
+            size: std::mem::size_of::<FrameUniform>() as u64,
+            usage: wgpu::BufferUsages::UNIFORM | wgpu::BufferUsages::COPY_DST,
+            mapped_at_creation: false,
+        });
+        let draw_stride = (gpu.limits.min_uniform_buffer_offset_alignment as u64)
+            .max(std::mem::size_of::<DrawUniform>() as u64);
+        let draw_capacity = 256;
+        let draw_ubo = Self::draw_buffer(d, draw_stride * draw_capacity);
+        let dummy = d.create_buffer(&wgpu::BufferDescriptor {
+            label: Some("absent attribute"),
+            size: 16,
+            usage: wgpu::BufferUsages::STORAGE,
+            mapped_at_creation: false,
+        });
+        let timestamps = gpu.timestamps.then(|| Timestamps {
+            set: d.create_query_set(&wgpu::QuerySetDescriptor {
+                label: Some("frame timestamps"),
+                ty: wgpu::QueryType::Timestamp,
+                count: 2,
+            }),
+            resolve: d.create_buffer(&wgpu::BufferDescriptor {
+                label: Some("timestamp resolve"),
+                size: 16,
+                usage: wgpu::BufferUsages::QUERY_RESOLVE | wgpu::BufferUsages::COPY_SRC,
+                mapped_at_creation: false,
+            }),
+            readback: d.create_buffer(&wgpu::BufferDescriptor {
+                label: Some("timestamp readback"),
+                size: 16,
+                usage: wgpu::BufferUsages::MAP_READ | wgpu::BufferUsages::COPY_DST,
+                mapped_at_creation: false,
+            }),
+            period_ns: gpu.queue.get_timestamp_period() as f64,
+        });
+        Ok(Self {
+            gpu,
+            settings,
+            color_view: color.create_view(&Default::default()),
+            color,
+            depth_view: depth.create_view(&Default::default()),
+            pipeline,
+            frame_ubo,
+            draw_ubo,
+            draw_capacity,
+            bgl0,
+            bgl1,
+            dummy,
+            cache: LruCache::new(settings.cache_bytes),
+            timestamps,
+            draw_stride,
+        })
+    }
+
+    fn draw_buffer(d: &wgpu::Device, size: u64) -> wgpu::Buffer {
+        d.create_buffer(&wgpu::BufferDescriptor {
+            label: Some("draws"),
+            size,
+            usage: wgpu::BufferUsages::UNIFORM | wgpu::BufferUsages::COPY_DST,
+            mapped_at_creation: false,
+        })
+    }
+
+    /// The settings.
+    pub fn settings(&self) -> RenderSettings {
+        self.settings
+    }
+
+    /// Chunks resident in the GPU cache.
+    pub fn cached(&self) -> HashSet<ChunkId> {
+        self.cache.keys().copied().collect()
+    }
+
+    /// Drops every cached chunk (e.g. between methods).
+    pub fn clear_cache(&mut self) {
+        self.cache.clear();
+    }
+
+    fn upload(&self, batch: &SplatBatch) -> anyhow::Result<GpuBatch> {
+        batch.validate()?;
+        let d = &self.gpu.device;
+        let max = self.gpu.limits.max_storage_buffer_binding_size as u64;
+        let pos_bytes = batch.len() as u64 * 12;
+        if pos_bytes > max {
+            bail!(
+                "a batch of {} splats needs {pos_bytes} bytes of positions, over the adapter's \
+                 storage binding limit of {max} bytes: the method must split it",
+                batch.len()
+            );
+        }
+        let mut buffers = Vec::with_capacity(4);
+        let mut make = |label: &str, bytes: &[u8]| -> usize {
+            // Empty batches still need a non-empty buffer to bind.
+            let contents: &[u8] = if bytes.is_empty() { &[0u8; 16] } else { bytes };
+            buffers.push(d.create_buffer_init(&wgpu::util::BufferInitDescriptor {
+                label: Some(label),
+                contents,
+                usage: wgpu::BufferUsages::STORAGE,
+            }));
+            buffers.len() - 1
+        };
+        let pos = make("positions", bytemuck::cast_slice(&batch.positions));
+        let nrm = batch.normals.as_ref().map(|v| make("normals", bytemuck::cast_slice(v)));
+        let col = batch.colors.as_ref().map(|v| make("colors", bytemuck::cast_slice(v)));
+        let rad = batch.radii.as_ref().map(|v| make("radii", bytemuck::cast_slice(v)));
+        let buf = |i: Option<usize>| i.map(|i| &buffers[i]).unwrap_or(&self.dummy);
+        let entries: Vec<_> = [Some(pos), nrm, col, rad]
+            .into_iter()
+            .enumerate()
+            .map(|(b, i)| wgpu::BindGroupEntry {
+                binding: b as u32,
+                resource: buf(i).as_entire_binding(),
+            })
+            .collect();
+        let bind_group = d.create_bind_group(&wgpu::BindGroupDescriptor {
+            label: Some("splat columns"),
+            layout: &self.bgl1,
+            entries: &entries,
+        });
+        Ok(GpuBatch {
+            bind_group,
+            len: batch.len() as u32,
+            attrs: batch.attributes(),
+            _buffers: buffers,
+        })
+    }
+
+    /// Draws `list` for `view`, decoding missing chunks through `method`. Returns the frame's
+    /// costs and, when `readback` is set, the image.
+    pub fn draw(
+        &mut self,
+        view: &View,
+        list: &DrawList,
+        method: &dyn LodMethod,
+        readback: bool,
+    ) -> anyhow::Result<(FrameStats, Option<Image>)> {
+        if view.width != self.settings.width || view.height != self.settings.height {
+            bail!(
+                "view is {}x{} but the renderer was made for {}x{}",
+                view.width,
+                view.height,
+                self.settings.width,
+                self.settings.height
+            );
+        }
+        let t0 = Instant::now();
+        self.cache.begin_frame();
+        let mut stats = FrameStats::default();
+        // Upload what is missing; streams get their own buffers this frame.
+        let mut streams = Vec::new();
+        for item in &list.items {
+            match item {
+                DrawItem::Chunk { id, .. } => {
+                    if self.cache.get(id).is_none() {
+                        let batch = method
+                            .chunk(*id)
+                            .with_context(|| format!("decoding chunk {id}"))?;
+                        let bytes = batch.byte_size();
+                        let g = self.upload(&batch)?;
+                        stats.upload_bytes += bytes;
+                        self.cache.insert(*id, g, bytes);
+                    }
+                }
+                DrawItem::Stream { batch, .. } => {
+                    stats.upload_bytes += batch.byte_size();
+                    streams.push(self.upload(batch)?);
+                }
+            }
+        }
+        // Per-draw uniforms.
+        let n = list.items.len() as u64;
+        if n > self.draw_capacity {
+            self.draw_capacity = n.next_power_of_two();
+            self.draw_ubo = Self::draw_buffer(&self.gpu.device, self.draw_stride * self.draw_capacity);
+        }
+        let mut draws = vec![0u8; (self.draw_stride * n.max(1)) as usize];
+        let mut resolved: Vec<(&GpuBatch, u32)> = Vec::with_capacity(list.items.len());
+        let mut s = streams.iter();
+        for (i, item) in list.items.iter().enumerate() {
+            let (g, count, size) = match item {
+                DrawItem::Chunk { id, points, size } => {
+                    let g = self
+                        .cache
+                        .peek(id)
+                        .with_context(|| format!("chunk {id} vanished from the cache"))?;
+                    stats.chunks += 1;
+                    (g, (*points).min(g.len), *size)
+                }
+                DrawItem::Stream { size, .. } => {
+                    let g = s.next().context("stream buffers out of step")?;
+                    (g, g.len, *size)
+                }
+            };
+            if matches!(size, SplatSize::Radius { .. }) && !g.attrs.radii {
+                bail!("draw item {i} asks for per-splat radii but its splats carry none");
+            }
+            let u = DrawUniform::new(size, g.attrs);
+            let off = i * self.draw_stride as usize;
+            draws[off..off + 32].copy_from_slice(bytemuck::bytes_of(&u));
+            stats.points += count as u64;
+            resolved.push((g, count));
+        }
+        let q = &self.gpu.queue;
+        q.write_buffer(&self.frame_ubo, 0, bytemuck::bytes_of(&frame_uniform(view)));
+        q.write_buffer(&self.draw_ubo, 0, &draws);
+        let bg0 = self.gpu.device.create_bind_group(&wgpu::BindGroupDescriptor {
+            label: Some("frame+draw"),
+            layout: &self.bgl0,
+            entries: &[
+                wgpu::BindGroupEntry {
+                    binding: 0,
+                    resource: self.frame_ubo.as_entire_binding(),
+                },
+                wgpu::BindGroupEntry {
+                    binding: 1,
+                    resource: wgpu::BindingResource::Buffer(wgpu::BufferBinding {
+                        buffer: &self.draw_ubo,
+                        offset: 0,
+                        size: wgpu::BufferSize::new(32),
+                    }),
+                },
+            ],
+        });
+        let mut enc = self.gpu.device.create_command_encoder(&Default::default());
+        {
+            let mut pass = enc.begin_render_pass(&wgpu::RenderPassDescriptor {
+                label: Some("splats"),
+                color_attachments: &[Some(wgpu::RenderPassColorAttachment {
+                    view: &self.color_view,
+                    depth_slice: None,
+                    resolve_target: None,
+                    ops: wgpu::Operations {
+                        load: wgpu::LoadOp::Clear(wgpu::Color::TRANSPARENT),
+                        store: wgpu::StoreOp::Store,
+                    },
+                })],
+                depth_stencil_attachment: Some(wgpu::RenderPassDepthStencilAttachment {
+                    view: &self.depth_view,
+                    depth_ops: Some(wgpu::Operations {
+                        load: wgpu::LoadOp::Clear(1.0),
+                        store: wgpu::StoreOp::Discard,
+                    }),
+                    stencil_ops: None,
+                }),
+                timestamp_writes: self.timestamps.as_ref().map(|t| wgpu::RenderPassTimestampWrites {
+                    query_set: &t.set,
+                    beginning_of_pass_write_index: Some(0),
+                    end_of_pass_write_index: Some(1),
+                }),
+                occlusion_query_set: None,
+                multiview_mask: None,
+            });
+            pass.set_pipeline(&self.pipeline);
+            for (i, (g, count)) in resolved.iter().enumerate() {
+                if *count == 0 {
+                    continue;
+                }
+                pass.set_bind_group(0, &bg0, &[(i as u64 * self.draw_stride) as u32]);
+                pass.set_bind_group(1, &g.bind_group, &[]);
+                pass.draw(0..6, 0..*count);
+            }
+        }
+        if let Some(t) = &self.timestamps {
+            enc.resolve_query_set(&t.set, 0..2, &t.resolve, 0);
+            enc.copy_buffer_to_buffer(&t.resolve, 0, &t.readback, 0, 16);
+        }
+        q.submit([enc.finish()]);
+        self.gpu.wait()?;
+        stats.wall_ms = t0.elapsed().as_secs_f64() * 1e3;
+        if let Some(t) = &self.timestamps {
+            let ts: [u64; 2] = read_buffer(self.gpu, &t.readback, 16)
+                .map(|b| bytemuck::pod_read_unaligned(&b[..16]))?;
+            stats.gpu_ms = Some(ts[1].saturating_sub(ts[0]) as f64 * t.period_ns / 1e6);
+        }
+        drop(resolved);
+        drop(streams);
+        stats.cache_bytes = self.cache.bytes();
+        let image = if readback { Some(self.read_color()?) } else { None };
+        Ok((stats, image))
+    }
+
+    /// Reads the colour target back.
+    pub fn read_color(&self) -> anyhow::Result<Image> {
+        let (w, h) = (self.settings.width, self.settings.height);
+        let row = w * 4;
+        let padded = row.div_ceil(wgpu::COPY_BYTES_PER_ROW_ALIGNMENT) * wgpu::COPY_BYTES_PER_ROW_ALIGNMENT;
+        let size = padded as u64 * h as u64;
+        let buf = self.gpu.device.create_buffer(&wgpu::BufferDescriptor {
+            label: Some("color readback"),
+            size,
+            usage: wgpu::BufferUsages::MAP_READ | wgpu::BufferUsages::COPY_DST,
+            mapped_at_creation: false,
+        });
+        let mut enc = self.gpu.device.create_command_encoder(&Default::default());
+        enc.copy_texture_to_buffer(
+            wgpu::TexelCopyTextureInfo {
+                texture: &self.color,
+                mip_level: 0,
+                origin: wgpu::Origin3d::ZERO,
+                aspect: wgpu::TextureAspect::All,
+            },
+            wgpu::TexelCopyBufferInfo {
+                buffer: &buf,
+                layout: wgpu::TexelCopyBufferLayout {
+                    offset: 0,
+                    bytes_per_row: Some(padded),
+                    rows_per_image: Some(h),
+                },
+            },
+            wgpu::Extent3d {
+                width: w,
+                height: h,
+                depth_or_array_layers: 1,
+            },
+        );
+        self.gpu.queue.submit([enc.finish()]);
+        let bytes = read_buffer(self.gpu, &buf, size)?;
+        let mut rgba = Vec::with_capacity((row * h) as usize);
+        for y in 0..h as usize {
+            let start = y * padded as usize;
+            rgba.extend_from_slice(&bytes[start..start + row as usize]);
+        }
+        Ok(Image {
+            width: w,
+            height: h,
+            rgba,
+        })
+    }
+}
+
+/// The `Frame` uniform for a view.
+pub fn frame_uniform(view: &View) -> FrameUniform {
+    FrameUniform {
+        view_proj: view.view_proj().to_cols_array_2d(),
+        eye: view.camera.position.into(),
+        proj_scale: view.proj_scale(),
+        viewport: [view.width as f32, view.height as f32],
+        ambient: AMBIENT,
+        _pad0: 0.0,
+        base_color: [BASE_COLOR[0], BASE_COLOR[1], BASE_COLOR[2], 1.0],
+    }
+}
+
+fn read_buffer(gpu: &Gpu, buf: &wgpu::Buffer, size: u64) -> anyhow::Result<Vec<u8>> {
+    let (tx, rx) = std::sync::mpsc::channel();
+    buf.map_async(wgpu::MapMode::Read, 0..size, move |r| {
+        let _ = tx.send(r);
+    });
+    gpu.wait()?;
+    rx.recv()
+        .context("buffer map callback dropped")?
+        .context("mapping a readback buffer")?;
+    let bytes = buf
+        .get_mapped_range(0..size)
+        .context("reading a mapped buffer")?
+        .to_vec();
+    buf.unmap();
+    Ok(bytes)
+}

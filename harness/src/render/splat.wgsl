@@ -1,0 +1,116 @@
+// Instanced screen-aligned quad splats with vertex pulling.
+//
+// One instance = one splat; six vertices (two triangles) per instance. Attributes come from
+// storage buffers so that a scene without normals, colours or radii uploads none: the absent
+// bindings point at a 16-byte dummy buffer and `draw.flags` says which are real.
+// Mirrored on the CPU by `render::cpu` (splat size, shading) and checked by tests.
+
+struct Frame {
+    view_proj: mat4x4<f32>, // offset 0
+    eye: vec3<f32>,         // offset 64
+    proj_scale: f32,        // offset 76: k = height / (2 tan(fov_y/2))
+    viewport: vec2<f32>,    // offset 80
+    ambient: f32,           // offset 88
+    _pad0: f32,             // offset 92
+    base_color: vec4<f32>,  // offset 96: linear RGB used when the scene has no colour
+}                           // size 112
+
+struct Draw {
+    size_px: f32,      // offset 0: mode 0, splat size in pixels
+    radius_scale: f32, // offset 4: mode 1, multiplier on the stored radius
+    min_px: f32,       // offset 8: mode 1, smallest size in pixels
+    mode: u32,         // offset 12: 0 = pixels, 1 = per-splat radius
+    flags: u32,        // offset 16: bit 0 normals, bit 1 colours, bit 2 radii
+    _p0: u32,          // offset 20
+    _p1: u32,          // offset 24
+    _p2: u32,          // offset 28
+}                      // size 32
+
+@group(0) @binding(0) var<uniform> frame: Frame;
+@group(0) @binding(1) var<uniform> draw: Draw;
+@group(1) @binding(0) var<storage, read> positions: array<f32>;
+@group(1) @binding(1) var<storage, read> normals: array<u32>;
+@group(1) @binding(2) var<storage, read> colors: array<u32>;
+@group(1) @binding(3) var<storage, read> radii: array<f32>;
+
+struct VsOut {
+    @builtin(position) pos: vec4<f32>,
+    @location(0) uv: vec2<f32>,
+    @location(1) @interpolate(flat) color: vec4<f32>,
+}
+
+const CORNERS = array<vec2<f32>, 6>(
+    vec2<f32>(-1.0, -1.0), vec2<f32>(1.0, -1.0), vec2<f32>(1.0, 1.0),
+    vec2<f32>(-1.0, -1.0), vec2<f32>(1.0, 1.0), vec2<f32>(-1.0, 1.0),
+);
+
+fn oct_decode(p: u32) -> vec3<f32> {
+    let e = unpack2x16snorm(p);
+    var v = vec3<f32>(e.x, e.y, 1.0 - abs(e.x) - abs(e.y));
+    let t = max(-v.z, 0.0);
+    v.x += select(t, -t, v.x >= 0.0);
+    v.y += select(t, -t, v.y >= 0.0);
+    return normalize(v);
+}
+
+fn srgb_to_linear(c: vec3<f32>) -> vec3<f32> {
+    let lo = c / 12.92;
+    let hi = pow((c + 0.055) / 1.055, vec3<f32>(2.4));
+    return select(hi, lo, c <= vec3<f32>(0.04045));
+}
+
+fn linear_to_srgb(c: vec3<f32>) -> vec3<f32> {
+    let lo = c * 12.92;
+    let hi = 1.055 * pow(c, vec3<f32>(1.0 / 2.4)) - 0.055;
+    return select(hi, lo, c <= vec3<f32>(0.0031308));
+}
+
+@vertex
+fn vs_main(@builtin(vertex_index) vi: u32, @builtin(instance_index) ii: u32) -> VsOut {
+    var out: VsOut;
+    let p = vec3<f32>(positions[3u * ii], positions[3u * ii + 1u], positions[3u * ii + 2u]);
+    var clip = frame.view_proj * vec4<f32>(p, 1.0);
+    if (clip.w <= 0.0) {
+        // Behind the eye: a degenerate primitive outside the clip volume.
+        out.pos = vec4<f32>(2.0, 2.0, 2.0, 1.0);
+        out.uv = vec2<f32>(0.0);
+        out.color = vec4<f32>(0.0);
+        return out;
+    }
+    var size = draw.size_px;
+    if (draw.mode == 1u) {
+        size = max(draw.min_px, 2.0 * radii[ii] * draw.radius_scale * frame.proj_scale / clip.w);
+    }
+    let c = CORNERS[vi];
+    clip.x += c.x * size / frame.viewport.x * clip.w;
+    clip.y += c.y * size / frame.viewport.y * clip.w;
+    out.pos = clip;
+    out.uv = c;
+
+    var base = frame.base_color.rgb;
+    if ((draw.flags & 2u) != 0u) {
+        base = srgb_to_linear(unpack4x8unorm(colors[ii]).rgb);
+    }
+    var shade = 1.0;
+    if ((draw.flags & 1u) != 0u) {
+        // Lambert, headlight at the eye, two-sided (scans carry normals of either sign).
+        let n = oct_decode(normals[ii]);
+        let l = normalize(frame.eye - p);
+        shade = frame.ambient + (1.0 - frame.ambient) * abs(dot(n, l));
+    }
+    out.color = vec4<f32>(linear_to_srgb(base * shade), 1.0);
+    return out;
+}
+
+@fragment
+fn fs_square(in: VsOut) -> @location(0) vec4<f32> {
+    return in.color;
+}
+
+@fragment
+fn fs_circle(in: VsOut) -> @location(0) vec4<f32> {
+    if (dot(in.uv, in.uv) > 1.0) {
+        discard;
+    }
+    return in.color;
+}

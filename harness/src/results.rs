@@ -1,0 +1,189 @@
+//! Results files: `frames.csv` (one row per frame, flushed as the run goes so partial results
+//! survive a crash) and `summary.json` (written with `"complete": false` at the start and
+//! rewritten with `true` at the end, so an interrupted run is never passed off as complete).
+//!
+//! Column order of `frames.csv` is part of the contract (units in the names); methods append
+//! their own columns after [`FrameRow::COLUMNS`].
+
+use std::fs::File;
+use std::io::Write as _;
+use std::path::{Path, PathBuf};
+
+use anyhow::Context as _;
+
+macro_rules! frame_row {
+    ($( $(#[doc = $doc:literal])* $name:ident : $ty:ty ),* $(,)?) => {
+        /// One frame of a run: the leading columns of `frames.csv`.
+        #[derive(Debug, Clone, PartialEq, serde::Serialize, serde::Deserialize)]
+        pub struct FrameRow {
+            $( $(#[doc = $doc])* pub $name: $ty, )*
+        }
+        impl FrameRow {
+            /// Column names, in file order.
+            pub const COLUMNS: &'static [&'static str] = &[$(stringify!($name)),*];
+            /// The row as CSV fields (`None` → empty field).
+            pub fn fields(&self) -> Vec<String> {
+                vec![$( Field::field(&self.$name) ),*]
+            }
+        }
+    };
+}
+
+frame_row! {
+    /// Frame index along the path.
+    frame: u64,
+    /// Method registry name.
+    method: String,
+    /// Scene label.
+    scene: String,
+    /// Camera path name.
+    path: String,
+    /// `eps` or `budget`.
+    target: String,
+    /// Pixel tolerance, for `eps` runs.
+    eps_px: Option<f64>,
+    /// Point budget, for `budget` runs.
+    budget: Option<u64>,
+    /// Splats drawn.
+    points_drawn: u64,
+    /// Cached chunks drawn.
+    chunks_drawn: u64,
+    /// GPU time of the render pass (timestamp queries), ms.
+    gpu_ms: Option<f64>,
+    /// Upload + encode + submit + wait, ms.
+    wall_ms: f64,
+    /// Time in the method's `frame` (selection), ms.
+    cpu_select_ms: f64,
+    /// Bytes uploaded this frame.
+    upload_bytes: u64,
+    /// points_drawn / (gpu_ms, else wall_ms).
+    splats_per_s: f64,
+    /// Resident set size after the frame.
+    rss_bytes: u64,
+    /// Bytes in the GPU chunk cache.
+    gpu_cache_bytes: u64,
+    /// PSNR against the reference, dB (capped at 100).
+    psnr_db: Option<f64>,
+    /// Mean SSIM against the reference.
+    ssim: Option<f64>,
+    /// Mean FLIP against the reference.
+    flip_mean: Option<f64>,
+    /// Reference-covered pixels left empty ÷ reference-covered pixels.
+    hole_ratio: Option<f64>,
+    /// Pixels covered only in this frame ÷ reference-covered pixels.
+    extra_coverage: Option<f64>,
+}
+
+/// Formatting of one CSV field.
+pub trait Field {
+    /// The field's text.
+    fn field(&self) -> String;
+}
+impl Field for u64 {
+    fn field(&self) -> String {
+        self.to_string()
+    }
+}
+impl Field for f64 {
+    fn field(&self) -> String {
+        self.to_string()
+    }
+}
+impl Field for String {
+    fn field(&self) -> String {
+        self.clone()
+    }
+}
+impl<T: Field> Field for Option<T> {
+    fn field(&self) -> String {
+        self.as_ref().map(Field::field).unwrap_or_default()
+    }
+}
+
+/// Appends rows to `frames.csv`, flushing each.
+pub struct FramesWriter {
+    path: PathBuf,
+    w: csv::Writer<File>,
+    extra: usize,
+}
+
+impl FramesWriter {
+    /// Creates (truncates) `dir/frames.csv` with the header plus `extra` method columns.
+    pub fn create(dir: &Path, extra: &[&str]) -> anyhow::Result<Self> {
+        let path = dir.join("frames.csv");
+        let file = File::create(&path).with_context(|| format!("creating {}", path.display()))?;
+        let mut w = csv::Writer::from_writer(file);
+        let header: Vec<&str> = FrameRow::COLUMNS.iter().chain(extra).copied().collect();
+        w.write_record(&header)
+            .with_context(|| format!("writing {}", path.display()))?;
+        w.flush()?;
+        Ok(Self {
+            path,
+            w,
+            extra: extra.len(),
+        })
+    }
+    /// Appends a row and flushes it to disk.
+    pub fn push(&mut self, row: &FrameRow, counters: &[f64]) -> anyhow::Result<()> {
+        anyhow::ensure!(
+            counters.len() == self.extra,
+            "method returned {} counters for {} extra columns",
+            counters.len(),
+            self.extra
+        );
+        let mut rec = row.fields();
+        rec.extend(counters.iter().map(|c| c.to_string()));
+        self.w
+            .write_record(&rec)
+            .and_then(|_| self.w.flush().map_err(Into::into))
+            .with_context(|| format!("writing {}", self.path.display()))
+    }
+}
+
+/// Writes JSON atomically (temp file + rename).
+pub fn write_json<T: serde::Serialize>(path: &Path, value: &T) -> anyhow::Result<()> {
+    let text = serde_json::to_string_pretty(value)?;
+    let tmp = path.with_extension("json.tmp");
+    let mut f = File::create(&tmp).with_context(|| format!("creating {}", tmp.display()))?;
+    f.write_all(text.as_bytes())
+        .and_then(|_| f.sync_all())
+        .with_context(|| format!("writing {}", tmp.display()))?;
+    std::fs::rename(&tmp, path).with_context(|| format!("renaming to {}", path.display()))
+}
+
+/// Median of the finite values, if any.
+pub fn median(values: impl IntoIterator<Item = f64>) -> Option<f64> {
+    let mut v: Vec<f64> = values.into_iter().filter(|x| x.is_finite()).collect();
+    if v.is_empty() {
+        return None;
+    }
+    v.sort_by(f64::total_cmp);
+    let m = v.len() / 2;
+    Some(if v.len() % 2 == 1 {
+        v[m]
+    } else {
+        (v[m - 1] + v[m]) / 2.0
+    })
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn columns_are_the_contract() {
+        assert_eq!(
+            FrameRow::COLUMNS.join(","),
+            "frame,method,scene,path,target,eps_px,budget,points_drawn,chunks_drawn,gpu_ms,\
+             wall_ms,cpu_select_ms,upload_bytes,splats_per_s,rss_bytes,gpu_cache_bytes,psnr_db,\
+             ssim,flip_mean,hole_ratio,extra_coverage"
+        );
+    }
+
+    #[test]
+    fn medians() {
+        assert_eq!(median([3.0, 1.0, 2.0]), Some(2.0));
+        assert_eq!(median([4.0, 1.0, 2.0, 3.0]), Some(2.5));
+        assert_eq!(median([f64::NAN]), None);
+    }
+}

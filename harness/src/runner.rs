@@ -1,0 +1,403 @@
+//! The camera-path runner: builds a method on a scene, drives it along a path, renders every
+//! frame, compares it with the full-resolution reference and writes `frames.csv`,
+//! `summary.json` and plots.
+//!
+//! The **reference** for a view is the `full` method (every sample a splat of its own leaf
+//! radius, ≥ 1 px) rendered with the same renderer settings. Reference images are cached in
+//! `<cache>/refs/` under a key hashing the scene's content, the camera, the resolution, the
+//! kernel and [`REFERENCE_VERSION`]; the `full` build they need lives in
+//! `<cache>/full/<scene hash>/` and is made only when an image is missing.
+//!
+//! Timing: one untimed warm-up frame (shader compilation) precedes the path. `splats_per_s`
+//! uses GPU time when the adapter has timestamp queries, else wall time; `summary.json` says
+//! which (`splats_per_s_basis`).
+
+use std::path::{Path, PathBuf};
+use std::time::Instant;
+
+use anyhow::Context as _;
+use methods::{BuildStats, Feedback, LodMethod, MethodKind, Params, Target};
+use scenes::paths::PathSpec;
+use scenes::{Aabb, PointCloud, Progress, SceneSpec, View};
+
+use crate::gpu::{AdapterDesc, Gpu};
+use crate::image::Image;
+use crate::metrics::{self, ImageMetrics};
+use crate::render::{FrameStats, Kernel, RenderSettings, Renderer};
+use crate::results::{FrameRow, FramesWriter, median, write_json};
+
+/// Bump when the renderer's output changes, to invalidate cached reference images.
+pub const REFERENCE_VERSION: u32 = 1;
+
+/// The git commit this binary was built from.
+pub const GIT_COMMIT: &str = env!("SPLATBENCH_GIT_COMMIT");
+
+/// Everything a run needs.
+#[derive(Debug, Clone)]
+pub struct RunConfig {
+    /// The method.
+    pub method: MethodKind,
+    /// Its parameters.
+    pub params: Params,
+    /// The scene.
+    pub scene: SceneSpec,
+    /// The camera path.
+    pub path: PathSpec,
+    /// Frames along the path.
+    pub frames: usize,
+    /// Tolerance or budget.
+    pub target: Target,
+    /// Renderer settings.
+    pub render: RenderSettings,
+    /// Seed (recorded; scenes and methods take theirs from their specs/params).
+    pub seed: u64,
+    /// Save every frame (and its reference) as PNG under `images/`.
+    pub save_images: bool,
+    /// Compare against the reference (image metrics).
+    pub metrics: bool,
+    /// Output directory.
+    pub out: PathBuf,
+    /// Cache directory (scenes, reference builds and images).
+    pub cache: PathBuf,
+}
+
+/// `summary.json`.
+#[derive(Debug, Clone, serde::Serialize)]
+pub struct Summary {
+    /// False until the run finished.
+    pub complete: bool,
+    /// Adapter.
+    pub adapter: AdapterDesc,
+    /// Git commit of the binary (`-dirty` when built from a modified tree).
+    pub git_commit: String,
+    /// Seed.
+    pub seed: u64,
+    /// Resolution.
+    pub width: u32,
+    /// Resolution.
+    pub height: u32,
+    /// Method.
+    pub method: String,
+    /// Method parameters as given.
+    pub params: Params,
+    /// Target.
+    pub target: Target,
+    /// Kernel.
+    pub kernel: Kernel,
+    /// Camera path.
+    pub path: String,
+    /// Frames.
+    pub frames: usize,
+    /// GPU cache budget, bytes.
+    pub gpu_cache_budget_bytes: u64,
+    /// The scene.
+    pub scene: SceneStats,
+    /// The build.
+    pub build: BuildStats,
+    /// `gpu_ms` or `wall_ms`: what `splats_per_s` divides by.
+    pub splats_per_s_basis: &'static str,
+    /// Medians over the frames.
+    pub medians: Medians,
+    /// Peak resident set size of the process.
+    pub peak_rss_bytes: u64,
+    /// Wall time of the whole run, s.
+    pub run_seconds: f64,
+}
+
+/// Scene facts in `summary.json`.
+#[derive(Debug, Clone, serde::Serialize)]
+pub struct SceneStats {
+    /// Label.
+    pub label: String,
+    /// Spec as given.
+    pub spec: String,
+    /// Samples.
+    pub points: u64,
+    /// Attributes.
+    pub attributes: String,
+    /// Local bounds.
+    pub bounds: Aabb,
+    /// World origin.
+    pub origin: [f64; 3],
+    /// Content hash (hex).
+    pub content_hash: String,
+}
+
+/// Medians over a run's frames.
+#[derive(Debug, Clone, Default, serde::Serialize)]
+pub struct Medians {
+    /// Splats drawn.
+    pub points_drawn: Option<f64>,
+    /// GPU ms.
+    pub gpu_ms: Option<f64>,
+    /// Wall ms.
+    pub wall_ms: Option<f64>,
+    /// Selection ms.
+    pub cpu_select_ms: Option<f64>,
+    /// Splats/s.
+    pub splats_per_s: Option<f64>,
+    /// PSNR dB.
+    pub psnr_db: Option<f64>,
+    /// SSIM.
+    pub ssim: Option<f64>,
+    /// Mean FLIP.
+    pub flip_mean: Option<f64>,
+    /// Hole ratio.
+    pub hole_ratio: Option<f64>,
+    /// Extra coverage.
+    pub extra_coverage: Option<f64>,
+}
+
+impl Medians {
+    fn of(rows: &[FrameRow]) -> Self {
+        let m = |f: fn(&FrameRow) -> Option<f64>| median(rows.iter().filter_map(f));
+        Self {
+            points_drawn: m(|r| Some(r.points_drawn as f64)),
+            gpu_ms: m(|r| r.gpu_ms),
+            wall_ms: m(|r| Some(r.wall_ms)),
+            cpu_select_ms: m(|r| Some(r.cpu_select_ms)),
+            splats_per_s: m(|r| Some(r.splats_per_s)),
+            psnr_db: m(|r| r.psnr_db),
+            ssim: m(|r| r.ssim),
+            flip_mean: m(|r| r.flip_mean),
+            hole_ratio: m(|r| r.hole_ratio),
+            extra_coverage: m(|r| r.extra_coverage),
+        }
+    }
+}
+
+/// The view of frame `i`.
+pub fn frame_view(path: &PathSpec, i: usize, frames: usize, bounds: &Aabb, r: RenderSettings) -> View {
+    View {
+        camera: path.camera(i, frames, bounds),
+        width: r.width,
+        height: r.height,
+    }
+}
+
+/// Full-resolution reference images, cached on disk.
+pub struct Reference<'g> {
+    gpu: &'g Gpu,
+    cloud: &'g PointCloud,
+    scene_label: String,
+    scene_hash: u64,
+    cache: PathBuf,
+    settings: RenderSettings,
+    full: Option<(Box<dyn LodMethod>, Renderer<'g>)>,
+}
+
+impl<'g> Reference<'g> {
+    /// A reference source for `cloud` (whose content hash is `scene_hash`).
+    pub fn new(
+        gpu: &'g Gpu,
+        cloud: &'g PointCloud,
+        scene_label: String,
+        scene_hash: u64,
+        cache: &Path,
+        settings: RenderSettings,
+    ) -> Self {
+        Self {
+            gpu,
+            cloud,
+            scene_label,
+            scene_hash,
+            cache: cache.to_path_buf(),
+            settings,
+            full: None,
+        }
+    }
+
+    fn key(&self, view: &View) -> String {
+        let mut h = scenes::hash::Fnv64::default();
+        h.write(&self.scene_hash.to_le_bytes())
+            .write(bytemuck::bytes_of(&crate::render::frame_uniform(view)))
+            .write(&view.camera.near.to_le_bytes())
+            .write(&view.camera.far.to_le_bytes())
+            .write_str(self.settings.kernel.name())
+            .write(&REFERENCE_VERSION.to_le_bytes());
+        format!("{:016x}", h.finish())
+    }
+
+    /// The reference image of `view` (rendered and cached if missing).
+    pub fn image(&mut self, view: &View, progress: &dyn Progress) -> anyhow::Result<Image> {
+        let path = self.cache.join("refs").join(format!("{}.png", self.key(view)));
+        if path.exists() {
+            if let Ok(img) = Image::load_png(&path) {
+                return Ok(img);
+            }
+        }
+        if self.full.is_none() {
+            let dir = self.cache.join("full").join(format!("{:016x}", self.scene_hash));
+            if methods::Manifest::read(&dir).is_err() {
+                MethodKind::Full
+                    .build(self.cloud, &Params::default(), &self.scene_label, &dir, progress)
+                    .context("building the full-resolution reference")?;
+            }
+            let m = MethodKind::open(&dir)?;
+            let r = Renderer::new(
+                self.gpu,
+                RenderSettings {
+                    cache_bytes: self.settings.cache_bytes,
+                    ..self.settings
+                },
+            )?;
+            self.full = Some((m, r));
+        }
+        let Some((m, r)) = self.full.as_mut() else {
+            anyhow::bail!("reference renderer missing");
+        };
+        let list = m.frame(view, Target::Tolerance(1.0), &Feedback::default())?;
+        let (_, img) = r.draw(view, &list, m.as_ref(), true)?;
+        let img = img.context("reference readback")?;
+        std::fs::create_dir_all(path.parent().unwrap_or(&self.cache))
+            .with_context(|| format!("creating {}", self.cache.display()))?;
+        img.save_png(&path)?;
+        Ok(img)
+    }
+}
+
+/// Runs one configuration; returns the summary (also written to `out/summary.json`).
+pub fn run(cfg: &RunConfig, gpu: &Gpu, progress: &dyn Progress) -> anyhow::Result<Summary> {
+    let t_run = Instant::now();
+    anyhow::ensure!(cfg.frames >= 1, "--frames must be at least 1");
+    let target = cfg.target.validate()?;
+    cfg.method.check_params(&cfg.params)?;
+    std::fs::create_dir_all(&cfg.out)
+        .with_context(|| format!("creating output directory {}", cfg.out.display()))?;
+    let cloud = cfg
+        .scene
+        .load(Some(&cfg.cache), progress)
+        .with_context(|| format!("loading scene '{}'", cfg.scene.text))?;
+    let scene_hash = cfg.scene.content_hash()?;
+    let label = cfg.scene.label();
+    let build_dir = cfg.out.join("build");
+    let build = cfg
+        .method
+        .build(&cloud, &cfg.params, &label, &build_dir, progress)
+        .with_context(|| format!("building {} on {label}", cfg.method))?;
+    let mut method = MethodKind::open(&build_dir)?;
+    let mut renderer = Renderer::new(gpu, cfg.render)?;
+    let mut reference = cfg.metrics.then(|| {
+        Reference::new(gpu, &cloud, label.clone(), scene_hash, &cfg.cache, cfg.render)
+    });
+    let bounds = cloud.bounds();
+    let mut summary = Summary {
+        complete: false,
+        adapter: gpu.adapter.clone(),
+        git_commit: GIT_COMMIT.into(),
+        seed: cfg.seed,
+        width: cfg.render.width,
+        height: cfg.render.height,
+        method: cfg.method.name().into(),
+        params: cfg.params.clone(),
+        target,
+        kernel: cfg.render.kernel,
+        path: cfg.path.name(),
+        frames: cfg.frames,
+        gpu_cache_budget_bytes: cfg.render.cache_bytes,
+        scene: SceneStats {
+            label: label.clone(),
+            spec: cfg.scene.text.clone(),
+            points: cloud.len() as u64,
+            attributes: cloud.attributes().to_string(),
+            bounds,
+            origin: cloud.origin().to_array(),
+            content_hash: format!("{scene_hash:016x}"),
+        },
+        build,
+        splats_per_s_basis: if gpu.timestamps { "gpu_ms" } else { "wall_ms" },
+        medians: Medians::default(),
+        peak_rss_bytes: 0,
+        run_seconds: 0.0,
+    };
+    let summary_path = cfg.out.join("summary.json");
+    write_json(&summary_path, &summary)?;
+    let mut frames = FramesWriter::create(&cfg.out, method.extra_columns())?;
+    let images = cfg.out.join("images");
+    if cfg.save_images {
+        std::fs::create_dir_all(&images)
+            .with_context(|| format!("creating {}", images.display()))?;
+    }
+
+    // Warm-up (shader compilation, first uploads): untimed, not recorded; the cache is
+    // cleared so frame 0 pays its uploads like any cold start.
+    let v0 = frame_view(&cfg.path, 0, cfg.frames, &bounds, cfg.render);
+    let warm = method.frame(&v0, target, &Feedback::default())?;
+    renderer.draw(&v0, &warm, method.as_ref(), false)?;
+    renderer.clear_cache();
+
+    let mut rows = Vec::with_capacity(cfg.frames);
+    let mut last: Option<(FrameStats, View)> = None;
+    progress.start(&format!("{} on {label}", cfg.method), cfg.frames as u64);
+    for i in 0..cfg.frames {
+        let view = frame_view(&cfg.path, i, cfg.frames, &bounds, cfg.render);
+        let feedback = Feedback {
+            frame: i as u64,
+            cached: renderer.cached(),
+            occluded: Default::default(),
+            last_gpu_ms: last.as_ref().and_then(|(s, _)| s.gpu_ms),
+            last_wall_ms: last.as_ref().map(|(s, _)| s.wall_ms),
+            camera_still: last.as_ref().is_some_and(|(_, v)| v.camera == view.camera),
+        };
+        let t = Instant::now();
+        let list = method
+            .frame(&view, target, &feedback)
+            .with_context(|| format!("{} frame {i}", cfg.method))?;
+        let cpu_select_ms = t.elapsed().as_secs_f64() * 1e3;
+        let need_image = reference.is_some() || cfg.save_images;
+        let (stats, img) = renderer.draw(&view, &list, method.as_ref(), need_image)?;
+        let mut m: Option<ImageMetrics> = None;
+        if let (Some(r), Some(img)) = (reference.as_mut(), img.as_ref()) {
+            let ref_img = r.image(&view, progress)?;
+            m = Some(metrics::compare(&ref_img, img)?);
+            if cfg.save_images {
+                ref_img.save_png(&images.join(format!("ref_{i:04}.png")))?;
+            }
+        }
+        if let (true, Some(img)) = (cfg.save_images, img.as_ref()) {
+            img.save_png(&images.join(format!("frame_{i:04}.png")))?;
+        }
+        let denom = stats.gpu_ms.unwrap_or(stats.wall_ms);
+        let row = FrameRow {
+            frame: i as u64,
+            method: cfg.method.name().into(),
+            scene: label.clone(),
+            path: cfg.path.name(),
+            target: match target {
+                Target::Tolerance(_) => "eps".into(),
+                Target::Budget(_) => "budget".into(),
+            },
+            eps_px: target.eps_px().map(f64::from),
+            budget: target.budget_points(),
+            points_drawn: stats.points,
+            chunks_drawn: stats.chunks,
+            gpu_ms: stats.gpu_ms,
+            wall_ms: stats.wall_ms,
+            cpu_select_ms,
+            upload_bytes: stats.upload_bytes,
+            splats_per_s: if denom > 0.0 {
+                stats.points as f64 / denom * 1e3
+            } else {
+                0.0
+            },
+            rss_bytes: crate::rss::current_bytes(),
+            gpu_cache_bytes: stats.cache_bytes,
+            psnr_db: m.map(|m| m.psnr_db),
+            ssim: m.map(|m| m.ssim),
+            flip_mean: m.map(|m| m.flip_mean),
+            hole_ratio: m.map(|m| m.hole_ratio),
+            extra_coverage: m.map(|m| m.extra_coverage),
+        };
+        frames.push(&row, &list.counters)?;
+        rows.push(row);
+        last = Some((stats, view));
+        progress.inc(1);
+    }
+    progress.finish();
+    summary.medians = Medians::of(&rows);
+    summary.peak_rss_bytes = crate::rss::peak_bytes();
+    summary.run_seconds = t_run.elapsed().as_secs_f64();
+    summary.complete = true;
+    write_json(&summary_path, &summary)?;
+    Ok(summary)
+}

@@ -1,0 +1,212 @@
+//! Render tests on whatever adapter exists (lavapipe in CI; "skipped: no adapter" printed
+//! loudly when there is none, a failure when `SPLATBENCH_REQUIRE_GPU=1`).
+//!
+//! - GPU output agrees with the CPU mirror (`render::cpu`) for both kernels and both size
+//!   modes: coverage differs only on pixels whose centre is within rounding of a splat edge.
+//! - One golden image per kernel, compared with a FLIP threshold. Regenerate with
+//!   `SPLATBENCH_BLESS=1 cargo test -p harness --test render`; on failure `-actual` and
+//!   `-difference` images go to `target/golden-failures/`.
+//! - Timestamps, odd resolutions (row padding), attribute-free scenes shaded flat.
+#![allow(clippy::unwrap_used)]
+
+use std::path::{Path, PathBuf};
+
+use harness::gpu::{Gpu, gpu_for_test};
+use harness::image::Image;
+use harness::render::{BASE_COLOR, Kernel, RenderSettings, Renderer, cpu};
+use methods::{DrawItem, DrawList, Feedback, LodMethod, MethodKind, Params, SplatBatch, SplatSize, Target};
+use scenes::generators::Generator;
+use scenes::paths::PathSpec;
+use scenes::{PointCloud, View};
+
+fn full(cloud: &PointCloud, dir: &Path) -> Box<dyn LodMethod> {
+    MethodKind::Full
+        .build(cloud, &Params::default(), "test", dir, &scenes::NoProgress)
+        .unwrap();
+    MethodKind::open(dir).unwrap()
+}
+
+fn view(cloud: &PointCloud, w: u32, h: u32, frame: usize) -> View {
+    View {
+        camera: PathSpec::parse("orbit").unwrap().camera(frame, 8, &cloud.bounds()),
+        width: w,
+        height: h,
+    }
+}
+
+fn settings(w: u32, h: u32, kernel: Kernel) -> RenderSettings {
+    RenderSettings {
+        width: w,
+        height: h,
+        kernel,
+        cache_bytes: 64 << 20,
+    }
+}
+
+/// Fraction of pixels whose coverage differs, and mean absolute colour difference over
+/// pixels covered in both.
+fn disagreement(a: &Image, b: &Image) -> (f64, f64) {
+    let (mut cov, mut diff, mut both, mut sum) = (0u64, 0u64, 0u64, 0u64);
+    for (pa, pb) in a.rgba.chunks(4).zip(b.rgba.chunks(4)) {
+        let (ca, cb) = (pa[3] > 0, pb[3] > 0);
+        cov += (ca || cb) as u64;
+        diff += (ca != cb) as u64;
+        if ca && cb {
+            both += 1;
+            sum += (0..3).map(|c| pa[c].abs_diff(pb[c]) as u64).sum::<u64>();
+        }
+    }
+    (diff as f64 / cov.max(1) as f64, sum as f64 / (3 * both.max(1)) as f64)
+}
+
+#[test]
+fn gpu_matches_cpu_mirror() {
+    let Some(gpu) = gpu_for_test("gpu_matches_cpu_mirror") else { return };
+    let tmp = tempfile::tempdir().unwrap();
+    let cloud = Generator::Statue.generate(6_000, 11).unwrap();
+    let m = full(&cloud, tmp.path());
+    let v = view(&cloud, 200, 150, 1);
+    let radius_list = m.frame(&v, Target::Tolerance(1.0), &Feedback::default()).unwrap();
+    let mut px_list = radius_list.clone();
+    for it in &mut px_list.items {
+        if let DrawItem::Chunk { size, .. } = it {
+            *size = SplatSize::Pixels(3.0);
+        }
+    }
+    for kernel in [Kernel::Square, Kernel::Circle] {
+        let mut r = Renderer::new(&gpu, settings(200, 150, kernel)).unwrap();
+        for (name, list) in [("radius", &radius_list), ("pixels", &px_list)] {
+            let (stats, img) = r.draw(&v, list, m.as_ref(), true).unwrap();
+            assert_eq!(stats.points, 6_000);
+            let img = img.unwrap();
+            let reference = cpu::rasterize(&v, list, m.as_ref(), kernel).unwrap();
+            let covered = reference.rgba.chunks(4).filter(|p| p[3] > 0).count();
+            assert!(covered > 2_000, "{name}/{kernel:?}: the view should show the statue ({covered} px)");
+            let (cov, col) = disagreement(&img, &reference);
+            assert!(cov < 0.01, "{name}/{kernel:?}: coverage differs on {:.3} % of pixels", cov * 100.0);
+            assert!(col < 2.0, "{name}/{kernel:?}: mean colour difference {col}");
+        }
+    }
+}
+
+fn golden_dir() -> PathBuf {
+    PathBuf::from(env!("CARGO_MANIFEST_DIR")).join("tests/golden")
+}
+
+/// Compares with `tests/golden/<name>.png`; FLIP mean ≤ `max_flip` (thresholds set on
+/// llvmpipe (LLVM 15.0.6, 256 bits), Vulkan; the GPU/CPU agreement test above bounds what a
+/// different rasteriser may change).
+fn check_golden(name: &str, img: &Image, max_flip: f64) {
+    let path = golden_dir().join(format!("{name}.png"));
+    if std::env::var("SPLATBENCH_BLESS").as_deref() == Ok("1") {
+        img.save_png(&path).unwrap();
+        eprintln!("blessed {}", path.display());
+        return;
+    }
+    let golden = Image::load_png(&path)
+        .unwrap_or_else(|e| panic!("{e:#}: run with SPLATBENCH_BLESS=1 to create it"));
+    let flip = harness::metrics::flip_mean(&golden, img).unwrap();
+    let holes = harness::metrics::hole_ratio(&golden, img).unwrap();
+    if flip > max_flip || holes > 0.01 {
+        let out = PathBuf::from(env!("CARGO_MANIFEST_DIR")).join("../target/golden-failures");
+        std::fs::create_dir_all(&out).unwrap();
+        img.save_png(&out.join(format!("{name}-actual.png"))).unwrap();
+        harness::metrics::flip_map(&golden, img)
+            .unwrap()
+            .save_png(&out.join(format!("{name}-difference.png")))
+            .unwrap();
+        panic!(
+            "{name}: FLIP {flip:.4} (max {max_flip}), holes {holes:.4}; see {}",
+            out.display()
+        );
+    }
+}
+
+#[test]
+fn golden_image_per_kernel() {
+    let Some(gpu) = gpu_for_test("golden_image_per_kernel") else { return };
+    let tmp = tempfile::tempdir().unwrap();
+    let cloud = Generator::Statue.generate(20_000, 5).unwrap();
+    let m = full(&cloud, tmp.path());
+    let v = view(&cloud, 128, 128, 0);
+    let list = m.frame(&v, Target::Tolerance(1.0), &Feedback::default()).unwrap();
+    for kernel in Kernel::ALL {
+        let mut r = Renderer::new(&gpu, settings(128, 128, *kernel)).unwrap();
+        let (_, img) = r.draw(&v, &list, m.as_ref(), true).unwrap();
+        check_golden(&format!("statue-{}", kernel.name()), &img.unwrap(), 0.02);
+    }
+}
+
+fn stream(points: &[[f32; 3]]) -> DrawList {
+    DrawList {
+        items: vec![DrawItem::Stream {
+            batch: SplatBatch {
+                positions: points.to_vec(),
+                ..Default::default()
+            },
+            size: SplatSize::Pixels(5.0),
+        }],
+        ..Default::default()
+    }
+}
+
+#[test]
+fn odd_sizes_flat_colour_and_timestamps() {
+    let Some(gpu) = gpu_for_test("odd_sizes_flat_colour_and_timestamps") else { return };
+    let tmp = tempfile::tempdir().unwrap();
+    let cloud = Generator::Statue.generate(1_000, 1).unwrap();
+    let m = full(&cloud, tmp.path());
+    // 101 × 37: rows are padded to 256 bytes in the readback; the image must not shear.
+    let v = View {
+        camera: scenes::Camera {
+            position: glam::Vec3::new(0.0, 0.0, 5.0),
+            target: glam::Vec3::ZERO,
+            up: glam::Vec3::Y,
+            fov_y: 60f32.to_radians(),
+            near: 0.1,
+            far: 10.0,
+        },
+        width: 101,
+        height: 37,
+    };
+    let mut r = Renderer::new(&gpu, settings(101, 37, Kernel::Square)).unwrap();
+    let (stats, img) = r.draw(&v, &stream(&[[0.0, 0.0, 0.0]]), m.as_ref(), true).unwrap();
+    let img = img.unwrap();
+    assert_eq!(img.rgba.len(), 101 * 37 * 4);
+    // A 5 px square centred at pixel (50.5, 18.5): exactly 25 pixels, x 48..53, y 16..21.
+    let covered: Vec<(u32, u32)> = (0..37)
+        .flat_map(|y| (0..101).map(move |x| (x, y)))
+        .filter(|&(x, y)| img.rgba[((y * 101 + x) * 4 + 3) as usize] > 0)
+        .collect();
+    assert_eq!(covered.len(), 25, "{covered:?}");
+    assert!(covered.iter().all(|&(x, y)| (48..53).contains(&x) && (16..21).contains(&y)));
+    // No normals, no colours: flat base colour, sRGB-encoded.
+    let p = &img.rgba[((18 * 101 + 50) * 4) as usize..][..4];
+    let expect = (1.055 * BASE_COLOR[0].powf(1.0 / 2.4) - 0.055) * 255.0;
+    assert!((p[0] as f32 - expect).abs() <= 1.0, "{p:?} vs {expect}");
+    assert_eq!(stats.upload_bytes, 12, "a position-only splat uploads 12 bytes");
+    if gpu.timestamps {
+        assert!(stats.gpu_ms.is_some_and(|t| t >= 0.0));
+    }
+    // A splat behind the camera draws nothing.
+    let (_, img) = r.draw(&v, &stream(&[[0.0, 0.0, 9.0]]), m.as_ref(), true).unwrap();
+    assert!(img.unwrap().rgba.chunks(4).all(|p| p[3] == 0));
+}
+
+#[test]
+fn chunk_cache_uploads_once_and_respects_budget() {
+    let Some(gpu) = gpu_for_test("chunk_cache_uploads_once_and_respects_budget") else { return };
+    let tmp = tempfile::tempdir().unwrap();
+    let cloud = Generator::Statue.generate(3_000, 1).unwrap();
+    let m = full(&cloud, tmp.path());
+    let v = view(&cloud, 64, 64, 0);
+    let list = m.frame(&v, Target::Tolerance(1.0), &Feedback::default()).unwrap();
+    let mut r = Renderer::new(&gpu, settings(64, 64, Kernel::Square)).unwrap();
+    let (a, _) = r.draw(&v, &list, m.as_ref(), false).unwrap();
+    let (b, _) = r.draw(&v, &list, m.as_ref(), false).unwrap();
+    // statue: positions 12 + normals 4 + radii 4 bytes per splat.
+    assert_eq!(a.upload_bytes, 3_000 * 20);
+    assert_eq!(b.upload_bytes, 0, "second frame hits the cache");
+    assert_eq!(b.cache_bytes, 3_000 * 20);
+    let _ = Gpu::new;
+}

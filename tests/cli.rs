@@ -1,0 +1,186 @@
+//! `splatbench` end to end: list, build, run (with its own reference ⇒ no error), plot,
+//! demo, and bad input — each a clear error naming the cause, a non-zero exit, no panic.
+#![allow(clippy::unwrap_used)]
+
+use std::path::Path;
+
+use assert_cmd::Command;
+use predicates::prelude::*;
+
+fn bin() -> Command {
+    Command::cargo_bin("splatbench").unwrap()
+}
+
+/// Runs a command that must fail cleanly: exit 1, `Error:` naming `needle`, no panic.
+fn fails_with(args: &[&str], needle: &str) {
+    let out = bin().args(args).output().unwrap();
+    let err = String::from_utf8_lossy(&out.stderr);
+    assert!(!out.status.success(), "{args:?} should fail");
+    assert!(!err.contains("panicked"), "{args:?} panicked: {err}");
+    assert!(err.contains(needle), "{args:?}: expected '{needle}' in: {err}");
+}
+
+fn have_gpu(test: &str) -> bool {
+    harness::gpu::gpu_for_test(test).is_some()
+}
+
+#[test]
+fn list_names_methods_generators_paths() {
+    bin()
+        .arg("list")
+        .assert()
+        .success()
+        .stdout(predicate::str::contains("full"))
+        .stdout(predicate::str::contains("statue"))
+        .stdout(predicate::str::contains("isosurface"))
+        .stdout(predicate::str::contains("terrain"))
+        .stdout(predicate::str::contains("orbit"))
+        .stdout(predicate::str::contains("flythrough"));
+}
+
+#[test]
+fn build_writes_build_json() {
+    let d = tempfile::tempdir().unwrap();
+    let out = d.path().join("b");
+    bin()
+        .args(["build", "--method", "full", "--scene", "statue:5000", "--out"])
+        .arg(&out)
+        .assert()
+        .success();
+    let v: serde_json::Value =
+        serde_json::from_str(&std::fs::read_to_string(out.join("build.json")).unwrap()).unwrap();
+    for k in ["points_in", "nodes", "levels", "bytes_in", "bytes_out", "bits_per_sample", "seconds", "points_per_s"] {
+        assert!(v.get(k).is_some(), "build.json lacks {k}: {v}");
+    }
+    assert_eq!(v["points_in"], 5000);
+    assert!(out.join("method.json").exists());
+}
+
+fn read_csv(path: &Path) -> (Vec<String>, Vec<csv::StringRecord>) {
+    let mut r = csv::Reader::from_path(path).unwrap();
+    let h = r.headers().unwrap().iter().map(String::from).collect();
+    let rows = r.records().map(|r| r.unwrap()).collect();
+    (h, rows)
+}
+
+#[test]
+fn run_full_against_its_own_reference_is_exact() {
+    if !have_gpu("run_full_against_its_own_reference_is_exact") {
+        return;
+    }
+    let d = tempfile::tempdir().unwrap();
+    let out = d.path().join("run");
+    bin()
+        .args(["run", "--method", "full", "--scene", "statue:8000", "--frames", "3", "--width", "160", "--height", "120", "--out"])
+        .arg(&out)
+        .arg("--cache")
+        .arg(d.path().join("cache"))
+        .assert()
+        .success();
+    let (h, rows) = read_csv(&out.join("frames.csv"));
+    assert_eq!(
+        h.join(","),
+        "frame,method,scene,path,target,eps_px,budget,points_drawn,chunks_drawn,gpu_ms,wall_ms,\
+         cpu_select_ms,upload_bytes,splats_per_s,rss_bytes,gpu_cache_bytes,psnr_db,ssim,\
+         flip_mean,hole_ratio,extra_coverage"
+    );
+    assert_eq!(rows.len(), 3);
+    let col = |name: &str| h.iter().position(|c| c == name).unwrap();
+    for r in &rows {
+        assert_eq!(&r[col("method")], "full");
+        assert_eq!(&r[col("points_drawn")], "8000");
+        assert_eq!(r[col("hole_ratio")].parse::<f64>().unwrap(), 0.0);
+        assert_eq!(r[col("flip_mean")].parse::<f64>().unwrap(), 0.0);
+        assert_eq!(r[col("extra_coverage")].parse::<f64>().unwrap(), 0.0);
+        assert!(r[col("wall_ms")].parse::<f64>().unwrap() > 0.0);
+        assert!(r[col("rss_bytes")].parse::<u64>().unwrap() > 0);
+    }
+    let s: serde_json::Value =
+        serde_json::from_str(&std::fs::read_to_string(out.join("summary.json")).unwrap()).unwrap();
+    assert_eq!(s["complete"], true);
+    assert!(s["adapter"]["name"].as_str().is_some_and(|n| !n.is_empty()));
+    assert_eq!(s["width"], 160);
+    assert_eq!(s["scene"]["points"], 8000);
+    for f in ["timeline.png", "timeline.svg"] {
+        assert!(out.join(f).exists(), "{f} missing");
+    }
+    // The same run again hits the reference cache and still agrees.
+    let refs = std::fs::read_dir(d.path().join("cache/refs")).unwrap().count();
+    assert_eq!(refs, 3, "one cached reference per distinct view");
+}
+
+#[test]
+fn demo_runs_every_method_and_plots() {
+    if !have_gpu("demo_runs_every_method_and_plots") {
+        return;
+    }
+    let d = tempfile::tempdir().unwrap();
+    bin()
+        .args(["demo", "--frames", "2", "--out"])
+        .arg(d.path())
+        .assert()
+        .success()
+        .stdout(predicate::str::contains("demo done"));
+    for m in methods::MethodKind::ALL {
+        assert!(d.path().join(m.name()).join("frames.csv").exists(), "{m}");
+    }
+    assert!(d.path().join("comparison.png").exists());
+}
+
+#[test]
+fn bad_flags_are_clear_errors() {
+    fails_with(&["run", "--method", "nope", "--scene", "statue:10", "--out", "x"], "nope");
+    fails_with(&["build", "--method", "full", "--scene", "bunny", "--out", "x"], "known: statue");
+    fails_with(&["build", "--method", "full", "--scene", "statue:0", "--out", "x"], "at least 1");
+    fails_with(&["build", "--method", "full", "--scene", "statue:100", "--param", "sede=1", "--out", "x"], "sede");
+    fails_with(&["run", "--method", "full", "--scene", "statue:100", "--eps", "NaN", "--out", "x"], "--eps");
+    fails_with(&["run", "--method", "full", "--scene", "statue:100", "--eps", "-2", "--out", "x"], "--eps");
+    fails_with(&["run", "--method", "full", "--scene", "statue:100", "--budget", "0", "--out", "x"], "--budget");
+    fails_with(&["run", "--method", "full", "--scene", "statue:100", "--path", "spiral", "--out", "x"], "orbit");
+}
+
+fn write(dir: &Path, name: &str, bytes: &[u8]) -> String {
+    let p = dir.join(name);
+    std::fs::write(&p, bytes).unwrap();
+    p.to_string_lossy().into_owned()
+}
+
+#[test]
+fn bad_files_are_clear_errors() {
+    let d = tempfile::tempdir().unwrap();
+    let out = d.path().join("out");
+    let out = out.to_str().unwrap();
+    let build = |scene: &str, needle: &str| {
+        fails_with(&["build", "--method", "full", "--scene", scene, "--out", out], needle)
+    };
+    let p = write(d.path(), "nomagic.ply", b"plx\nformat ascii 1.0\nend_header\n");
+    build(&p, "nomagic.ply");
+    let p = write(
+        d.path(),
+        "short.ply",
+        b"ply\nformat ascii 1.0\nelement vertex 3\nproperty float x\nproperty float y\nproperty float z\nend_header\n0 0 0\n1 1\n",
+    );
+    build(&p, "short.ply");
+    let mut trunc = b"ply\nformat binary_little_endian 1.0\nelement vertex 100\nproperty float x\nproperty float y\nproperty float z\nend_header\n".to_vec();
+    trunc.extend_from_slice(&[0u8; 12 * 10]);
+    let p = write(d.path(), "trunc.ply", &trunc);
+    build(&p, "trunc.ply");
+    let p = write(
+        d.path(),
+        "nan.ply",
+        b"ply\nformat ascii 1.0\nelement vertex 2\nproperty float x\nproperty float y\nproperty float z\nend_header\n0 0 0\nnan 1 1\n",
+    );
+    build(&p, "not finite");
+    let p = write(
+        d.path(),
+        "empty.ply",
+        b"ply\nformat ascii 1.0\nelement vertex 0\nproperty float x\nproperty float y\nproperty float z\nend_header\n",
+    );
+    build(&p, "empty.ply");
+    let p = write(d.path(), "typo.toml", b"generator = \"statue\"\npoints = 100\nseeed = 2\n");
+    build(&p, "seeed");
+    let p = write(d.path(), "bad.las", b"LASF but not really a las file");
+    build(&p, "bad.las");
+    build(&d.path().join("missing.ply").to_string_lossy(), "missing.ply");
+    assert!(!Path::new(out).join("build.json").exists(), "no half-written output");
+}

@@ -1,0 +1,162 @@
+//! The contract every registered method obeys, checked over the whole registry
+//! (`MethodKind::ALL`). Methods added by later issues must pass it unchanged.
+//!
+//! 1. Tolerance 0 draws every sample that could be seen: at least as many splats as input
+//!    samples inside the frustum and facing the camera (methods may cull the rest).
+//! 2. Points drawn never decrease as the tolerance shrinks or the budget grows.
+//! 3. A budget is respected: never more splats than the budget.
+//! 4. Same seed and parameters ⇒ same frames: two independent builds give equal draw lists
+//!    and equal chunk contents.
+//! 5. Tolerance NaN, ±∞ or negative, and a zero budget, are rejected with an error.
+//! 6. Every chunk a draw list names decodes, holds at least the splats drawn from it, and
+//!    carries exactly the attributes the scene has (plus radii where sizes are per splat).
+#![allow(clippy::unwrap_used)]
+
+use glam::Vec3;
+use methods::{DrawItem, DrawList, Feedback, LodMethod, MethodKind, Params, SplatSize, Target};
+use scenes::generators::Generator;
+use scenes::paths::PathSpec;
+use scenes::{PointCloud, View};
+
+const N: usize = 20_000;
+
+fn views(cloud: &PointCloud) -> Vec<View> {
+    let b = cloud.bounds();
+    let mut v: Vec<View> = (0..3)
+        .map(|i| View {
+            camera: PathSpec::parse("orbit").unwrap().camera(i, 3, &b),
+            width: 256,
+            height: 192,
+        })
+        .collect();
+    let zoom = PathSpec::parse("zoom").unwrap();
+    v.push(View {
+        camera: zoom.camera(7, 10, &b),
+        width: 256,
+        height: 192,
+    });
+    v
+}
+
+/// Samples inside the frustum and facing the eye (all samples in the frustum without normals).
+fn visible_samples(cloud: &PointCloud, view: &View) -> u64 {
+    let f = view.frustum();
+    let eye = view.camera.position;
+    (0..cloud.len())
+        .filter(|&i| {
+            let p = Vec3::from(cloud.positions()[i]);
+            f.contains(p)
+                && cloud
+                    .normals()
+                    .is_none_or(|n| Vec3::from(n[i]).dot(eye - p) > 0.0)
+        })
+        .count() as u64
+}
+
+fn build(kind: MethodKind, cloud: &PointCloud, dir: &std::path::Path) -> Box<dyn LodMethod> {
+    kind.build(cloud, &Params::default(), "contract", dir, &scenes::NoProgress)
+        .unwrap_or_else(|e| panic!("{kind}: build failed: {e:#}"));
+    MethodKind::open(dir).unwrap_or_else(|e| panic!("{kind}: open failed: {e:#}"))
+}
+
+fn frame(m: &mut dyn LodMethod, v: &View, t: Target) -> DrawList {
+    m.frame(v, t, &Feedback::default())
+        .unwrap_or_else(|e| panic!("frame({t:?}) failed: {e:#}"))
+}
+
+fn check_chunks(kind: MethodKind, m: &dyn LodMethod, cloud: &PointCloud, list: &DrawList) {
+    let scene = cloud.attributes();
+    for item in &list.items {
+        let (batch, drawn, size) = match item {
+            DrawItem::Chunk { id, points, size } => {
+                (m.chunk(*id).unwrap_or_else(|e| panic!("{kind}: chunk {id}: {e:#}")), *points as usize, *size)
+            }
+            DrawItem::Stream { batch, size } => (batch.clone(), batch.len(), *size),
+        };
+        batch.validate().unwrap();
+        assert!(batch.len() >= drawn, "{kind}: chunk shorter than the splats drawn from it");
+        let a = batch.attributes();
+        assert_eq!(a.normals, scene.normals, "{kind}: normals must follow the scene");
+        assert_eq!(a.colors, scene.colors, "{kind}: colours must follow the scene");
+        if matches!(size, SplatSize::Radius { .. }) {
+            assert!(a.radii, "{kind}: per-splat sizes need radii");
+        }
+    }
+}
+
+fn contract_for(kind: MethodKind, cloud: &PointCloud) {
+    let tmp = tempfile::tempdir().unwrap();
+    let mut m = build(kind, cloud, &tmp.path().join("a"));
+    assert_eq!(m.input_points(), cloud.len() as u64, "{kind}: input_points");
+    for (vi, view) in views(cloud).iter().enumerate() {
+        // 1. Tolerance 0.
+        let all = frame(m.as_mut(), view, Target::Tolerance(0.0));
+        let vis = visible_samples(cloud, view);
+        assert!(
+            all.points() >= vis,
+            "{kind} view {vi}: tolerance 0 drew {} splats, {vis} samples are visible",
+            all.points()
+        );
+        check_chunks(kind, m.as_ref(), cloud, &all);
+        // 2. Monotone in the tolerance.
+        let mut last = 0;
+        for eps in [32.0, 16.0, 8.0, 4.0, 2.0, 1.0, 0.5, 0.0] {
+            let l = frame(m.as_mut(), view, Target::Tolerance(eps));
+            assert!(l.points() >= last, "{kind} view {vi}: eps {eps} drew {} < {last}", l.points());
+            last = l.points();
+        }
+        // 2 + 3. Budgets.
+        let mut last = 0;
+        for b in [1u64, 100, 1_000, 5_000, 15_000, 50_000] {
+            let l = frame(m.as_mut(), view, Target::Budget(b));
+            assert!(l.points() <= b, "{kind} view {vi}: budget {b} exceeded: {}", l.points());
+            assert!(l.points() >= last, "{kind} view {vi}: budget {b} drew {} < {last}", l.points());
+            last = l.points();
+            check_chunks(kind, m.as_ref(), cloud, &l);
+        }
+        // 5. Bad targets.
+        for t in [
+            Target::Tolerance(f32::NAN),
+            Target::Tolerance(f32::INFINITY),
+            Target::Tolerance(-1.0),
+            Target::Budget(0),
+        ] {
+            assert!(
+                m.frame(view, t, &Feedback::default()).is_err(),
+                "{kind}: {t:?} must be rejected"
+            );
+        }
+    }
+    // 4. Same seed ⇒ same frames.
+    let mut m2 = build(kind, cloud, &tmp.path().join("b"));
+    for view in views(cloud) {
+        for t in [Target::Tolerance(2.0), Target::Tolerance(0.5), Target::Budget(4_000)] {
+            let a = frame(m.as_mut(), &view, t);
+            let b = frame(m2.as_mut(), &view, t);
+            assert_eq!(a, b, "{kind}: two builds with the same seed disagree at {t:?}");
+            for item in &a.items {
+                if let DrawItem::Chunk { id, .. } = item {
+                    assert_eq!(m.chunk(*id).unwrap(), m2.chunk(*id).unwrap(), "{kind}: chunk {id} differs");
+                }
+            }
+        }
+    }
+}
+
+#[test]
+fn every_method_obeys_the_contract_on_statue() {
+    let cloud = Generator::Statue.generate(N, 7).unwrap();
+    assert!(cloud.attributes().normals && !cloud.attributes().colors);
+    for &kind in MethodKind::ALL {
+        contract_for(kind, &cloud);
+    }
+}
+
+#[test]
+fn every_method_obeys_the_contract_on_coloured_terrain() {
+    let cloud = Generator::Terrain.generate(N, 3).unwrap();
+    assert!(cloud.attributes().colors);
+    for &kind in MethodKind::ALL {
+        contract_for(kind, &cloud);
+    }
+}

@@ -1,1 +1,0 @@
-//! Camera paths. STUB — to be implemented.

@@ -1,0 +1,22 @@
+#!/usr/bin/env bash
+# Installs what a fresh Debian/Ubuntu machine lacks to build, test and run splatbench:
+# Mesa's software Vulkan driver (lavapipe) and the Vulkan loader, so wgpu finds an adapter
+# with no GPU. Plot fonts are embedded in the binary (harness/assets), nothing to install.
+# Idempotent: installs nothing when everything is present.
+set -euo pipefail
+
+need=()
+for pkg in mesa-vulkan-drivers libvulkan1; do
+  dpkg-query -W -f='${Status}' "$pkg" 2>/dev/null | grep -q "install ok installed" || need+=("$pkg")
+done
+
+if [ ${#need[@]} -gt 0 ]; then
+  sudo=""
+  if [ "$(id -u)" -ne 0 ]; then sudo="sudo"; fi
+  echo "setup: installing ${need[*]}"
+  $sudo apt-get update -qq
+  DEBIAN_FRONTEND=noninteractive $sudo apt-get install -y -qq --no-install-recommends "${need[@]}" >/dev/null
+fi
+
+command -v cargo >/dev/null || { echo "setup: cargo not found: install Rust (https://rustup.rs)" >&2; exit 1; }
+echo "setup: ok (Vulkan loader + lavapipe present, $(cargo --version))"

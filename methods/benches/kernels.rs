@@ -1,0 +1,51 @@
+//! CPU kernels shared by the methods: normal encoding, leaf-radius estimation (k nearest
+//! neighbours), scene generation and `full`'s per-frame selection. Timing is reported, never
+//! asserted. Run: `cargo bench -p methods --bench kernels`.
+#![allow(missing_docs, clippy::unwrap_used)]
+
+use criterion::{Criterion, Throughput, criterion_group, criterion_main};
+use methods::{Feedback, MethodKind, Params, Target};
+use scenes::generators::Generator;
+use scenes::paths::PathSpec;
+
+fn kernels(c: &mut Criterion) {
+    let n = 200_000;
+    let cloud = Generator::Statue.generate(n, 1).unwrap();
+    let mut g = c.benchmark_group("kernels");
+    g.throughput(Throughput::Elements(n as u64));
+    g.sample_size(10);
+    g.bench_function("octnormal_encode", |b| {
+        let normals = cloud.normals().unwrap();
+        b.iter(|| {
+            normals
+                .iter()
+                .map(|v| methods::octnormal::encode(glam::Vec3::from(*v)) as u64)
+                .sum::<u64>()
+        })
+    });
+    g.bench_function("knn_spacing_k6", |b| {
+        b.iter(|| scenes::spacing::knn_spacing(cloud.positions(), methods::leaf::LEAF_K))
+    });
+    for gen in Generator::ALL {
+        g.bench_function(format!("generate_{}", gen.name()), |b| {
+            b.iter(|| gen.generate(n, 1).unwrap())
+        });
+    }
+    let dir = tempfile::tempdir().unwrap();
+    MethodKind::Full
+        .build(&cloud, &Params::default(), "bench", dir.path(), &scenes::NoProgress)
+        .unwrap();
+    let mut m = MethodKind::open(dir.path()).unwrap();
+    let view = scenes::View {
+        camera: PathSpec::parse("orbit").unwrap().camera(0, 1, &cloud.bounds()),
+        width: 1024,
+        height: 1024,
+    };
+    g.bench_function("full_frame_select", |b| {
+        b.iter(|| m.frame(&view, Target::Tolerance(1.0), &Feedback::default()).unwrap())
+    });
+    g.finish();
+}
+
+criterion_group!(benches, kernels);
+criterion_main!(benches);

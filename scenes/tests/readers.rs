@@ -191,6 +191,25 @@ fn ascii_skips_extra_elements_before_and_after_faces() {
     assert_unit_square(&c, &[[255, 0, 0], [0, 255, 0], [0, 0, 255], [10, 20, 30]]);
 }
 
+#[test]
+fn ascii_handles_crlf_and_lines_longer_than_the_read_buffer() {
+    let dir = tmp();
+    let n = 2_500_000; // "1 " × n: a 5 MB line, longer than the 4 MiB read buffer
+    let mut text = String::from(
+        "ply\r\nformat ascii 1.0\r\nelement vertex 2\r\nproperty float x\r\n\
+         property float y\r\nproperty float z\r\nproperty list uint float blob\r\n\
+         end_header\r\n",
+    );
+    text.push_str(&format!("1 2 3 {n}"));
+    text.push_str(&" 1".repeat(n));
+    text.push_str("\r\n\r\n4 5 6 0\r\n");
+    let p = write_bytes(dir.path(), "long.ply", text.as_bytes());
+    let c = read_plain(&p).unwrap();
+    assert_eq!(c.len(), 2);
+    assert!((c.world_position(1) - DVec3::new(4.0, 5.0, 6.0)).length() < 1e-9);
+    assert_eq!(c.attributes(), Attributes::default());
+}
+
 /// Bytes in a chosen byte order.
 struct Bin {
     be: bool,
@@ -692,6 +711,62 @@ fn truncated_binary_names_the_vertex() {
     std::fs::write(&p, &bytes[..bytes.len() - 3]).unwrap();
     let m = ply_err(&p, &PlyOptions::default());
     assert!(m.contains("unexpected end of file in face 1 of 2"), "{m}");
+}
+
+#[test]
+fn corrupted_files_never_panic() {
+    let dir = tmp();
+    let ascii = face_file("3 0 1 2\n", 1).into_bytes();
+    let mut originals = vec![
+        ascii,
+        binary_square(false, true),
+        binary_square(true, false),
+    ];
+    let mesh = dir.path().join("m.ply");
+    ply::write_mesh(
+        &mesh,
+        &SQUARE,
+        &[[0, 1, 2], [0, 2, 3]],
+        PlyFormat::BinaryLittleEndian,
+    )
+    .unwrap();
+    originals.push(std::fs::read(&mesh).unwrap());
+    let sample = PlyOptions {
+        sample: Some(50),
+        seed: 1,
+    };
+    // Fresh names: rewriting one file in place makes ext4 flush on every truncation.
+    let mut k = 0;
+    let mut check = |bytes: &[u8], also_sample: bool| {
+        k += 1;
+        let p = dir.path().join(format!("corrupt{k}.ply"));
+        std::fs::write(&p, bytes).unwrap();
+        let _ = read_plain(&p);
+        if also_sample {
+            let _ = ply::read(&p, &sample);
+        }
+        std::fs::remove_file(&p).unwrap();
+    };
+    let mut r = Pcg32::new(99);
+    for orig in &originals {
+        // Every prefix.
+        for len in 0..orig.len() {
+            check(&orig[..len], false);
+        }
+        // Random byte changes, header included.
+        for _ in 0..400 {
+            let mut bytes = orig.clone();
+            for _ in 0..1 + r.below(4) {
+                let i = r.below(bytes.len() as u32) as usize;
+                bytes[i] = match r.below(3) {
+                    0 => r.next_u32() as u8,
+                    1 => b"0123456789-. \n"[r.below(14) as usize],
+                    _ => 0xff,
+                };
+            }
+            check(&bytes, true);
+        }
+    }
 }
 
 #[test]

@@ -20,7 +20,7 @@
 //!   truncated point data (naming the batch of points), non-finite coordinates (naming the
 //!   point).
 //!
-//! # Writing ([`write`])
+//! # Writing ([`write()`])
 //! - LAS 1.2 (1.4 above 2³² − 1 points), point format 2 (with RGB, each 8-bit channel × 257 so
 //!   that 255 ↦ 65535) when the cloud has colours, else format 0. Return number and number of
 //!   returns are 1. Normals and radii are not stored (LAS has no place for them).
@@ -204,7 +204,7 @@ pub fn read(path: &Path) -> Result<PointCloud, SceneError> {
     })
 }
 
-/// The LAS coordinate scale [`write`] uses for a cloud whose local coordinates span `span`
+/// The LAS coordinate scale [`write()`] uses for a cloud whose local coordinates span `span`
 /// (twice the largest absolute local coordinate): the smallest power of ten that is
 /// ≥ `span / 2³⁰` and ≥ 10⁻⁷. Quantised values then stay within ±2²⁹ (an `i32` with room to
 /// spare) and the quantisation error is `scale / 2`.

@@ -64,11 +64,11 @@
 //! precomputed `(offset, type)` layout, monomorphised per endianness. Measured on a 2-core VM
 //! shared with other builds (release, file in the page cache): 10 M vertices with `float`
 //! x,y,z + normals + colours (270 MB) in 0.93–1.3 s ≈ 210–290 MB/s; the same points as written
-//! by [`write`] (`double` positions, 390 MB) ≈ 310–450 MB/s — see the ignored
+//! by [`write()`] (`double` positions, 390 MB) ≈ 310–450 MB/s — see the ignored
 //! `ply_read_speed` test in `tests/readers.rs`.
 //!
 //! # Writing
-//! [`write`] writes a cloud (world `double x,y,z`; `float nx,ny,nz`, `uchar red,green,blue`,
+//! [`write()`] writes a cloud (world `double x,y,z`; `float nx,ny,nz`, `uchar red,green,blue`,
 //! `float radius` only for the columns the cloud has) and [`write_mesh`] a triangle mesh, in any
 //! of the three formats, through a temporary file renamed into place, so a failed write never
 //! leaves a complete-looking file. Ascii output uses shortest round-trip formatting, so an
@@ -94,7 +94,7 @@ pub struct PlyOptions {
     pub seed: u64,
 }
 
-/// The body encoding of a PLY file (for [`write`] and [`write_mesh`]).
+/// The body encoding of a PLY file (for [`write()`] and [`write_mesh`]).
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Hash)]
 pub enum PlyFormat {
     /// `format ascii 1.0`.

@@ -1,1 +1,397 @@
-//! Image metrics. STUB.
+//! Image metrics: how far a method's frame (the *test*) is from the no-LOD reference frame.
+//!
+//! Every function takes the reference first and the test second; both must have the same
+//! size, otherwise [`MetricsError::SizeMismatch`] (never a panic). All functions are pure and
+//! deterministic: the same inputs give the same bits whatever the thread count.
+//!
+//! Colour metrics read R, G, B (sRGB-encoded 8-bit, see [`crate::image`]) of **every** pixel,
+//! covered or not, and ignore alpha; uncovered pixels hold the background colour.
+//!
+//! - [`psnr_db`]: `10 · log10(255² / MSE)`, MSE over the R, G, B channels of all pixels.
+//!   Identical images have infinite PSNR; it is **capped at [`PSNR_CAP_DB`] = 100 dB** (an MSE
+//!   below 255²·10⁻¹⁰ also reads 100) so that CSV and JSON stay finite.
+//! - [`ssim`]: mean SSIM (Wang, Bovik, Sheikh, Simoncelli 2004) on luma
+//!   `Y' = 0.2126 R + 0.7152 G + 0.0722 B` (Rec. 709 weights applied to the 8-bit
+//!   *sRGB-encoded* values, not linearised ones: SSIM models perceived structure, and this
+//!   matches what common tools compute), dynamic range L = 255, K1 = 0.01, K2 = 0.03,
+//!   Gaussian window 11×11 with σ = 1.5 (weights normalised to sum 1), and the mean taken
+//!   over the **valid** region only (windows that fit inside the image: (w−10)×(h−10)
+//!   positions). Images narrower or shorter than 11 px use the largest odd window that fits
+//!   (same σ, renormalised). Computed as separable Gaussian blurs of x, y, x², y², xy in
+//!   `f32`, per-row sums in `f64` added in row order. Identical images give exactly 1.0.
+//! - [`flip_mean`]: mean of the LDR-FLIP error map (Andersson et al. 2020, via the `nv-flip`
+//!   crate) of the RGB images at [`FLIP_PIXELS_PER_DEGREE`] = 67 pixels per degree (FLIP's
+//!   default viewing setup: a 0.7 m wide 3840-pixel monitor seen from 0.7 m). The mean is the
+//!   plain `f64` average of the per-pixel errors in 0..1. Identical images give 0.0.
+//!   [`flip_map`] returns the error map through FLIP's magma colour map, for golden-image
+//!   failures (`-difference` images).
+//! - [`hole_ratio`] = |covered in reference ∧ not covered in test| / |covered in reference|;
+//!   [`extra_coverage`] = |covered in test ∧ not covered in reference| / |covered in
+//!   reference|. "Covered" means alpha > 0. Both are **0 when the reference covers nothing**
+//!   (the ratio is undefined there; 0 keeps results finite, and such a frame carries no
+//!   coverage information).
+//! - [`compare`] computes all five into an [`ImageMetrics`] row fragment, with FLIP and SSIM
+//!   running in parallel (rayon).
+//!
+//! Empty (0×0) images compare as identical: PSNR 100, SSIM 1, FLIP 0, ratios 0.
+
+use std::path::PathBuf;
+
+use rayon::prelude::*;
+
+use crate::image::Image;
+
+/// PSNR reported for identical images (and any MSE small enough to exceed it), in dB.
+pub const PSNR_CAP_DB: f64 = 100.0;
+
+/// Pixels per degree of visual angle used for FLIP: `nv_flip::DEFAULT_PIXELS_PER_DEGREE`,
+/// 67.0, the FLIP paper's default (0.7 m wide, 3840 px monitor viewed from 0.7 m).
+pub const FLIP_PIXELS_PER_DEGREE: f32 = nv_flip::DEFAULT_PIXELS_PER_DEGREE;
+
+/// SSIM Gaussian window radius: 11×11 window.
+const SSIM_RADIUS: usize = 5;
+/// SSIM Gaussian window standard deviation, in pixels.
+const SSIM_SIGMA: f64 = 1.5;
+/// SSIM dynamic range of 8-bit values.
+const SSIM_L: f64 = 255.0;
+/// SSIM luminance stabiliser constant K1.
+const SSIM_K1: f64 = 0.01;
+/// SSIM contrast stabiliser constant K2.
+const SSIM_K2: f64 = 0.03;
+
+/// Errors from image I/O and from comparing images.
+#[derive(Debug, thiserror::Error)]
+pub enum MetricsError {
+    /// The reference and test images differ in size.
+    #[error(
+        "image sizes differ: reference is {}x{}, test is {}x{}",
+        reference.0, reference.1, test.0, test.1
+    )]
+    SizeMismatch {
+        /// Reference (width, height).
+        reference: (u32, u32),
+        /// Test (width, height).
+        test: (u32, u32),
+    },
+    /// An RGBA8 buffer whose length does not match its stated size.
+    #[error("an RGBA8 image of {width}x{height} needs {expected} bytes, got {actual}")]
+    BufferSize {
+        /// Stated width.
+        width: u32,
+        /// Stated height.
+        height: u32,
+        /// `width * height * 4` (`u64::MAX` if that overflows).
+        expected: u64,
+        /// Actual buffer length.
+        actual: u64,
+    },
+    /// A file could not be read.
+    #[error("cannot read {}", path.display())]
+    Read {
+        /// The file.
+        path: PathBuf,
+        /// The underlying I/O error.
+        source: std::io::Error,
+    },
+    /// A file could not be written.
+    #[error("cannot write {}", path.display())]
+    Write {
+        /// The file.
+        path: PathBuf,
+        /// The underlying I/O error.
+        source: std::io::Error,
+    },
+    /// A file is not a PNG the decoder understands.
+    #[error("cannot decode {} as a PNG", path.display())]
+    PngDecode {
+        /// The file.
+        path: PathBuf,
+        /// The decoder's error.
+        source: ::image::ImageError,
+    },
+    /// An image could not be encoded as PNG.
+    #[error("cannot encode {} as a PNG", path.display())]
+    PngEncode {
+        /// The destination file.
+        path: PathBuf,
+        /// The encoder's error.
+        source: ::image::ImageError,
+    },
+}
+
+/// The five per-frame image metrics, named as the `frames.csv` columns.
+#[derive(Debug, Clone, Copy, PartialEq, serde::Serialize)]
+pub struct ImageMetrics {
+    /// PSNR over RGB in dB, capped at [`PSNR_CAP_DB`].
+    pub psnr_db: f64,
+    /// Mean SSIM on luma, at most 1.
+    pub ssim: f64,
+    /// Mean LDR-FLIP error in 0..1.
+    pub flip_mean: f64,
+    /// Fraction of reference-covered pixels the test leaves uncovered.
+    pub hole_ratio: f64,
+    /// Test-covered pixels the reference leaves uncovered, as a fraction of reference-covered.
+    pub extra_coverage: f64,
+}
+
+/// All five metrics of `test` against `reference`.
+pub fn compare(reference: &Image, test: &Image) -> Result<ImageMetrics, MetricsError> {
+    check_same_size(reference, test)?;
+    let (flip_mean, (ssim, (psnr_db, (hole_ratio, extra_coverage)))) = rayon::join(
+        || flip_mean_unchecked(reference, test),
+        || {
+            rayon::join(
+                || ssim_unchecked(reference, test),
+                || {
+                    (
+                        psnr_unchecked(reference, test),
+                        coverage_unchecked(reference, test),
+                    )
+                },
+            )
+        },
+    );
+    Ok(ImageMetrics {
+        psnr_db,
+        ssim,
+        flip_mean,
+        hole_ratio,
+        extra_coverage,
+    })
+}
+
+/// PSNR in dB over the R, G, B channels of all pixels, peak 255, capped at [`PSNR_CAP_DB`].
+pub fn psnr_db(reference: &Image, test: &Image) -> Result<f64, MetricsError> {
+    check_same_size(reference, test)?;
+    Ok(psnr_unchecked(reference, test))
+}
+
+/// Mean SSIM on Rec. 709 luma, 11×11 Gaussian window (σ = 1.5), valid region only.
+pub fn ssim(reference: &Image, test: &Image) -> Result<f64, MetricsError> {
+    check_same_size(reference, test)?;
+    Ok(ssim_unchecked(reference, test))
+}
+
+/// Mean LDR-FLIP error (0..1) at [`FLIP_PIXELS_PER_DEGREE`].
+pub fn flip_mean(reference: &Image, test: &Image) -> Result<f64, MetricsError> {
+    check_same_size(reference, test)?;
+    Ok(flip_mean_unchecked(reference, test))
+}
+
+/// The LDR-FLIP error map through FLIP's magma colour map (opaque RGBA; black = no error).
+pub fn flip_map(reference: &Image, test: &Image) -> Result<Image, MetricsError> {
+    check_same_size(reference, test)?;
+    let (width, height) = (reference.width, reference.height);
+    if reference.pixel_count() == 0 {
+        return Ok(Image {
+            width,
+            height,
+            rgba: Vec::new(),
+        });
+    }
+    let coloured = flip_error_map(reference, test).apply_color_lut(&nv_flip::magma_lut());
+    let rgb = coloured.to_vec();
+    let mut rgba = Vec::with_capacity(rgb.len() / 3 * 4);
+    for p in rgb.chunks_exact(3) {
+        rgba.extend_from_slice(&[p[0], p[1], p[2], 255]);
+    }
+    Image::from_rgba(width, height, rgba)
+}
+
+/// Fraction of the reference's covered pixels that the test leaves uncovered (0 if the
+/// reference covers nothing).
+pub fn hole_ratio(reference: &Image, test: &Image) -> Result<f64, MetricsError> {
+    check_same_size(reference, test)?;
+    Ok(coverage_unchecked(reference, test).0)
+}
+
+/// Pixels covered in the test but not in the reference, divided by the reference's covered
+/// pixels (0 if the reference covers nothing).
+pub fn extra_coverage(reference: &Image, test: &Image) -> Result<f64, MetricsError> {
+    check_same_size(reference, test)?;
+    Ok(coverage_unchecked(reference, test).1)
+}
+
+/// Errors unless both images have the same width and height (and well-formed buffers).
+fn check_same_size(reference: &Image, test: &Image) -> Result<(), MetricsError> {
+    if (reference.width, reference.height) != (test.width, test.height) {
+        return Err(MetricsError::SizeMismatch {
+            reference: (reference.width, reference.height),
+            test: (test.width, test.height),
+        });
+    }
+    for image in [reference, test] {
+        // The fields are public: re-check the buffer so the kernels can index freely.
+        let expected = (u64::from(image.width) * u64::from(image.height)).saturating_mul(4);
+        if image.rgba.len() as u64 != expected {
+            return Err(MetricsError::BufferSize {
+                width: image.width,
+                height: image.height,
+                expected,
+                actual: image.rgba.len() as u64,
+            });
+        }
+    }
+    Ok(())
+}
+
+/// PSNR of same-sized images.
+fn psnr_unchecked(reference: &Image, test: &Image) -> f64 {
+    let n = reference.pixel_count() as u64 * 3;
+    if n == 0 {
+        return PSNR_CAP_DB;
+    }
+    let sse: u64 = reference
+        .rgba
+        .par_chunks(4 * 4096)
+        .zip(test.rgba.par_chunks(4 * 4096))
+        .map(|(a, b)| {
+            a.chunks_exact(4)
+                .zip(b.chunks_exact(4))
+                .map(|(p, q)| {
+                    (0..3)
+                        .map(|c| {
+                            let d = u64::from(p[c].abs_diff(q[c]));
+                            d * d
+                        })
+                        .sum::<u64>()
+                })
+                .sum::<u64>()
+        })
+        .sum();
+    if sse == 0 {
+        return PSNR_CAP_DB;
+    }
+    let mse = sse as f64 / n as f64;
+    (10.0 * (SSIM_L * SSIM_L / mse).log10()).min(PSNR_CAP_DB)
+}
+
+/// (hole ratio, extra coverage) of same-sized images.
+fn coverage_unchecked(reference: &Image, test: &Image) -> (f64, f64) {
+    let (mut covered, mut holes, mut extra) = (0u64, 0u64, 0u64);
+    for (p, q) in reference
+        .rgba
+        .chunks_exact(4)
+        .zip(test.rgba.chunks_exact(4))
+    {
+        let (r, t) = (p[3] > 0, q[3] > 0);
+        covered += u64::from(r);
+        holes += u64::from(r && !t);
+        extra += u64::from(t && !r);
+    }
+    if covered == 0 {
+        return (0.0, 0.0);
+    }
+    (holes as f64 / covered as f64, extra as f64 / covered as f64)
+}
+
+/// FLIP error map of same-sized, non-empty images.
+fn flip_error_map(reference: &Image, test: &Image) -> nv_flip::FlipImageFloat {
+    let (w, h) = (reference.width, reference.height);
+    let r = nv_flip::FlipImageRgb8::with_data(w, h, &reference.to_rgb());
+    let t = nv_flip::FlipImageRgb8::with_data(w, h, &test.to_rgb());
+    nv_flip::flip(r, t, FLIP_PIXELS_PER_DEGREE)
+}
+
+/// Mean FLIP error of same-sized images.
+fn flip_mean_unchecked(reference: &Image, test: &Image) -> f64 {
+    if reference.pixel_count() == 0 {
+        return 0.0;
+    }
+    let errors = flip_error_map(reference, test).to_vec();
+    let sum: f64 = errors.iter().map(|&e| f64::from(e)).sum();
+    sum / errors.len() as f64
+}
+
+/// Rec. 709 luma of the 8-bit sRGB-encoded values, one `f32` per pixel.
+fn luma(image: &Image) -> Vec<f32> {
+    image
+        .rgba
+        .chunks_exact(4)
+        .map(|p| 0.2126 * f32::from(p[0]) + 0.7152 * f32::from(p[1]) + 0.0722 * f32::from(p[2]))
+        .collect()
+}
+
+/// Normalised 1-D Gaussian of `2 * radius + 1` taps with σ = [`SSIM_SIGMA`].
+fn gaussian_kernel(radius: usize) -> Vec<f32> {
+    let raw: Vec<f64> = (0..=2 * radius)
+        .map(|i| {
+            let d = i as f64 - radius as f64;
+            (-d * d / (2.0 * SSIM_SIGMA * SSIM_SIGMA)).exp()
+        })
+        .collect();
+    let sum: f64 = raw.iter().sum();
+    raw.iter().map(|&v| (v / sum) as f32).collect()
+}
+
+/// Per-row scratch for the SSIM kernel: vertical sums (width `w`) of x, y, x², y², xy.
+struct SsimScratch {
+    /// Vertically blurred x, y, x², y², xy, each `w` long.
+    vertical: [Vec<f32>; 5],
+    /// Horizontally blurred versions, each `w - 2r` long.
+    horizontal: [Vec<f32>; 5],
+}
+
+/// Mean SSIM of same-sized images.
+fn ssim_unchecked(reference: &Image, test: &Image) -> f64 {
+    let (w, h) = (reference.width as usize, reference.height as usize);
+    if w == 0 || h == 0 {
+        return 1.0;
+    }
+    let radius = SSIM_RADIUS.min((w.min(h) - 1) / 2);
+    let kernel = gaussian_kernel(radius);
+    let (ow, oh) = (w - 2 * radius, h - 2 * radius);
+    let (x, y) = rayon::join(|| luma(reference), || luma(test));
+    let c1 = ((SSIM_K1 * SSIM_L) * (SSIM_K1 * SSIM_L)) as f32;
+    let c2 = ((SSIM_K2 * SSIM_L) * (SSIM_K2 * SSIM_L)) as f32;
+
+    let row_sums: Vec<f64> = (0..oh)
+        .into_par_iter()
+        .map_init(
+            || SsimScratch {
+                vertical: std::array::from_fn(|_| vec![0.0; w]),
+                horizontal: std::array::from_fn(|_| vec![0.0; ow]),
+            },
+            |s, row| {
+                let [vx, vy, vxx, vyy, vxy] = &mut s.vertical;
+                for v in [&mut *vx, &mut *vy, &mut *vxx, &mut *vyy, &mut *vxy] {
+                    v.fill(0.0);
+                }
+                // Vertical pass over the 2r + 1 input rows of this output row.
+                for (k, &wk) in kernel.iter().enumerate() {
+                    let start = (row + k) * w;
+                    let (xs, ys) = (&x[start..start + w], &y[start..start + w]);
+                    for i in 0..w {
+                        let (a, b) = (xs[i], ys[i]);
+                        vx[i] += wk * a;
+                        vy[i] += wk * b;
+                        vxx[i] += wk * (a * a);
+                        vyy[i] += wk * (b * b);
+                        vxy[i] += wk * (a * b);
+                    }
+                }
+                // Horizontal pass, valid columns only.
+                for (out, v) in s.horizontal.iter_mut().zip(&s.vertical) {
+                    out.fill(0.0);
+                    for (k, &wk) in kernel.iter().enumerate() {
+                        for (o, &vi) in out.iter_mut().zip(&v[k..k + ow]) {
+                            *o += wk * vi;
+                        }
+                    }
+                }
+                let [mx, my, mxx, myy, mxy] = &s.horizontal;
+                let mut sum = 0.0f64;
+                for i in 0..ow {
+                    let (ux, uy) = (mx[i], my[i]);
+                    let (uxx, uyy, uxy) = (ux * ux, uy * uy, ux * uy);
+                    let (sxx, syy, sxy) = (mxx[i] - uxx, myy[i] - uyy, mxy[i] - uxy);
+                    let num = (2.0 * uxy + c1) * (2.0 * sxy + c2);
+                    let den = (uxx + uyy + c1) * (sxx + syy + c2);
+                    sum += f64::from(num / den);
+                }
+                sum
+            },
+        )
+        .collect();
+    row_sums.iter().sum::<f64>() / (ow * oh) as f64
+}

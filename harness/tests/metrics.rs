@@ -1,0 +1,306 @@
+//! Tests of `harness::image` and `harness::metrics`: exact values on constructed images,
+//! monotonicity on degraded ones, errors that name sizes and files, PNG round trips.
+#![allow(clippy::unwrap_used)]
+
+use harness::image::Image;
+use harness::metrics::{self, MetricsError, PSNR_CAP_DB};
+
+/// Deterministic 64-bit LCG (Knuth MMIX constants); returns the high byte.
+struct Lcg(u64);
+
+impl Lcg {
+    fn byte(&mut self) -> u8 {
+        self.0 = self
+            .0
+            .wrapping_mul(6364136223846793005)
+            .wrapping_add(1442695040888963407);
+        (self.0 >> 56) as u8
+    }
+}
+
+/// Opaque image of `block`×`block` blocks of random colours.
+fn blocks(width: u32, height: u32, block: u32, seed: u64) -> Image {
+    let mut rng = Lcg(seed);
+    let (bw, bh) = (width.div_ceil(block), height.div_ceil(block));
+    let colours: Vec<[u8; 3]> = (0..bw * bh)
+        .map(|_| [rng.byte(), rng.byte(), rng.byte()])
+        .collect();
+    let mut img = Image::new(width, height);
+    for y in 0..height {
+        for x in 0..width {
+            let c = colours[((y / block) * bw + x / block) as usize];
+            let i = ((y * width + x) * 4) as usize;
+            img.rgba[i..i + 4].copy_from_slice(&[c[0], c[1], c[2], 255]);
+        }
+    }
+    img
+}
+
+/// `img` moved right by `dx` pixels; the uncovered left columns become background (alpha 0).
+fn shifted_right(img: &Image, dx: u32) -> Image {
+    let mut out = Image::new(img.width, img.height);
+    for y in 0..img.height {
+        for x in dx..img.width {
+            let src = ((y * img.width + x - dx) * 4) as usize;
+            let dst = ((y * img.width + x) * 4) as usize;
+            out.rgba[dst..dst + 4].copy_from_slice(&img.rgba[src..src + 4]);
+        }
+    }
+    out
+}
+
+/// `img` with every channel of every pixel perturbed by uniform noise in ±`amplitude`.
+fn noisy(img: &Image, amplitude: i32, seed: u64) -> Image {
+    let mut rng = Lcg(seed);
+    let mut out = img.clone();
+    for p in out.rgba.chunks_exact_mut(4) {
+        for c in &mut p[..3] {
+            let n = i32::from(rng.byte()) * (2 * amplitude + 1) / 256 - amplitude;
+            *c = (i32::from(*c) + n).clamp(0, 255) as u8;
+        }
+    }
+    out
+}
+
+/// A 64×64 background image (grey, alpha 0) with a covered 20×20 red square at (`x0`, 10).
+fn square(x0: u32) -> Image {
+    let mut img = Image::new(64, 64);
+    for p in img.rgba.chunks_exact_mut(4) {
+        p.copy_from_slice(&[40, 40, 40, 0]);
+    }
+    for y in 10..30 {
+        for x in x0..x0 + 20 {
+            let i = ((y * 64 + x) * 4) as usize;
+            img.rgba[i..i + 4].copy_from_slice(&[220, 30, 30, 255]);
+        }
+    }
+    img
+}
+
+fn constant(width: u32, height: u32, rgba: [u8; 4]) -> Image {
+    Image::from_rgba(width, height, rgba.repeat((width * height) as usize)).unwrap()
+}
+
+#[test]
+fn identical_images_are_perfect() {
+    let img = noisy(&blocks(96, 80, 7, 1), 30, 2);
+    let m = metrics::compare(&img, &img).unwrap();
+    assert_eq!(m.hole_ratio, 0.0);
+    assert_eq!(m.extra_coverage, 0.0);
+    assert_eq!(m.flip_mean, 0.0);
+    assert_eq!(m.ssim, 1.0);
+    assert_eq!(m.psnr_db, PSNR_CAP_DB);
+    assert_eq!(PSNR_CAP_DB, 100.0);
+    // The single-metric entry points agree with compare.
+    assert_eq!(metrics::ssim(&img, &img).unwrap(), 1.0);
+    assert_eq!(metrics::flip_mean(&img, &img).unwrap(), 0.0);
+    assert_eq!(metrics::psnr_db(&img, &img).unwrap(), 100.0);
+}
+
+#[test]
+fn shifted_square_has_exact_holes_and_extra_coverage() {
+    let reference = square(10);
+    let test = square(15);
+    assert_eq!(reference.coverage_count(), 400);
+    assert_eq!(metrics::hole_ratio(&reference, &test).unwrap(), 0.25);
+    assert_eq!(metrics::extra_coverage(&reference, &test).unwrap(), 0.25);
+    let m = metrics::compare(&reference, &test).unwrap();
+    assert_eq!((m.hole_ratio, m.extra_coverage), (0.25, 0.25));
+    assert!(m.psnr_db < PSNR_CAP_DB && m.ssim < 1.0 && m.flip_mean > 0.0);
+}
+
+#[test]
+fn empty_reference_gives_zero_coverage_ratios() {
+    let reference = constant(32, 32, [0, 0, 0, 0]);
+    let test = constant(32, 32, [10, 20, 30, 255]);
+    assert_eq!(metrics::hole_ratio(&reference, &test).unwrap(), 0.0);
+    assert_eq!(metrics::extra_coverage(&reference, &test).unwrap(), 0.0);
+    assert_eq!(metrics::hole_ratio(&reference, &reference).unwrap(), 0.0);
+}
+
+#[test]
+fn psnr_of_known_mse() {
+    let a = constant(40, 30, [100, 150, 200, 255]);
+    let b = constant(40, 30, [110, 140, 210, 0]);
+    let expected = 20.0 * (255.0f64 / 10.0).log10();
+    let got = metrics::psnr_db(&a, &b).unwrap();
+    assert!((got - expected).abs() < 1e-9, "{got} vs {expected}");
+}
+
+#[test]
+fn ssim_decreases_with_noise() {
+    let clean = blocks(128, 96, 6, 3);
+    let s_light = metrics::ssim(&clean, &noisy(&clean, 8, 4)).unwrap();
+    let s_heavy = metrics::ssim(&clean, &noisy(&clean, 40, 4)).unwrap();
+    assert!(s_light < 1.0, "{s_light}");
+    assert!(s_heavy < s_light, "{s_heavy} !< {s_light}");
+    assert!(s_heavy > -1.0);
+}
+
+#[test]
+fn ssim_handles_images_smaller_than_the_window() {
+    let a = blocks(5, 3, 1, 5);
+    assert_eq!(metrics::ssim(&a, &a).unwrap(), 1.0);
+    let s = metrics::ssim(&a, &noisy(&a, 60, 6)).unwrap();
+    assert!(s < 1.0 && s.is_finite(), "{s}");
+    let empty = Image::new(0, 0);
+    let m = metrics::compare(&empty, &empty).unwrap();
+    assert_eq!((m.psnr_db, m.ssim, m.flip_mean), (100.0, 1.0, 0.0));
+}
+
+#[test]
+fn flip_grows_with_shift() {
+    let reference = blocks(128, 128, 8, 7);
+    let f1 = metrics::flip_mean(&reference, &shifted_right(&reference, 1)).unwrap();
+    let f4 = metrics::flip_mean(&reference, &shifted_right(&reference, 4)).unwrap();
+    assert!(f1 > 0.0, "{f1}");
+    assert!(f1 < f4, "{f1} !< {f4}");
+    assert!(f4 <= 1.0);
+}
+
+#[test]
+fn flip_map_is_an_opaque_image_of_the_same_size() {
+    let reference = blocks(48, 32, 4, 8);
+    let test = shifted_right(&reference, 2);
+    let map = metrics::flip_map(&reference, &test).unwrap();
+    assert_eq!((map.width, map.height), (48, 32));
+    assert_eq!(map.coverage_count(), 48 * 32);
+    // Identical images map every pixel to the colour of error 0.
+    let zero = metrics::flip_map(&reference, &reference).unwrap();
+    let first = zero.pixel(0, 0);
+    assert!(zero.rgba.chunks_exact(4).all(|p| p == first));
+    assert_ne!(map, zero);
+}
+
+#[test]
+fn size_mismatch_is_an_error_naming_both_sizes() {
+    let a = Image::new(64, 64);
+    let b = Image::new(32, 48);
+    let err = metrics::compare(&a, &b).unwrap_err();
+    assert!(matches!(err, MetricsError::SizeMismatch { .. }));
+    let msg = err.to_string();
+    assert!(msg.contains("64x64") && msg.contains("32x48"), "{msg}");
+    for result in [
+        metrics::psnr_db(&a, &b),
+        metrics::ssim(&a, &b),
+        metrics::flip_mean(&a, &b),
+        metrics::hole_ratio(&a, &b),
+        metrics::extra_coverage(&a, &b),
+    ] {
+        assert!(matches!(result, Err(MetricsError::SizeMismatch { .. })));
+    }
+    assert!(metrics::flip_map(&a, &b).is_err());
+}
+
+#[test]
+fn malformed_buffers_are_errors() {
+    let err = Image::from_rgba(4, 4, vec![0; 63]).unwrap_err();
+    assert!(err.to_string().contains("4x4"), "{err}");
+    // Public fields can be bent after construction: comparisons re-check.
+    let mut bad = Image::new(4, 4);
+    bad.rgba.pop();
+    assert!(metrics::compare(&Image::new(4, 4), &bad).is_err());
+}
+
+#[test]
+fn pixel_accessors() {
+    let img = square(10);
+    assert_eq!(img.pixel(10, 10), [220, 30, 30, 255]);
+    assert_eq!(img.pixel(0, 0), [40, 40, 40, 0]);
+    assert!(img.covered(29, 29));
+    assert!(!img.covered(30, 29));
+    assert_eq!(img.coverage_count(), 400);
+}
+
+#[test]
+fn png_round_trip_is_exact_including_alpha() {
+    let dir = tempfile::tempdir().unwrap();
+    let path = dir.path().join("frame.png");
+    let mut img = noisy(&blocks(33, 17, 3, 9), 50, 10);
+    let mut rng = Lcg(11);
+    for p in img.rgba.chunks_exact_mut(4) {
+        p[3] = rng.byte();
+    }
+    img.save_png(&path).unwrap();
+    let back = Image::load_png(&path).unwrap();
+    assert_eq!(back, img);
+    assert_eq!(back.content_hash(), img.content_hash());
+    // Overwrite in place; only the final file is left behind (no temporaries).
+    square(3).save_png(&path).unwrap();
+    assert_eq!(Image::load_png(&path).unwrap(), square(3));
+    let names: Vec<_> = std::fs::read_dir(dir.path())
+        .unwrap()
+        .map(|e| e.unwrap().file_name())
+        .collect();
+    assert_eq!(names, vec![std::ffi::OsString::from("frame.png")]);
+}
+
+#[test]
+fn loading_a_non_png_names_the_file() {
+    let dir = tempfile::tempdir().unwrap();
+    let path = dir.path().join("not-a-png.png");
+    std::fs::write(&path, b"frame,method\n0,qsplat\n").unwrap();
+    let err = Image::load_png(&path).unwrap_err();
+    assert!(matches!(err, MetricsError::PngDecode { .. }));
+    assert!(err.to_string().contains("not-a-png.png"), "{err}");
+    let missing = dir.path().join("missing.png");
+    let err = Image::load_png(&missing).unwrap_err();
+    assert!(err.to_string().contains("missing.png"), "{err}");
+    let err = square(0)
+        .save_png(&dir.path().join("no-such-dir").join("x.png"))
+        .unwrap_err();
+    assert!(err.to_string().contains("x.png"), "{err}");
+}
+
+#[test]
+fn content_hash_depends_on_size_and_bytes() {
+    let a = blocks(8, 4, 2, 12);
+    let mut b = a.clone();
+    b.rgba[17] ^= 1;
+    let c = Image::from_rgba(4, 8, a.rgba.clone()).unwrap();
+    assert_eq!(a.content_hash(), a.clone().content_hash());
+    assert_ne!(a.content_hash(), b.content_hash());
+    assert_ne!(a.content_hash(), c.content_hash());
+    // FNV-1a of the empty image: the 8 bytes of two zero u32s.
+    let empty = Image::new(0, 0).content_hash();
+    let expected = [0u8; 8].iter().fold(0xcbf2_9ce4_8422_2325u64, |h, &b| {
+        (h ^ u64::from(b)).wrapping_mul(0x100_0000_01b3)
+    });
+    assert_eq!(empty, expected);
+}
+
+/// Not a pass/fail test (timings never are): prints how long `compare` takes on a 1024²
+/// pair. Run with
+/// `cargo test -p harness --release --test metrics -- --ignored --nocapture compare_timing`.
+#[test]
+#[ignore = "timing report, run on demand in release"]
+fn compare_timing_1024() {
+    let reference = blocks(1024, 1024, 5, 13);
+    let test = noisy(&shifted_right(&reference, 2), 10, 14);
+    let _ = metrics::compare(&reference, &test).unwrap();
+    let time = |f: &dyn Fn()| {
+        let runs = 5;
+        let start = std::time::Instant::now();
+        for _ in 0..runs {
+            f();
+        }
+        start.elapsed().as_secs_f64() * 1e3 / f64::from(runs)
+    };
+    let compare_ms = time(&|| {
+        std::hint::black_box(metrics::compare(&reference, &test).unwrap());
+    });
+    let ssim_ms = time(&|| {
+        std::hint::black_box(metrics::ssim(&reference, &test).unwrap());
+    });
+    let flip_ms = time(&|| {
+        std::hint::black_box(metrics::flip_mean(&reference, &test).unwrap());
+    });
+    let psnr_ms = time(&|| {
+        std::hint::black_box(metrics::psnr_db(&reference, &test).unwrap());
+    });
+    println!(
+        "1024x1024, {} threads: compare {compare_ms:.1} ms, ssim {ssim_ms:.1} ms, \
+         flip {flip_ms:.1} ms, psnr {psnr_ms:.2} ms",
+        rayon::current_num_threads()
+    );
+}

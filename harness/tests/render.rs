@@ -64,7 +64,7 @@ fn gpu_matches_cpu_mirror() {
     let Some(gpu) = gpu_for_test("gpu_matches_cpu_mirror") else { return };
     let tmp = tempfile::tempdir().unwrap();
     let cloud = Generator::Statue.generate(6_000, 11).unwrap();
-    let m = full(&cloud, tmp.path());
+    let mut m = full(&cloud, tmp.path());
     let v = view(&cloud, 200, 150, 1);
     let radius_list = m.frame(&v, Target::Tolerance(1.0), &Feedback::default()).unwrap();
     let mut px_list = radius_list.clone();
@@ -127,7 +127,7 @@ fn golden_image_per_kernel() {
     let Some(gpu) = gpu_for_test("golden_image_per_kernel") else { return };
     let tmp = tempfile::tempdir().unwrap();
     let cloud = Generator::Statue.generate(20_000, 5).unwrap();
-    let m = full(&cloud, tmp.path());
+    let mut m = full(&cloud, tmp.path());
     let v = view(&cloud, 128, 128, 0);
     let list = m.frame(&v, Target::Tolerance(1.0), &Feedback::default()).unwrap();
     for kernel in Kernel::ALL {
@@ -198,7 +198,7 @@ fn chunk_cache_uploads_once_and_respects_budget() {
     let Some(gpu) = gpu_for_test("chunk_cache_uploads_once_and_respects_budget") else { return };
     let tmp = tempfile::tempdir().unwrap();
     let cloud = Generator::Statue.generate(3_000, 1).unwrap();
-    let m = full(&cloud, tmp.path());
+    let mut m = full(&cloud, tmp.path());
     let v = view(&cloud, 64, 64, 0);
     let list = m.frame(&v, Target::Tolerance(1.0), &Feedback::default()).unwrap();
     let mut r = Renderer::new(&gpu, settings(64, 64, Kernel::Square)).unwrap();

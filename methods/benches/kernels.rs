@@ -26,9 +26,9 @@ fn kernels(c: &mut Criterion) {
     g.bench_function("knn_spacing_k6", |b| {
         b.iter(|| scenes::spacing::knn_spacing(cloud.positions(), methods::leaf::LEAF_K))
     });
-    for gen in Generator::ALL {
-        g.bench_function(format!("generate_{}", gen.name()), |b| {
-            b.iter(|| gen.generate(n, 1).unwrap())
+    for generator in Generator::ALL {
+        g.bench_function(format!("generate_{}", generator.name()), |b| {
+            b.iter(|| generator.generate(n, 1).unwrap())
         });
     }
     let dir = tempfile::tempdir().unwrap();

@@ -11,8 +11,10 @@
 //! How determinism is achieved: the points are produced in fixed blocks of [`BLOCK`] points;
 //! block `b` draws only from [`Pcg32::stream`]`(seed, b)`, and the scene's own random
 //! parameters (waves, density grid) from a reserved stream. Blocks run in parallel and are
-//! stored in block order, so the thread count cannot change a byte. All trigonometry goes
-//! through [`waves::sincos`], so the bytes do not depend on the platform's libm either.
+//! stored in block order, so the thread count cannot change a byte. Trigonometry goes through
+//! the portable [`waves::sincos`]; a few `exp`/`powf` calls still use the platform's libm, so
+//! identical bytes are guaranteed on one platform and toolchain, not across operating systems
+//! (bump the scene cache's generator version if a result ever changes).
 //!
 //! `generate_to_file` fills [`BATCH_BLOCKS`] blocks at a time in parallel and pushes them in
 //! order through a [`ColumnWriter`], so a 100 M-point scene never sits in memory.

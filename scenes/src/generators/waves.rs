@@ -5,8 +5,9 @@
 //! - [`sincos`] is our own branch-free `f32` implementation (Cody–Waite reduction by π/2 and
 //!   the Cephes minimax polynomials, |error| < 2·10⁻⁷ + 10⁻⁷·|x| for |x| < 10⁴). It is
 //!   several times faster than `f32::sin` + `f32::cos` (the loops over waves vectorise) and,
-//!   unlike the platform libm, gives the same bits on every platform, so generated scenes
-//!   are identical everywhere, not only across thread counts.
+//!   unlike the platform libm, gives the same bits on every platform. (The generators still
+//!   call `exp`/`powf` in a few places, so scenes are guaranteed byte-identical across thread
+//!   counts and runs, not across operating systems or libm versions.)
 //! - A [`WaveSum`] stores its waves as structure-of-arrays so the evaluation loop vectorises.
 
 use glam::Vec3;

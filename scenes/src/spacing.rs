@@ -1,7 +1,419 @@
-//! Per-sample spacing estimate. STUB — to be implemented.
+//! Per-sample spacing: the distance from each point to its k-th nearest neighbour.
+//!
+//! Contract of [`knn_spacing`]:
+//! - exact k-NN distances (Euclidean, in the cloud's local `f32` coordinates), the point itself
+//!   excluded by index, so a duplicate of a point *is* a neighbour at distance 0;
+//! - one value per input point, in input order, every value finite and `> 0` (see
+//!   *Degenerate input* below);
+//! - deterministic: the result does not depend on the number of rayon threads;
+//! - works for any density: the search structure is a static kd-tree with median splits, so
+//!   leaves hold 8–16 points whether the cloud is uniform or varies 1000× in density.
+//!
+//! **Structure.** An implicit, balanced kd-tree: points (with their input index) are permuted
+//! in place, level by level, with `select_nth_unstable_by` at the middle of each node's range
+//! along the longest axis of the node's tight bounding box; a node stores only its split value
+//! and axis (heap order, so no child pointers), and a node's index range follows from its
+//! parent's (`[lo, lo + len/2)` and `[lo + len/2, hi)`). All leaves sit at the same depth.
+//! Queries descend to the query's own leaf first, keep the k best in a sorted array and prune
+//! a far child when the squared distance to its splitting plane is not below the current k-th
+//! distance. Queries run in parallel in tree order (cache-friendly), then are scattered back.
+//! 1 M points, k = 8: ≈ 0.5 s on 2 cores in a release build (see the crate's timing test).
+//!
+//! **Degenerate input** (all documented fallbacks, never a panic):
+//! - `k = 0` is treated as `k = 1`; `k ≥ n` is clamped to `n − 1` (the farthest other point);
+//! - a point whose k-th neighbour is at distance 0 (it has ≥ k exact duplicates), or whose
+//!   distance is not finite (NaN input), gets the *smallest positive* k-NN distance found in
+//!   the cloud — the finest spacing the cloud really has;
+//! - if no point has a positive distance (a single point, or every point with ≥ k
+//!   duplicates), every point gets `diagonal / √n` of the bounding box (the spacing of `n`
+//!   points spread over a surface of that size), and if that is zero too (all points
+//!   coincide), `1.0`.
+//!
+//! **Splat radius.** [`radius_from_spacing`] is the identity: a splat of radius equal to the
+//! k-NN distance reaches the centres of its k nearest neighbours, so neighbouring splats
+//! overlap generously and a randomly (Poisson) sampled surface is covered without holes for
+//! k ≥ 6 (tested with k = [`DEFAULT_K`]). Half the spacing would make splats of a *regular*
+//! grid just touch, but leaves holes wherever random sampling leaves a gap.
 
-/// Distance to the k-th nearest neighbour of each point (see module docs).
+use rayon::prelude::*;
+
+/// The `k` we recommend for splat radii (see [`radius_from_spacing`]).
+pub const DEFAULT_K: usize = 8;
+
+/// Most points in a kd-tree leaf; leaves hold between `LEAF_MAX / 2` and `LEAF_MAX`.
+const LEAF_MAX: usize = 16;
+
+/// Splat radius for a sample of k-NN spacing `spacing`: the identity (see the module docs).
+#[inline]
+pub fn radius_from_spacing(spacing: f32) -> f32 {
+    spacing
+}
+
+/// Distance from each point to its `k`-th nearest neighbour (itself excluded), in input
+/// order; every value finite and `> 0`. See the module docs for the degenerate cases.
 pub fn knn_spacing(positions: &[[f32; 3]], k: usize) -> Vec<f32> {
-    let _ = k;
-    vec![1.0; positions.len()]
+    let n = positions.len();
+    if n == 0 {
+        return Vec::new();
+    }
+    let mut out = if n >= 2 {
+        let k = k.clamp(1, n - 1);
+        KdTree::build(positions).knn_distances(k)
+    } else {
+        vec![0.0]
+    };
+    apply_fallback(&mut out, positions);
+    out
+}
+
+/// Replaces zero / non-finite spacings as documented in the module docs.
+fn apply_fallback(out: &mut [f32], positions: &[[f32; 3]]) {
+    let bad = |d: f32| !(d.is_finite() && d > 0.0);
+    if !out.par_iter().any(|&d| bad(d)) {
+        return;
+    }
+    let smallest = out
+        .par_iter()
+        .copied()
+        .filter(|&d| !bad(d))
+        .reduce(|| f32::INFINITY, f32::min);
+    let fallback = if smallest.is_finite() {
+        smallest
+    } else {
+        let b = crate::Aabb::from_points(positions);
+        let diag = b.size().length() / (positions.len() as f32).sqrt();
+        if diag.is_finite() && diag > 0.0 {
+            diag
+        } else {
+            1.0
+        }
+    };
+    out.par_iter_mut().for_each(|d| {
+        if bad(*d) {
+            *d = fallback;
+        }
+    });
+}
+
+/// A point with its index in the input.
+#[derive(Clone, Copy)]
+struct Item {
+    p: [f32; 3],
+    index: usize,
+}
+
+/// Implicit balanced kd-tree (see the module docs).
+struct KdTree {
+    /// Points in tree order: each leaf is a contiguous range.
+    items: Vec<Item>,
+    /// Internal nodes in heap order: (split value, axis).
+    nodes: Vec<(f32, u8)>,
+}
+
+impl KdTree {
+    fn build(positions: &[[f32; 3]]) -> KdTree {
+        let n = positions.len();
+        let mut items: Vec<Item> = positions
+            .iter()
+            .enumerate()
+            .map(|(index, &p)| Item { p, index })
+            .collect();
+        // All leaves at depth `depth`, each with at most LEAF_MAX points.
+        let mut depth = 0u32;
+        while n.div_ceil(1 << depth) > LEAF_MAX {
+            depth += 1;
+        }
+        let mut nodes = vec![(0.0f32, 0u8); (1usize << depth) - 1];
+        for level in 0..depth {
+            let first = (1usize << level) - 1;
+            let count = 1usize << level;
+            // The node ranges of this level, as disjoint mutable slices.
+            let mut slices: Vec<&mut [Item]> = Vec::with_capacity(count);
+            split_level(&mut items, level, &mut slices);
+            nodes[first..first + count]
+                .par_iter_mut()
+                .zip(slices.into_par_iter())
+                .for_each(|(node, s)| *node = split_node(s));
+        }
+        KdTree { items, nodes }
+    }
+
+    /// k-NN distance of every point, in input order.
+    fn knn_distances(&self, k: usize) -> Vec<f32> {
+        let n = self.items.len();
+        let mut in_tree_order = vec![0.0f32; n];
+        in_tree_order
+            .par_chunks_mut(2048)
+            .enumerate()
+            .for_each_init(
+                || Knn::new(k),
+                |heap, (c, chunk)| {
+                    for (j, d) in chunk.iter_mut().enumerate() {
+                        let qi = c * 2048 + j;
+                        heap.clear();
+                        self.search(0, 0, n, self.items[qi].p, qi, 0.0, &mut [0.0; 3], heap);
+                        *d = heap.worst().sqrt();
+                    }
+                },
+            );
+        let mut out = vec![0.0f32; n];
+        for (item, d) in self.items.iter().zip(in_tree_order) {
+            out[item.index] = d;
+        }
+        out
+    }
+
+    /// k-NN search below `node` (index range `lo..hi`). `off[a]` is the signed distance along
+    /// axis `a` from `q` to the node's cell (0 inside), `rd` = |off|², a lower bound on the
+    /// squared distance from `q` to any point of the node (Arya & Mount's incremental distance).
+    #[expect(
+        clippy::too_many_arguments,
+        reason = "a recursive kernel; a struct would only add noise"
+    )]
+    fn search(
+        &self,
+        node: usize,
+        lo: usize,
+        hi: usize,
+        q: [f32; 3],
+        qi: usize,
+        rd: f32,
+        off: &mut [f32; 3],
+        heap: &mut Knn,
+    ) {
+        if node >= self.nodes.len() {
+            for (i, it) in self.items[lo..hi].iter().enumerate() {
+                let d = dist2(it.p, q);
+                if d < heap.worst() && lo + i != qi {
+                    heap.insert(d);
+                }
+            }
+            return;
+        }
+        let (split, axis) = self.nodes[node];
+        let a = axis as usize;
+        let mid = lo + (hi - lo) / 2;
+        let diff = q[a] - split;
+        let (near, far) = if diff < 0.0 {
+            ((2 * node + 1, lo, mid), (2 * node + 2, mid, hi))
+        } else {
+            ((2 * node + 2, mid, hi), (2 * node + 1, lo, mid))
+        };
+        self.search(near.0, near.1, near.2, q, qi, rd, off, heap);
+        let old = off[a];
+        let far_rd = rd - old * old + diff * diff;
+        if far_rd < heap.worst() {
+            off[a] = diff;
+            self.search(far.0, far.1, far.2, q, qi, far_rd, off, heap);
+            off[a] = old;
+        }
+    }
+}
+
+/// Cuts `items` into the node ranges of `level` (in order), pushing them to `out`.
+fn split_level<'a>(items: &'a mut [Item], level: u32, out: &mut Vec<&'a mut [Item]>) {
+    if level == 0 {
+        out.push(items);
+        return;
+    }
+    let mid = items.len() / 2;
+    let (l, r) = items.split_at_mut(mid);
+    split_level(l, level - 1, out);
+    split_level(r, level - 1, out);
+}
+
+/// Median split of one node along the longest axis of its points' bounds.
+fn split_node(s: &mut [Item]) -> (f32, u8) {
+    let mut lo = [f32::INFINITY; 3];
+    let mut hi = [f32::NEG_INFINITY; 3];
+    for it in s.iter() {
+        for a in 0..3 {
+            lo[a] = lo[a].min(it.p[a]);
+            hi[a] = hi[a].max(it.p[a]);
+        }
+    }
+    let ext = [hi[0] - lo[0], hi[1] - lo[1], hi[2] - lo[2]];
+    let axis = if ext[0] >= ext[1] && ext[0] >= ext[2] {
+        0
+    } else if ext[1] >= ext[2] {
+        1
+    } else {
+        2
+    };
+    let mid = s.len() / 2;
+    let (_, m, _) = s.select_nth_unstable_by(mid, |a, b| a.p[axis].total_cmp(&b.p[axis]));
+    (m.p[axis], axis as u8)
+}
+
+#[inline]
+fn dist2(a: [f32; 3], b: [f32; 3]) -> f32 {
+    let d = [a[0] - b[0], a[1] - b[1], a[2] - b[2]];
+    d[0] * d[0] + d[1] * d[1] + d[2] * d[2]
+}
+
+/// The k smallest squared distances seen so far, sorted ascending.
+struct Knn {
+    d: Vec<f32>,
+    k: usize,
+}
+
+impl Knn {
+    fn new(k: usize) -> Knn {
+        Knn {
+            d: Vec::with_capacity(k),
+            k,
+        }
+    }
+    fn clear(&mut self) {
+        self.d.clear();
+    }
+    #[inline]
+    fn worst(&self) -> f32 {
+        if self.d.len() < self.k {
+            f32::INFINITY
+        } else {
+            self.d[self.k - 1]
+        }
+    }
+    #[inline]
+    fn insert(&mut self, x: f32) {
+        if self.d.len() == self.k {
+            self.d.pop();
+        }
+        let pos = self.d.partition_point(|&y| y <= x);
+        self.d.insert(pos, x);
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn brute(p: &[[f32; 3]], k: usize) -> Vec<f32> {
+        (0..p.len())
+            .map(|i| {
+                let mut d: Vec<f32> = (0..p.len())
+                    .filter(|&j| j != i)
+                    .map(|j| dist2(p[i], p[j]))
+                    .collect();
+                d.sort_by(f32::total_cmp);
+                d[k - 1].sqrt()
+            })
+            .collect()
+    }
+
+    #[test]
+    fn regular_grid_gives_the_grid_spacing() {
+        let h = 0.25f32;
+        let m = 12;
+        let mut p = Vec::new();
+        for i in 0..m {
+            for j in 0..m {
+                for k in 0..m {
+                    p.push([i as f32 * h + 3.0, j as f32 * h - 1.0, k as f32 * h]);
+                }
+            }
+        }
+        let d1 = knn_spacing(&p, 1);
+        let d6 = knn_spacing(&p, 6);
+        let d7 = knn_spacing(&p, 7);
+        for (idx, q) in p.iter().enumerate() {
+            let (i, j, k) = (idx / (m * m), (idx / m) % m, idx % m);
+            let interior = [i, j, k].iter().all(|&c| c > 0 && c < m - 1);
+            assert!((d1[idx] - h).abs() < 1e-5, "{q:?}: {}", d1[idx]);
+            if interior {
+                assert!((d6[idx] - h).abs() < 1e-5, "{q:?}: {}", d6[idx]);
+                // The 7th neighbour is a face diagonal.
+                assert!(
+                    (d7[idx] - h * 2f32.sqrt()).abs() < 1e-5,
+                    "{q:?}: {}",
+                    d7[idx]
+                );
+            }
+        }
+    }
+
+    #[test]
+    fn degenerate_input_gives_finite_positive_spacing() {
+        // Many exact duplicates: the k-th neighbour is at distance 0 for most points.
+        let mut p = vec![[1.0f32, 2.0, 3.0]; 50];
+        p.extend(vec![[1.5f32, 2.0, 3.0]; 50]);
+        p.push([4.0, 2.0, 3.0]);
+        let d = knn_spacing(&p, 8);
+        assert!(d.iter().all(|d| d.is_finite() && *d > 0.0));
+        // The fallback is the smallest positive spacing found (the lone point's 8th NN).
+        assert_eq!(d[0], d[100]);
+        // All coincident: no positive distance and an empty box → 1.0.
+        let d = knn_spacing(&[[7.0f32, 7.0, 7.0]; 20], 8);
+        assert!(d.iter().all(|&d| d == 1.0));
+        // Two clusters of coincident points: diagonal / √n.
+        let mut p = vec![[0.0f32; 3]; 10];
+        p.extend(vec![[3.0f32, 4.0, 0.0]; 10]);
+        let d = knn_spacing(&p, 4);
+        assert!(d.iter().all(|&d| (d - 5.0 / 20f32.sqrt()).abs() < 1e-6));
+        // Single point, k = 0, k ≥ n, empty input.
+        assert_eq!(knn_spacing(&[[1.0, 1.0, 1.0]], 8), vec![1.0]);
+        let p = [[0.0f32, 0.0, 0.0], [1.0, 0.0, 0.0], [3.0, 0.0, 0.0]];
+        assert_eq!(knn_spacing(&p, 0), knn_spacing(&p, 1));
+        assert_eq!(knn_spacing(&p, 100), vec![3.0, 2.0, 3.0]);
+        assert!(knn_spacing(&[], 8).is_empty());
+        // NaN input never panics and still gives finite positive values.
+        let p = [[0.0f32, 0.0, 0.0], [f32::NAN, 0.0, 0.0], [1.0, 0.0, 0.0]];
+        assert!(knn_spacing(&p, 1).iter().all(|d| d.is_finite() && *d > 0.0));
+    }
+
+    #[test]
+    fn radius_equal_to_spacing_covers_a_random_surface() {
+        // Uniform random points on the unit square: every interior test point must lie inside
+        // the disc of radius `radius_from_spacing(knn_spacing(.., DEFAULT_K))` of some sample.
+        let mut r = crate::rng::Pcg32::new(11);
+        let p: Vec<[f32; 3]> = (0..20_000).map(|_| [r.f32(), r.f32(), 0.0]).collect();
+        let rad: Vec<f32> = knn_spacing(&p, DEFAULT_K)
+            .into_iter()
+            .map(radius_from_spacing)
+            .collect();
+        // Bucket the samples in a grid to test coverage quickly.
+        let g = 64usize;
+        let mut cells = vec![Vec::new(); g * g];
+        for (i, q) in p.iter().enumerate() {
+            let (x, y) = ((q[0] * g as f32) as usize, (q[1] * g as f32) as usize);
+            cells[y.min(g - 1) * g + x.min(g - 1)].push(i);
+        }
+        for _ in 0..20_000 {
+            let (x, y) = (0.1 + 0.8 * r.f32(), 0.1 + 0.8 * r.f32());
+            let (cx, cy) = ((x * g as f32) as usize, (y * g as f32) as usize);
+            let covered = (cy - 2..=cy + 2).any(|j| {
+                (cx - 2..=cx + 2).any(|i| {
+                    cells[j * g + i]
+                        .iter()
+                        .any(|&s| dist2(p[s], [x, y, 0.0]) < rad[s] * rad[s])
+                })
+            });
+            assert!(covered, "hole at ({x}, {y})");
+        }
+    }
+
+    #[test]
+    fn matches_brute_force_on_clustered_points() {
+        let mut r = crate::rng::Pcg32::new(5);
+        let mut p = Vec::new();
+        for i in 0..3000 {
+            // Three clusters of very different density, and a few exact duplicates.
+            let s = [1.0, 0.01, 0.0001][i % 3];
+            p.push([r.f32() * s, r.f32() * s + (i % 3) as f32, r.f32() * s]);
+        }
+        p.push(p[10]);
+        p.push(p[11]);
+        for k in [1, 3, 8, 20] {
+            let got = knn_spacing(&p, k);
+            let want = brute(&p, k);
+            for (i, (g, w)) in got.iter().zip(&want).enumerate() {
+                if *w > 0.0 {
+                    assert_eq!(g, w, "point {i}, k = {k}");
+                } else {
+                    assert!(*g > 0.0 && g.is_finite());
+                }
+            }
+        }
+    }
 }

@@ -19,7 +19,11 @@ use scenes::paths::PathSpec;
 const DEMO_SCENE: &str = "statue:60000:1";
 
 #[derive(Parser)]
-#[command(name = "splatbench", version, about = "Benchmark harness for multiresolution point rendering (QSplat, SPT, LPC, MWKD)")]
+#[command(
+    name = "splatbench",
+    version,
+    about = "Benchmark harness for multiresolution point rendering (QSplat, SPT, LPC, MWKD)"
+)]
 struct Cli {
     #[command(subcommand)]
     command: Command,
@@ -173,7 +177,11 @@ fn real_main() -> anyhow::Result<()> {
             let s = harness::runner::run(&cfg, &gpu, &harness::progress::Bar::new())?;
             let plots = harness::plot::plot_run(&cfg.out)?;
             print_summary(&s);
-            println!("wrote {}/frames.csv, summary.json and {} plot files", cfg.out.display(), plots.len());
+            println!(
+                "wrote {}/frames.csv, summary.json and {} plot files",
+                cfg.out.display(),
+                plots.len()
+            );
             Ok(())
         }
         Command::Plot { dirs, out } => {
@@ -216,7 +224,12 @@ fn list() -> anyhow::Result<()> {
     Ok(())
 }
 
-fn build(m: &MethodArgs, s: &SceneArgs, out: &std::path::Path, cache: &std::path::Path) -> anyhow::Result<()> {
+fn build(
+    m: &MethodArgs,
+    s: &SceneArgs,
+    out: &std::path::Path,
+    cache: &std::path::Path,
+) -> anyhow::Result<()> {
     let params = Params::parse(&m.params)?;
     m.method.check_params(&params)?;
     let spec = SceneSpec::parse(&s.scene, s.sample, s.seed)?;
@@ -249,7 +262,11 @@ fn run_config(a: &RunArgs) -> anyhow::Result<RunConfig> {
                 KernelArg::Square => Kernel::Square,
                 KernelArg::Circle => Kernel::Circle,
             },
-            cache_bytes: a.render.gpu_cache_mb.checked_mul(1 << 20).context("--gpu-cache-mb is too large")?,
+            cache_bytes: a
+                .render
+                .gpu_cache_mb
+                .checked_mul(1 << 20)
+                .context("--gpu-cache-mb is too large")?,
         },
         seed: a.scene.seed,
         save_images: a.save_images,
@@ -262,7 +279,10 @@ fn run_config(a: &RunArgs) -> anyhow::Result<RunConfig> {
 fn open_gpu() -> anyhow::Result<Gpu> {
     match Gpu::new()? {
         Some(g) => {
-            eprintln!("adapter: {} ({}, {})", g.adapter.name, g.adapter.backend, g.adapter.device_type);
+            eprintln!(
+                "adapter: {} ({}, {})",
+                g.adapter.name, g.adapter.backend, g.adapter.device_type
+            );
             Ok(g)
         }
         None => bail!(
@@ -293,7 +313,9 @@ fn demo(out: &std::path::Path, frames: usize) -> anyhow::Result<()> {
     let gpu = open_gpu()?;
     let bar = harness::progress::Bar::new();
     let mut dirs = Vec::new();
-    println!("demo: every method on the embedded scene {DEMO_SCENE}, {frames} frames of orbit, 512x512, eps 1 px");
+    println!(
+        "demo: every method on the embedded scene {DEMO_SCENE}, {frames} frames of orbit, 512x512, eps 1 px"
+    );
     for m in MethodKind::ALL {
         let dir = out.join(m.name());
         let cfg = RunConfig {
@@ -320,7 +342,11 @@ fn demo(out: &std::path::Path, frames: usize) -> anyhow::Result<()> {
         "demo done in {:.1} s: {} run directories, comparison plots {}",
         t0.elapsed().as_secs_f64(),
         dirs.len(),
-        files.iter().map(|f| f.display().to_string()).collect::<Vec<_>>().join(", ")
+        files
+            .iter()
+            .map(|f| f.display().to_string())
+            .collect::<Vec<_>>()
+            .join(", ")
     );
     Ok(())
 }

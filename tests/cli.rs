@@ -17,7 +17,10 @@ fn fails_with(args: &[&str], needle: &str) {
     let err = String::from_utf8_lossy(&out.stderr);
     assert!(!out.status.success(), "{args:?} should fail");
     assert!(!err.contains("panicked"), "{args:?} panicked: {err}");
-    assert!(err.contains(needle), "{args:?}: expected '{needle}' in: {err}");
+    assert!(
+        err.contains(needle),
+        "{args:?}: expected '{needle}' in: {err}"
+    );
 }
 
 fn have_gpu(test: &str) -> bool {
@@ -43,13 +46,29 @@ fn build_writes_build_json() {
     let d = tempfile::tempdir().unwrap();
     let out = d.path().join("b");
     bin()
-        .args(["build", "--method", "full", "--scene", "statue:5000", "--out"])
+        .args([
+            "build",
+            "--method",
+            "full",
+            "--scene",
+            "statue:5000",
+            "--out",
+        ])
         .arg(&out)
         .assert()
         .success();
     let v: serde_json::Value =
         serde_json::from_str(&std::fs::read_to_string(out.join("build.json")).unwrap()).unwrap();
-    for k in ["points_in", "nodes", "levels", "bytes_in", "bytes_out", "bits_per_sample", "seconds", "points_per_s"] {
+    for k in [
+        "points_in",
+        "nodes",
+        "levels",
+        "bytes_in",
+        "bytes_out",
+        "bits_per_sample",
+        "seconds",
+        "points_per_s",
+    ] {
         assert!(v.get(k).is_some(), "build.json lacks {k}: {v}");
     }
     assert_eq!(v["points_in"], 5000);
@@ -71,7 +90,20 @@ fn run_full_against_its_own_reference_is_exact() {
     let d = tempfile::tempdir().unwrap();
     let out = d.path().join("run");
     bin()
-        .args(["run", "--method", "full", "--scene", "statue:8000", "--frames", "3", "--width", "160", "--height", "120", "--out"])
+        .args([
+            "run",
+            "--method",
+            "full",
+            "--scene",
+            "statue:8000",
+            "--frames",
+            "3",
+            "--width",
+            "160",
+            "--height",
+            "120",
+            "--out",
+        ])
         .arg(&out)
         .arg("--cache")
         .arg(d.path().join("cache"))
@@ -105,7 +137,9 @@ fn run_full_against_its_own_reference_is_exact() {
         assert!(out.join(f).exists(), "{f} missing");
     }
     // The same run again hits the reference cache and still agrees.
-    let refs = std::fs::read_dir(d.path().join("cache/refs")).unwrap().count();
+    let refs = std::fs::read_dir(d.path().join("cache/refs"))
+        .unwrap()
+        .count();
     assert_eq!(refs, 3, "one cached reference per distinct view");
 }
 
@@ -129,14 +163,100 @@ fn demo_runs_every_method_and_plots() {
 
 #[test]
 fn bad_flags_are_clear_errors() {
-    fails_with(&["run", "--method", "nope", "--scene", "statue:10", "--out", "x"], "nope");
-    fails_with(&["build", "--method", "full", "--scene", "bunny", "--out", "x"], "known: statue");
-    fails_with(&["build", "--method", "full", "--scene", "statue:0", "--out", "x"], "at least 1");
-    fails_with(&["build", "--method", "full", "--scene", "statue:100", "--param", "sede=1", "--out", "x"], "sede");
-    fails_with(&["run", "--method", "full", "--scene", "statue:100", "--eps", "NaN", "--out", "x"], "--eps");
-    fails_with(&["run", "--method", "full", "--scene", "statue:100", "--eps", "-2", "--out", "x"], "--eps");
-    fails_with(&["run", "--method", "full", "--scene", "statue:100", "--budget", "0", "--out", "x"], "--budget");
-    fails_with(&["run", "--method", "full", "--scene", "statue:100", "--path", "spiral", "--out", "x"], "orbit");
+    fails_with(
+        &[
+            "run",
+            "--method",
+            "nope",
+            "--scene",
+            "statue:10",
+            "--out",
+            "x",
+        ],
+        "nope",
+    );
+    fails_with(
+        &[
+            "build", "--method", "full", "--scene", "bunny", "--out", "x",
+        ],
+        "known: statue",
+    );
+    fails_with(
+        &[
+            "build", "--method", "full", "--scene", "statue:0", "--out", "x",
+        ],
+        "at least 1",
+    );
+    fails_with(
+        &[
+            "build",
+            "--method",
+            "full",
+            "--scene",
+            "statue:100",
+            "--param",
+            "sede=1",
+            "--out",
+            "x",
+        ],
+        "sede",
+    );
+    fails_with(
+        &[
+            "run",
+            "--method",
+            "full",
+            "--scene",
+            "statue:100",
+            "--eps",
+            "NaN",
+            "--out",
+            "x",
+        ],
+        "--eps",
+    );
+    fails_with(
+        &[
+            "run",
+            "--method",
+            "full",
+            "--scene",
+            "statue:100",
+            "--eps",
+            "-2",
+            "--out",
+            "x",
+        ],
+        "--eps",
+    );
+    fails_with(
+        &[
+            "run",
+            "--method",
+            "full",
+            "--scene",
+            "statue:100",
+            "--budget",
+            "0",
+            "--out",
+            "x",
+        ],
+        "--budget",
+    );
+    fails_with(
+        &[
+            "run",
+            "--method",
+            "full",
+            "--scene",
+            "statue:100",
+            "--path",
+            "spiral",
+            "--out",
+            "x",
+        ],
+        "orbit",
+    );
 }
 
 fn write(dir: &Path, name: &str, bytes: &[u8]) -> String {
@@ -151,9 +271,16 @@ fn bad_files_are_clear_errors() {
     let out = d.path().join("out");
     let out = out.to_str().unwrap();
     let build = |scene: &str, needle: &str| {
-        fails_with(&["build", "--method", "full", "--scene", scene, "--out", out], needle)
+        fails_with(
+            &["build", "--method", "full", "--scene", scene, "--out", out],
+            needle,
+        )
     };
-    let p = write(d.path(), "nomagic.ply", b"plx\nformat ascii 1.0\nend_header\n");
+    let p = write(
+        d.path(),
+        "nomagic.ply",
+        b"plx\nformat ascii 1.0\nend_header\n",
+    );
     build(&p, "nomagic.ply");
     let p = write(
         d.path(),
@@ -177,10 +304,20 @@ fn bad_files_are_clear_errors() {
         b"ply\nformat ascii 1.0\nelement vertex 0\nproperty float x\nproperty float y\nproperty float z\nend_header\n",
     );
     build(&p, "empty.ply");
-    let p = write(d.path(), "typo.toml", b"generator = \"statue\"\npoints = 100\nseeed = 2\n");
+    let p = write(
+        d.path(),
+        "typo.toml",
+        b"generator = \"statue\"\npoints = 100\nseeed = 2\n",
+    );
     build(&p, "seeed");
     let p = write(d.path(), "bad.las", b"LASF but not really a las file");
     build(&p, "bad.las");
-    build(&d.path().join("missing.ply").to_string_lossy(), "missing.ply");
-    assert!(!Path::new(out).join("build.json").exists(), "no half-written output");
+    build(
+        &d.path().join("missing.ply").to_string_lossy(),
+        "missing.ply",
+    );
+    assert!(
+        !Path::new(out).join("build.json").exists(),
+        "no half-written output"
+    );
 }

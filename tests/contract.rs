@@ -54,8 +54,14 @@ fn visible_samples(cloud: &PointCloud, view: &View) -> u64 {
 }
 
 fn build(kind: MethodKind, cloud: &PointCloud, dir: &std::path::Path) -> Box<dyn LodMethod> {
-    kind.build(cloud, &Params::default(), "contract", dir, &scenes::NoProgress)
-        .unwrap_or_else(|e| panic!("{kind}: build failed: {e:#}"));
+    kind.build(
+        cloud,
+        &Params::default(),
+        "contract",
+        dir,
+        &scenes::NoProgress,
+    )
+    .unwrap_or_else(|e| panic!("{kind}: build failed: {e:#}"));
     MethodKind::open(dir).unwrap_or_else(|e| panic!("{kind}: open failed: {e:#}"))
 }
 
@@ -68,16 +74,28 @@ fn check_chunks(kind: MethodKind, m: &dyn LodMethod, cloud: &PointCloud, list: &
     let scene = cloud.attributes();
     for item in &list.items {
         let (batch, drawn, size) = match item {
-            DrawItem::Chunk { id, points, size } => {
-                (m.chunk(*id).unwrap_or_else(|e| panic!("{kind}: chunk {id}: {e:#}")), *points as usize, *size)
-            }
+            DrawItem::Chunk { id, points, size } => (
+                m.chunk(*id)
+                    .unwrap_or_else(|e| panic!("{kind}: chunk {id}: {e:#}")),
+                *points as usize,
+                *size,
+            ),
             DrawItem::Stream { batch, size } => (batch.clone(), batch.len(), *size),
         };
         batch.validate().unwrap();
-        assert!(batch.len() >= drawn, "{kind}: chunk shorter than the splats drawn from it");
+        assert!(
+            batch.len() >= drawn,
+            "{kind}: chunk shorter than the splats drawn from it"
+        );
         let a = batch.attributes();
-        assert_eq!(a.normals, scene.normals, "{kind}: normals must follow the scene");
-        assert_eq!(a.colors, scene.colors, "{kind}: colours must follow the scene");
+        assert_eq!(
+            a.normals, scene.normals,
+            "{kind}: normals must follow the scene"
+        );
+        assert_eq!(
+            a.colors, scene.colors,
+            "{kind}: colours must follow the scene"
+        );
         if matches!(size, SplatSize::Radius { .. }) {
             assert!(a.radii, "{kind}: per-splat sizes need radii");
         }
@@ -102,15 +120,27 @@ fn contract_for(kind: MethodKind, cloud: &PointCloud) {
         let mut last = 0;
         for eps in [32.0, 16.0, 8.0, 4.0, 2.0, 1.0, 0.5, 0.0] {
             let l = frame(m.as_mut(), view, Target::Tolerance(eps));
-            assert!(l.points() >= last, "{kind} view {vi}: eps {eps} drew {} < {last}", l.points());
+            assert!(
+                l.points() >= last,
+                "{kind} view {vi}: eps {eps} drew {} < {last}",
+                l.points()
+            );
             last = l.points();
         }
         // 2 + 3. Budgets.
         let mut last = 0;
         for b in [1u64, 100, 1_000, 5_000, 15_000, 50_000] {
             let l = frame(m.as_mut(), view, Target::Budget(b));
-            assert!(l.points() <= b, "{kind} view {vi}: budget {b} exceeded: {}", l.points());
-            assert!(l.points() >= last, "{kind} view {vi}: budget {b} drew {} < {last}", l.points());
+            assert!(
+                l.points() <= b,
+                "{kind} view {vi}: budget {b} exceeded: {}",
+                l.points()
+            );
+            assert!(
+                l.points() >= last,
+                "{kind} view {vi}: budget {b} drew {} < {last}",
+                l.points()
+            );
             last = l.points();
             check_chunks(kind, m.as_ref(), cloud, &l);
         }
@@ -130,13 +160,24 @@ fn contract_for(kind: MethodKind, cloud: &PointCloud) {
     // 4. Same seed ⇒ same frames.
     let mut m2 = build(kind, cloud, &tmp.path().join("b"));
     for view in views(cloud) {
-        for t in [Target::Tolerance(2.0), Target::Tolerance(0.5), Target::Budget(4_000)] {
+        for t in [
+            Target::Tolerance(2.0),
+            Target::Tolerance(0.5),
+            Target::Budget(4_000),
+        ] {
             let a = frame(m.as_mut(), &view, t);
             let b = frame(m2.as_mut(), &view, t);
-            assert_eq!(a, b, "{kind}: two builds with the same seed disagree at {t:?}");
+            assert_eq!(
+                a, b,
+                "{kind}: two builds with the same seed disagree at {t:?}"
+            );
             for item in &a.items {
                 if let DrawItem::Chunk { id, .. } = item {
-                    assert_eq!(m.chunk(*id).unwrap(), m2.chunk(*id).unwrap(), "{kind}: chunk {id} differs");
+                    assert_eq!(
+                        m.chunk(*id).unwrap(),
+                        m2.chunk(*id).unwrap(),
+                        "{kind}: chunk {id} differs"
+                    );
                 }
             }
         }

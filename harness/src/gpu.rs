@@ -39,9 +39,9 @@ impl Gpu {
     pub fn new() -> anyhow::Result<Option<Gpu>> {
         let instance =
             wgpu::Instance::new(wgpu::InstanceDescriptor::new_without_display_handle_from_env());
-        let Ok(adapter) =
-            pollster::block_on(wgpu::util::initialize_adapter_from_env_or_default(&instance, None))
-        else {
+        let Ok(adapter) = pollster::block_on(wgpu::util::initialize_adapter_from_env_or_default(
+            &instance, None,
+        )) else {
             return Ok(None);
         };
         let info = adapter.get_info();

@@ -25,13 +25,14 @@ impl Bar {
 
 impl scenes::Progress for Bar {
     fn start(&self, what: &str, total: u64) {
-        self.bar.set_draw_target(indicatif::ProgressDrawTarget::stderr());
+        self.bar
+            .set_draw_target(indicatif::ProgressDrawTarget::stderr());
         self.bar.reset();
         self.bar.set_length(total);
         self.bar.set_position(0);
-        if let Ok(style) = ProgressStyle::with_template(
-            "{msg:>28} [{bar:40}] {human_pos}/{human_len} ({eta})",
-        ) {
+        if let Ok(style) =
+            ProgressStyle::with_template("{msg:>28} [{bar:40}] {human_pos}/{human_len} ({eta})")
+        {
             self.bar.set_style(style.progress_chars("=> "));
         }
         self.bar.set_message(what.to_string());

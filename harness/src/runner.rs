@@ -167,7 +167,13 @@ impl Medians {
 }
 
 /// The view of frame `i`.
-pub fn frame_view(path: &PathSpec, i: usize, frames: usize, bounds: &Aabb, r: RenderSettings) -> View {
+pub fn frame_view(
+    path: &PathSpec,
+    i: usize,
+    frames: usize,
+    bounds: &Aabb,
+    r: RenderSettings,
+) -> View {
     View {
         camera: path.camera(i, frames, bounds),
         width: r.width,
@@ -220,17 +226,29 @@ impl<'g> Reference<'g> {
 
     /// The reference image of `view` (rendered and cached if missing).
     pub fn image(&mut self, view: &View, progress: &dyn Progress) -> anyhow::Result<Image> {
-        let path = self.cache.join("refs").join(format!("{}.png", self.key(view)));
+        let path = self
+            .cache
+            .join("refs")
+            .join(format!("{}.png", self.key(view)));
         if path.exists() {
             if let Ok(img) = Image::load_png(&path) {
                 return Ok(img);
             }
         }
         if self.full.is_none() {
-            let dir = self.cache.join("full").join(format!("{:016x}", self.scene_hash));
+            let dir = self
+                .cache
+                .join("full")
+                .join(format!("{:016x}", self.scene_hash));
             if methods::Manifest::read(&dir).is_err() {
                 MethodKind::Full
-                    .build(self.cloud, &Params::default(), &self.scene_label, &dir, progress)
+                    .build(
+                        self.cloud,
+                        &Params::default(),
+                        &self.scene_label,
+                        &dir,
+                        progress,
+                    )
                     .context("building the full-resolution reference")?;
             }
             let m = MethodKind::open(&dir)?;
@@ -278,7 +296,14 @@ pub fn run(cfg: &RunConfig, gpu: &Gpu, progress: &dyn Progress) -> anyhow::Resul
     let mut method = MethodKind::open(&build_dir)?;
     let mut renderer = Renderer::new(gpu, cfg.render)?;
     let mut reference = cfg.metrics.then(|| {
-        Reference::new(gpu, &cloud, label.clone(), scene_hash, &cfg.cache, cfg.render)
+        Reference::new(
+            gpu,
+            &cloud,
+            label.clone(),
+            scene_hash,
+            &cfg.cache,
+            cfg.render,
+        )
     });
     let bounds = cloud.bounds();
     let mut summary = Summary {

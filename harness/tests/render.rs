@@ -14,7 +14,9 @@ use std::path::{Path, PathBuf};
 use harness::gpu::{Gpu, gpu_for_test};
 use harness::image::Image;
 use harness::render::{BASE_COLOR, Kernel, RenderSettings, Renderer, cpu};
-use methods::{DrawItem, DrawList, Feedback, LodMethod, MethodKind, Params, SplatBatch, SplatSize, Target};
+use methods::{
+    DrawItem, DrawList, Feedback, LodMethod, MethodKind, Params, SplatBatch, SplatSize, Target,
+};
 use scenes::generators::Generator;
 use scenes::paths::PathSpec;
 use scenes::{PointCloud, View};
@@ -28,7 +30,9 @@ fn full(cloud: &PointCloud, dir: &Path) -> Box<dyn LodMethod> {
 
 fn view(cloud: &PointCloud, w: u32, h: u32, frame: usize) -> View {
     View {
-        camera: PathSpec::parse("orbit").unwrap().camera(frame, 8, &cloud.bounds()),
+        camera: PathSpec::parse("orbit")
+            .unwrap()
+            .camera(frame, 8, &cloud.bounds()),
         width: w,
         height: h,
     }
@@ -56,17 +60,24 @@ fn disagreement(a: &Image, b: &Image) -> (f64, f64) {
             sum += (0..3).map(|c| pa[c].abs_diff(pb[c]) as u64).sum::<u64>();
         }
     }
-    (diff as f64 / cov.max(1) as f64, sum as f64 / (3 * both.max(1)) as f64)
+    (
+        diff as f64 / cov.max(1) as f64,
+        sum as f64 / (3 * both.max(1)) as f64,
+    )
 }
 
 #[test]
 fn gpu_matches_cpu_mirror() {
-    let Some(gpu) = gpu_for_test("gpu_matches_cpu_mirror") else { return };
+    let Some(gpu) = gpu_for_test("gpu_matches_cpu_mirror") else {
+        return;
+    };
     let tmp = tempfile::tempdir().unwrap();
     let cloud = Generator::Statue.generate(6_000, 11).unwrap();
     let mut m = full(&cloud, tmp.path());
     let v = view(&cloud, 200, 150, 1);
-    let radius_list = m.frame(&v, Target::Tolerance(1.0), &Feedback::default()).unwrap();
+    let radius_list = m
+        .frame(&v, Target::Tolerance(1.0), &Feedback::default())
+        .unwrap();
     let mut px_list = radius_list.clone();
     for it in &mut px_list.items {
         if let DrawItem::Chunk { size, .. } = it {
@@ -81,9 +92,16 @@ fn gpu_matches_cpu_mirror() {
             let img = img.unwrap();
             let reference = cpu::rasterize(&v, list, m.as_ref(), kernel).unwrap();
             let covered = reference.rgba.chunks(4).filter(|p| p[3] > 0).count();
-            assert!(covered > 2_000, "{name}/{kernel:?}: the view should show the statue ({covered} px)");
+            assert!(
+                covered > 2_000,
+                "{name}/{kernel:?}: the view should show the statue ({covered} px)"
+            );
             let (cov, col) = disagreement(&img, &reference);
-            assert!(cov < 0.01, "{name}/{kernel:?}: coverage differs on {:.3} % of pixels", cov * 100.0);
+            assert!(
+                cov < 0.01,
+                "{name}/{kernel:?}: coverage differs on {:.3} % of pixels",
+                cov * 100.0
+            );
             assert!(col < 2.0, "{name}/{kernel:?}: mean colour difference {col}");
         }
     }
@@ -110,7 +128,8 @@ fn check_golden(name: &str, img: &Image, max_flip: f64) {
     if flip > max_flip || holes > 0.01 {
         let out = PathBuf::from(env!("CARGO_MANIFEST_DIR")).join("../target/golden-failures");
         std::fs::create_dir_all(&out).unwrap();
-        img.save_png(&out.join(format!("{name}-actual.png"))).unwrap();
+        img.save_png(&out.join(format!("{name}-actual.png")))
+            .unwrap();
         harness::metrics::flip_map(&golden, img)
             .unwrap()
             .save_png(&out.join(format!("{name}-difference.png")))
@@ -124,12 +143,16 @@ fn check_golden(name: &str, img: &Image, max_flip: f64) {
 
 #[test]
 fn golden_image_per_kernel() {
-    let Some(gpu) = gpu_for_test("golden_image_per_kernel") else { return };
+    let Some(gpu) = gpu_for_test("golden_image_per_kernel") else {
+        return;
+    };
     let tmp = tempfile::tempdir().unwrap();
     let cloud = Generator::Statue.generate(20_000, 5).unwrap();
     let mut m = full(&cloud, tmp.path());
     let v = view(&cloud, 128, 128, 0);
-    let list = m.frame(&v, Target::Tolerance(1.0), &Feedback::default()).unwrap();
+    let list = m
+        .frame(&v, Target::Tolerance(1.0), &Feedback::default())
+        .unwrap();
     for kernel in Kernel::ALL {
         let mut r = Renderer::new(&gpu, settings(128, 128, *kernel)).unwrap();
         let (_, img) = r.draw(&v, &list, m.as_ref(), true).unwrap();
@@ -152,7 +175,9 @@ fn stream(points: &[[f32; 3]]) -> DrawList {
 
 #[test]
 fn odd_sizes_flat_colour_and_timestamps() {
-    let Some(gpu) = gpu_for_test("odd_sizes_flat_colour_and_timestamps") else { return };
+    let Some(gpu) = gpu_for_test("odd_sizes_flat_colour_and_timestamps") else {
+        return;
+    };
     let tmp = tempfile::tempdir().unwrap();
     let cloud = Generator::Statue.generate(1_000, 1).unwrap();
     let m = full(&cloud, tmp.path());
@@ -170,7 +195,9 @@ fn odd_sizes_flat_colour_and_timestamps() {
         height: 37,
     };
     let mut r = Renderer::new(&gpu, settings(101, 37, Kernel::Square)).unwrap();
-    let (stats, img) = r.draw(&v, &stream(&[[0.0, 0.0, 0.0]]), m.as_ref(), true).unwrap();
+    let (stats, img) = r
+        .draw(&v, &stream(&[[0.0, 0.0, 0.0]]), m.as_ref(), true)
+        .unwrap();
     let img = img.unwrap();
     assert_eq!(img.rgba.len(), 101 * 37 * 4);
     // A 5 px square centred at pixel (50.5, 18.5): exactly 25 pixels, x 48..53, y 16..21.
@@ -179,28 +206,41 @@ fn odd_sizes_flat_colour_and_timestamps() {
         .filter(|&(x, y)| img.rgba[((y * 101 + x) * 4 + 3) as usize] > 0)
         .collect();
     assert_eq!(covered.len(), 25, "{covered:?}");
-    assert!(covered.iter().all(|&(x, y)| (48..53).contains(&x) && (16..21).contains(&y)));
+    assert!(
+        covered
+            .iter()
+            .all(|&(x, y)| (48..53).contains(&x) && (16..21).contains(&y))
+    );
     // No normals, no colours: flat base colour, sRGB-encoded.
     let p = &img.rgba[((18 * 101 + 50) * 4) as usize..][..4];
     let expect = (1.055 * BASE_COLOR[0].powf(1.0 / 2.4) - 0.055) * 255.0;
     assert!((p[0] as f32 - expect).abs() <= 1.0, "{p:?} vs {expect}");
-    assert_eq!(stats.upload_bytes, 12, "a position-only splat uploads 12 bytes");
+    assert_eq!(
+        stats.upload_bytes, 12,
+        "a position-only splat uploads 12 bytes"
+    );
     if gpu.timestamps {
         assert!(stats.gpu_ms.is_some_and(|t| t >= 0.0));
     }
     // A splat behind the camera draws nothing.
-    let (_, img) = r.draw(&v, &stream(&[[0.0, 0.0, 9.0]]), m.as_ref(), true).unwrap();
+    let (_, img) = r
+        .draw(&v, &stream(&[[0.0, 0.0, 9.0]]), m.as_ref(), true)
+        .unwrap();
     assert!(img.unwrap().rgba.chunks(4).all(|p| p[3] == 0));
 }
 
 #[test]
 fn chunk_cache_uploads_once_and_respects_budget() {
-    let Some(gpu) = gpu_for_test("chunk_cache_uploads_once_and_respects_budget") else { return };
+    let Some(gpu) = gpu_for_test("chunk_cache_uploads_once_and_respects_budget") else {
+        return;
+    };
     let tmp = tempfile::tempdir().unwrap();
     let cloud = Generator::Statue.generate(3_000, 1).unwrap();
     let mut m = full(&cloud, tmp.path());
     let v = view(&cloud, 64, 64, 0);
-    let list = m.frame(&v, Target::Tolerance(1.0), &Feedback::default()).unwrap();
+    let list = m
+        .frame(&v, Target::Tolerance(1.0), &Feedback::default())
+        .unwrap();
     let mut r = Renderer::new(&gpu, settings(64, 64, Kernel::Square)).unwrap();
     let (a, _) = r.draw(&v, &list, m.as_ref(), false).unwrap();
     let (b, _) = r.draw(&v, &list, m.as_ref(), false).unwrap();

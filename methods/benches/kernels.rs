@@ -33,16 +33,27 @@ fn kernels(c: &mut Criterion) {
     }
     let dir = tempfile::tempdir().unwrap();
     MethodKind::Full
-        .build(&cloud, &Params::default(), "bench", dir.path(), &scenes::NoProgress)
+        .build(
+            &cloud,
+            &Params::default(),
+            "bench",
+            dir.path(),
+            &scenes::NoProgress,
+        )
         .unwrap();
     let mut m = MethodKind::open(dir.path()).unwrap();
     let view = scenes::View {
-        camera: PathSpec::parse("orbit").unwrap().camera(0, 1, &cloud.bounds()),
+        camera: PathSpec::parse("orbit")
+            .unwrap()
+            .camera(0, 1, &cloud.bounds()),
         width: 1024,
         height: 1024,
     };
     g.bench_function("full_frame_select", |b| {
-        b.iter(|| m.frame(&view, Target::Tolerance(1.0), &Feedback::default()).unwrap())
+        b.iter(|| {
+            m.frame(&view, Target::Tolerance(1.0), &Feedback::default())
+                .unwrap()
+        })
     });
     g.finish();
 }

@@ -200,7 +200,9 @@ impl Target {
     /// A validated budget: 0 is an error.
     pub fn budget(points: u64) -> Result<Self, MethodError> {
         if points == 0 {
-            return Err(MethodError::Target("--budget must be at least 1 point".into()));
+            return Err(MethodError::Target(
+                "--budget must be at least 1 point".into(),
+            ));
         }
         Ok(Target::Budget(points))
     }

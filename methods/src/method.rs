@@ -138,8 +138,8 @@ impl Manifest {
 /// Writes `value` as pretty JSON to `path` through a temporary file and a rename, so a reader
 /// never sees a half-written file.
 pub fn write_json<T: serde::Serialize>(path: &Path, value: &T) -> Result<(), MethodError> {
-    let text =
-        serde_json::to_string_pretty(value).map_err(|e| MethodError::io(path, std::io::Error::other(e)))?;
+    let text = serde_json::to_string_pretty(value)
+        .map_err(|e| MethodError::io(path, std::io::Error::other(e)))?;
     let tmp = path.with_extension("json.tmp");
     std::fs::write(&tmp, text).map_err(|e| MethodError::io(&tmp, e))?;
     std::fs::rename(&tmp, path).map_err(|e| MethodError::io(path, e))

@@ -82,9 +82,15 @@ mod tests {
                 scale: 0.5
             }
         );
-        let e = Params::parse(&["mm=3"]).unwrap().to_typed::<P>("lpc").unwrap_err();
+        let e = Params::parse(&["mm=3"])
+            .unwrap()
+            .to_typed::<P>("lpc")
+            .unwrap_err();
         assert!(e.to_string().contains("unknown field `mm`"), "{e}");
-        let e = Params::parse(&["m=-3"]).unwrap().to_typed::<P>("lpc").unwrap_err();
+        let e = Params::parse(&["m=-3"])
+            .unwrap()
+            .to_typed::<P>("lpc")
+            .unwrap_err();
         assert!(e.to_string().contains("lpc"), "{e}");
         assert!(Params::parse(&["novalue"]).is_err());
         assert!(Params::parse(&["a=1", "a=2"]).is_err());

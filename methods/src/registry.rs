@@ -29,7 +29,9 @@ impl MethodKind {
     /// One line describing the method.
     pub fn describe(self) -> &'static str {
         match self {
-            MethodKind::Full => "no LOD: every sample as a splat of its own spacing (the reference)",
+            MethodKind::Full => {
+                "no LOD: every sample as a splat of its own spacing (the reference)"
+            }
         }
     }
 

@@ -92,7 +92,10 @@ impl Camera {
             && self.target.is_finite()
             && self.up.is_finite()
             && f.length_squared() > 0.0
-            && f.normalize().cross(self.up.normalize_or_zero()).length_squared() > 1e-10
+            && f.normalize()
+                .cross(self.up.normalize_or_zero())
+                .length_squared()
+                > 1e-10
             && self.fov_y > 0.0
             && self.fov_y < std::f32::consts::PI
             && self.near > 0.0
@@ -198,10 +201,19 @@ mod tests {
         let v = view();
         let f = v.frustum();
         assert_eq!(f.sphere(Vec3::ZERO, 1.0), Containment::Inside);
-        assert_eq!(f.sphere(Vec3::new(0.0, 0.0, 20.0), 1.0), Containment::Outside);
+        assert_eq!(
+            f.sphere(Vec3::new(0.0, 0.0, 20.0), 1.0),
+            Containment::Outside
+        );
         // Half-width at depth 10 is 20 (aspect 2, fov 90°): a sphere at x = 20 straddles.
-        assert_eq!(f.sphere(Vec3::new(20.0, 0.0, 0.0), 1.0), Containment::Intersects);
-        assert_eq!(f.sphere(Vec3::new(23.0, 0.0, 0.0), 1.0), Containment::Outside);
+        assert_eq!(
+            f.sphere(Vec3::new(20.0, 0.0, 0.0), 1.0),
+            Containment::Intersects
+        );
+        assert_eq!(
+            f.sphere(Vec3::new(23.0, 0.0, 0.0), 1.0),
+            Containment::Outside
+        );
         assert!(f.contains(Vec3::new(19.0, 9.0, 0.0)));
         assert!(!f.contains(Vec3::new(0.0, 11.0, 0.0)));
     }

@@ -13,7 +13,9 @@ use memmap2::Mmap;
 use crate::SceneError;
 
 /// Which optional attributes a cloud carries. Positions are always present.
-#[derive(Debug, Clone, Copy, PartialEq, Eq, Hash, Default, serde::Serialize, serde::Deserialize)]
+#[derive(
+    Debug, Clone, Copy, PartialEq, Eq, Hash, Default, serde::Serialize, serde::Deserialize,
+)]
 pub struct Attributes {
     /// Unit normals.
     pub normals: bool,
@@ -114,7 +116,9 @@ impl Aabb {
     };
     /// Bounds of a set of points.
     pub fn from_points(points: &[[f32; 3]]) -> Aabb {
-        points.iter().fold(Aabb::EMPTY, |b, p| b.grow(Vec3::from(*p)))
+        points
+            .iter()
+            .fold(Aabb::EMPTY, |b, p| b.grow(Vec3::from(*p)))
     }
     /// This box grown to contain `p`.
     pub fn grow(self, p: Vec3) -> Aabb {
@@ -290,7 +294,10 @@ impl PointCloud {
     pub fn column_bytes(&self) -> u64 {
         let n = self.len() as u64;
         let a = self.attributes();
-        n * (12 + if a.normals { 12 } else { 0 } + if a.colors { 3 } else { 0 } + if a.radii { 4 } else { 0 })
+        n * (12
+            + if a.normals { 12 } else { 0 }
+            + if a.colors { 3 } else { 0 }
+            + if a.radii { 4 } else { 0 })
     }
     /// Returns this cloud with a radius column (replacing any existing one).
     pub fn with_radii(mut self, radii: Vec<f32>) -> Result<Self, SceneError> {
@@ -311,7 +318,10 @@ impl PointCloud {
         Ok(self)
     }
     /// Splits into columns (origin, positions, normals, colours, radii).
-    #[expect(clippy::type_complexity, reason = "a plain destructuring of the five columns")]
+    #[expect(
+        clippy::type_complexity,
+        reason = "a plain destructuring of the five columns"
+    )]
     pub fn into_columns(
         self,
     ) -> (
@@ -321,7 +331,13 @@ impl PointCloud {
         Option<Column<[u8; 3]>>,
         Option<Column<f32>>,
     ) {
-        (self.origin, self.positions, self.normals, self.colors, self.radii)
+        (
+            self.origin,
+            self.positions,
+            self.normals,
+            self.colors,
+            self.radii,
+        )
     }
 }
 
@@ -342,8 +358,14 @@ mod tests {
         let e = PointCloud::new(DVec3::ZERO, p.into(), None, None, None).unwrap_err();
         assert!(e.to_string().contains("position 1"), "{e}");
         let p = vec![[0.0, 0.0, 0.0]; 3];
-        let e = PointCloud::new(DVec3::ZERO, p.into(), Some(vec![[0.0, 0.0, 1.0]; 2].into()), None, None)
-            .unwrap_err();
+        let e = PointCloud::new(
+            DVec3::ZERO,
+            p.into(),
+            Some(vec![[0.0, 0.0, 1.0]; 2].into()),
+            None,
+            None,
+        )
+        .unwrap_err();
         assert!(e.to_string().contains("'normal' has 2"), "{e}");
         let e = PointCloud::new(DVec3::ZERO, Vec::new().into(), None, None, None).unwrap_err();
         assert!(e.to_string().contains("no samples"), "{e}");
@@ -352,7 +374,8 @@ mod tests {
     #[test]
     fn origin_keeps_precision() {
         let origin = DVec3::new(500_000.0, 4_100_000.0, 10.0);
-        let c = PointCloud::new(origin, vec![[0.001, 0.002, 0.0]].into(), None, None, None).unwrap();
+        let c =
+            PointCloud::new(origin, vec![[0.001, 0.002, 0.0]].into(), None, None, None).unwrap();
         let w = c.world_position(0);
         assert!((w.x - 500_000.001).abs() < 1e-6 && (w.y - 4_100_000.002).abs() < 1e-6);
         assert_eq!(c.attributes(), Attributes::default());

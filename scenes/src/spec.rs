@@ -148,11 +148,14 @@ impl SceneSpec {
         let sample = sample.or(f.sample);
         let spec = match (f.generator, f.file) {
             (Some(g), None) => {
-                let points = f.points.ok_or_else(|| {
-                    SceneError::format(path, "a generator scene needs `points`")
-                })?;
+                let points = f
+                    .points
+                    .ok_or_else(|| SceneError::format(path, "a generator scene needs `points`"))?;
                 if sample.is_some() {
-                    return Err(SceneError::format(path, "`sample` applies only to PLY meshes"));
+                    return Err(SceneError::format(
+                        path,
+                        "`sample` applies only to PLY meshes",
+                    ));
                 }
                 Self::parse(&format!("{g}:{points}:{seed}"), None, seed)
             }
@@ -324,12 +327,25 @@ mod tests {
         );
         assert_eq!(s.label(), "statue:200000:9");
         let s = SceneSpec::parse("terrain:10M:3", None, 9).unwrap();
-        assert!(matches!(s.source, SceneSource::Generator { points: 10_000_000, seed: 3, .. }));
+        assert!(matches!(
+            s.source,
+            SceneSource::Generator {
+                points: 10_000_000,
+                seed: 3,
+                ..
+            }
+        ));
         assert!(matches!(
             SceneSpec::parse("a/b.PLY", Some(5), 1).unwrap().source,
-            SceneSource::Ply { sample: Some(5), .. }
+            SceneSource::Ply {
+                sample: Some(5),
+                ..
+            }
         ));
-        assert!(matches!(SceneSpec::parse("x.laz", None, 1).unwrap().source, SceneSource::Las { .. }));
+        assert!(matches!(
+            SceneSpec::parse("x.laz", None, 1).unwrap().source,
+            SceneSource::Las { .. }
+        ));
     }
 
     #[test]
@@ -345,7 +361,9 @@ mod tests {
             let e = SceneSpec::parse(spec, None, 1).unwrap_err().to_string();
             assert!(e.contains(needle), "{spec}: {e}");
         }
-        let e = SceneSpec::parse("statue:10", Some(3), 1).unwrap_err().to_string();
+        let e = SceneSpec::parse("statue:10", Some(3), 1)
+            .unwrap_err()
+            .to_string();
         assert!(e.contains("--sample"), "{e}");
     }
 
@@ -354,13 +372,17 @@ mod tests {
         let dir = tempfile::tempdir().unwrap();
         let p = dir.path().join("s.toml");
         std::fs::write(&p, "generator = \"statue\"\npoints = 1000\nsed = 3\n").unwrap();
-        let e = SceneSpec::parse(p.to_str().unwrap(), None, 1).unwrap_err().to_string();
+        let e = SceneSpec::parse(p.to_str().unwrap(), None, 1)
+            .unwrap_err()
+            .to_string();
         assert!(e.contains("sed") && e.contains("s.toml"), "{e}");
         std::fs::write(&p, "generator = \"statue\"\npoints = 1000\nseed = 3\n").unwrap();
         let s = SceneSpec::parse(p.to_str().unwrap(), None, 1).unwrap();
         assert_eq!(s.label(), "statue:1000:3");
         std::fs::write(&p, "file = \"x.ply\"\ngenerator = \"statue\"\n").unwrap();
-        let e = SceneSpec::parse(p.to_str().unwrap(), None, 1).unwrap_err().to_string();
+        let e = SceneSpec::parse(p.to_str().unwrap(), None, 1)
+            .unwrap_err()
+            .to_string();
         assert!(e.contains("exactly one"), "{e}");
     }
 }

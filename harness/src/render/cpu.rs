@@ -123,7 +123,8 @@ pub fn rasterize(
                     let o = y * w + x;
                     if ndc.z < depth[o] {
                         depth[o] = ndc.z;
-                        rgba[o * 4..o * 4 + 4].copy_from_slice(&[color[0], color[1], color[2], 255]);
+                        rgba[o * 4..o * 4 + 4]
+                            .copy_from_slice(&[color[0], color[1], color[2], 255]);
                     }
                 }
             }

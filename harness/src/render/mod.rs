@@ -202,7 +202,11 @@ impl<'g> Renderer<'g> {
     pub fn new(gpu: &'g Gpu, settings: RenderSettings) -> anyhow::Result<Self> {
         let d = &gpu.device;
         let max = gpu.limits.max_texture_dimension_2d;
-        if settings.width == 0 || settings.height == 0 || settings.width > max || settings.height > max {
+        if settings.width == 0
+            || settings.height == 0
+            || settings.width > max
+            || settings.height > max
+        {
             bail!(
                 "--width/--height {}x{} must be between 1 and {max} on adapter '{}'",
                 settings.width,
@@ -409,9 +413,18 @@ impl<'g> Renderer<'g> {
             buffers.len() - 1
         };
         let pos = make("positions", bytemuck::cast_slice(&batch.positions));
-        let nrm = batch.normals.as_ref().map(|v| make("normals", bytemuck::cast_slice(v)));
-        let col = batch.colors.as_ref().map(|v| make("colors", bytemuck::cast_slice(v)));
-        let rad = batch.radii.as_ref().map(|v| make("radii", bytemuck::cast_slice(v)));
+        let nrm = batch
+            .normals
+            .as_ref()
+            .map(|v| make("normals", bytemuck::cast_slice(v)));
+        let col = batch
+            .colors
+            .as_ref()
+            .map(|v| make("colors", bytemuck::cast_slice(v)));
+        let rad = batch
+            .radii
+            .as_ref()
+            .map(|v| make("radii", bytemuck::cast_slice(v)));
         let buf = |i: Option<usize>| i.map(|i| &buffers[i]).unwrap_or(&self.dummy);
         let entries: Vec<_> = [Some(pos), nrm, col, rad]
             .into_iter()
@@ -480,7 +493,8 @@ impl<'g> Renderer<'g> {
         let n = list.items.len() as u64;
         if n > self.draw_capacity {
             self.draw_capacity = n.next_power_of_two();
-            self.draw_ubo = Self::draw_buffer(&self.gpu.device, self.draw_stride * self.draw_capacity);
+            self.draw_ubo =
+                Self::draw_buffer(&self.gpu.device, self.draw_stride * self.draw_capacity);
         }
         let mut draws = vec![0u8; (self.draw_stride * n.max(1)) as usize];
         let mut resolved: Vec<(&GpuBatch, u32)> = Vec::with_capacity(list.items.len());
@@ -512,24 +526,27 @@ impl<'g> Renderer<'g> {
         let q = &self.gpu.queue;
         q.write_buffer(&self.frame_ubo, 0, bytemuck::bytes_of(&frame_uniform(view)));
         q.write_buffer(&self.draw_ubo, 0, &draws);
-        let bg0 = self.gpu.device.create_bind_group(&wgpu::BindGroupDescriptor {
-            label: Some("frame+draw"),
-            layout: &self.bgl0,
-            entries: &[
-                wgpu::BindGroupEntry {
-                    binding: 0,
-                    resource: self.frame_ubo.as_entire_binding(),
-                },
-                wgpu::BindGroupEntry {
-                    binding: 1,
-                    resource: wgpu::BindingResource::Buffer(wgpu::BufferBinding {
-                        buffer: &self.draw_ubo,
-                        offset: 0,
-                        size: wgpu::BufferSize::new(32),
-                    }),
-                },
-            ],
-        });
+        let bg0 = self
+            .gpu
+            .device
+            .create_bind_group(&wgpu::BindGroupDescriptor {
+                label: Some("frame+draw"),
+                layout: &self.bgl0,
+                entries: &[
+                    wgpu::BindGroupEntry {
+                        binding: 0,
+                        resource: self.frame_ubo.as_entire_binding(),
+                    },
+                    wgpu::BindGroupEntry {
+                        binding: 1,
+                        resource: wgpu::BindingResource::Buffer(wgpu::BufferBinding {
+                            buffer: &self.draw_ubo,
+                            offset: 0,
+                            size: wgpu::BufferSize::new(32),
+                        }),
+                    },
+                ],
+            });
         let mut enc = self.gpu.device.create_command_encoder(&Default::default());
         {
             let mut pass = enc.begin_render_pass(&wgpu::RenderPassDescriptor {
@@ -551,10 +568,12 @@ impl<'g> Renderer<'g> {
                     }),
                     stencil_ops: None,
                 }),
-                timestamp_writes: self.timestamps.as_ref().map(|t| wgpu::RenderPassTimestampWrites {
-                    query_set: &t.set,
-                    beginning_of_pass_write_index: Some(0),
-                    end_of_pass_write_index: Some(1),
+                timestamp_writes: self.timestamps.as_ref().map(|t| {
+                    wgpu::RenderPassTimestampWrites {
+                        query_set: &t.set,
+                        beginning_of_pass_write_index: Some(0),
+                        end_of_pass_write_index: Some(1),
+                    }
                 }),
                 occlusion_query_set: None,
                 multiview_mask: None,
@@ -584,7 +603,11 @@ impl<'g> Renderer<'g> {
         drop(resolved);
         drop(streams);
         stats.cache_bytes = self.cache.bytes();
-        let image = if readback { Some(self.read_color()?) } else { None };
+        let image = if readback {
+            Some(self.read_color()?)
+        } else {
+            None
+        };
         Ok((stats, image))
     }
 
@@ -592,7 +615,8 @@ impl<'g> Renderer<'g> {
     pub fn read_color(&self) -> anyhow::Result<Image> {
         let (w, h) = (self.settings.width, self.settings.height);
         let row = w * 4;
-        let padded = row.div_ceil(wgpu::COPY_BYTES_PER_ROW_ALIGNMENT) * wgpu::COPY_BYTES_PER_ROW_ALIGNMENT;
+        let padded =
+            row.div_ceil(wgpu::COPY_BYTES_PER_ROW_ALIGNMENT) * wgpu::COPY_BYTES_PER_ROW_ALIGNMENT;
         let size = padded as u64 * h as u64;
         let buf = self.gpu.device.create_buffer(&wgpu::BufferDescriptor {
             label: Some("color readback"),

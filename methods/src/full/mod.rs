@@ -54,7 +54,10 @@ pub fn build(
     let mut w = scenes::colfile::ColumnWriter::create(&path, attrs, cloud.origin(), n as u64)?;
     progress.start("full: writing", n as u64);
     for block in order.chunks(1 << 16) {
-        let pos: Vec<_> = block.iter().map(|&i| cloud.positions()[i as usize]).collect();
+        let pos: Vec<_> = block
+            .iter()
+            .map(|&i| cloud.positions()[i as usize])
+            .collect();
         let nrm: Option<Vec<_>> = cloud
             .normals()
             .map(|c| block.iter().map(|&i| c[i as usize]).collect());
@@ -129,7 +132,11 @@ impl Full {
                     "{} samples (manifest says {}), radii {}",
                     cloud.len(),
                     manifest.points,
-                    if cloud.radii().is_some() { "present" } else { "missing" }
+                    if cloud.radii().is_some() {
+                        "present"
+                    } else {
+                        "missing"
+                    }
                 ),
             ));
         }
@@ -161,10 +168,7 @@ impl LodMethod for Full {
                 (d, (n as f32 / d as f32).sqrt())
             }
         };
-        let size = SplatSize::Radius {
-            scale,
-            min_px: 1.0,
-        };
+        let size = SplatSize::Radius { scale, min_px: 1.0 };
         let items = (0..draw.div_ceil(CHUNK_POINTS))
             .map(|c| DrawItem::Chunk {
                 id: c as ChunkId,

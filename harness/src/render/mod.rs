@@ -188,6 +188,7 @@ pub struct Renderer<'g> {
     bgl0: wgpu::BindGroupLayout,
     bgl1: wgpu::BindGroupLayout,
     dummy: wgpu::Buffer,
+    quad_indices: wgpu::Buffer,
     cache: LruCache<ChunkId, GpuBatch>,
     timestamps: Option<Timestamps>,
     draw_stride: u64,
@@ -326,6 +327,11 @@ impl<'g> Renderer<'g> {
             usage: wgpu::BufferUsages::STORAGE,
             mapped_at_creation: false,
         });
+        let quad_indices = d.create_buffer_init(&wgpu::util::BufferInitDescriptor {
+            label: Some("quad indices"),
+            contents: bytemuck::cast_slice(&[0u16, 1, 2, 0, 2, 3]),
+            usage: wgpu::BufferUsages::INDEX,
+        });
         let timestamps = gpu.timestamps.then(|| Timestamps {
             set: d.create_query_set(&wgpu::QuerySetDescriptor {
                 label: Some("frame timestamps"),
@@ -359,6 +365,7 @@ impl<'g> Renderer<'g> {
             bgl0,
             bgl1,
             dummy,
+            quad_indices,
             cache: LruCache::new(settings.cache_bytes),
             timestamps,
             draw_stride,
@@ -579,13 +586,14 @@ impl<'g> Renderer<'g> {
                 multiview_mask: None,
             });
             pass.set_pipeline(&self.pipeline);
+            pass.set_index_buffer(self.quad_indices.slice(..), wgpu::IndexFormat::Uint16);
             for (i, (g, count)) in resolved.iter().enumerate() {
                 if *count == 0 {
                     continue;
                 }
                 pass.set_bind_group(0, &bg0, &[(i as u64 * self.draw_stride) as u32]);
                 pass.set_bind_group(1, &g.bind_group, &[]);
-                pass.draw(0..6, 0..*count);
+                pass.draw_indexed(0..6, 0, 0..*count);
             }
         }
         if let Some(t) = &self.timestamps {

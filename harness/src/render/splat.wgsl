@@ -1,6 +1,7 @@
 // Instanced screen-aligned quad splats with vertex pulling.
 //
-// One instance = one splat; six vertices (two triangles) per instance. Attributes come from
+// One instance = one splat; four vertices, drawn indexed as two triangles (0 1 2, 0 2 3) so
+// the vertex stage runs 4 times per splat, not 6. Attributes come from
 // storage buffers so that a scene without normals, colours or radii uploads none: the absent
 // bindings point at a 16-byte dummy buffer and `draw.flags` says which are real.
 // Mirrored on the CPU by `render::cpu` (splat size, shading) and checked by tests.
@@ -39,9 +40,8 @@ struct VsOut {
     @location(1) @interpolate(flat) color: vec4<f32>,
 }
 
-const CORNERS = array<vec2<f32>, 6>(
-    vec2<f32>(-1.0, -1.0), vec2<f32>(1.0, -1.0), vec2<f32>(1.0, 1.0),
-    vec2<f32>(-1.0, -1.0), vec2<f32>(1.0, 1.0), vec2<f32>(-1.0, 1.0),
+const CORNERS = array<vec2<f32>, 4>(
+    vec2<f32>(-1.0, -1.0), vec2<f32>(1.0, -1.0), vec2<f32>(1.0, 1.0), vec2<f32>(-1.0, 1.0),
 );
 
 fn oct_decode(p: u32) -> vec3<f32> {

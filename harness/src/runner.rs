@@ -230,10 +230,11 @@ impl<'g> Reference<'g> {
             .cache
             .join("refs")
             .join(format!("{}.png", self.key(view)));
-        if path.exists() {
-            if let Ok(img) = Image::load_png(&path) {
-                return Ok(img);
-            }
+        // A cached image that fails to load (e.g. truncated by a crash) is re-rendered.
+        if path.exists()
+            && let Ok(img) = Image::load_png(&path)
+        {
+            return Ok(img);
         }
         if self.full.is_none() {
             let dir = self

@@ -399,7 +399,7 @@ impl<'g> Renderer<'g> {
     fn upload(&self, batch: &SplatBatch) -> anyhow::Result<GpuBatch> {
         batch.validate()?;
         let d = &self.gpu.device;
-        let max = self.gpu.limits.max_storage_buffer_binding_size as u64;
+        let max = self.gpu.limits.max_storage_buffer_binding_size;
         let pos_bytes = batch.len() as u64 * 12;
         if pos_bytes > max {
             bail!(

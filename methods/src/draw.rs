@@ -153,9 +153,46 @@ impl DrawItem {
     }
 }
 
+/// Splat shape (the renderer's kernel). QSplat's paper offers all four.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Hash, Default, serde::Serialize, serde::Deserialize)]
+#[serde(rename_all = "lowercase")]
+pub enum SplatShape {
+    /// Screen-aligned square (fastest).
+    #[default]
+    Square,
+    /// Opaque disk.
+    Circle,
+    /// Elliptical disk from the splat normal: minor/major = |n̂·v̂|, major/minor ≤ 10.
+    Ellipse,
+    /// Gaussian blob, two passes: depth offset by z₀, then additive weighted colour, normalised.
+    Gaussian,
+}
+
+impl SplatShape {
+    /// All shapes.
+    pub const ALL: &'static [SplatShape] = &[
+        SplatShape::Square,
+        SplatShape::Circle,
+        SplatShape::Ellipse,
+        SplatShape::Gaussian,
+    ];
+    /// Name (`--kernel`, `--param kernel=`).
+    pub fn name(self) -> &'static str {
+        match self {
+            SplatShape::Square => "square",
+            SplatShape::Circle => "circle",
+            SplatShape::Ellipse => "ellipse",
+            SplatShape::Gaussian => "gaussian",
+        }
+    }
+}
+
 /// Everything a method asks for in one frame.
 #[derive(Debug, Clone, Default, PartialEq)]
 pub struct DrawList {
+    /// Shape the method asks for (e.g. QSplat's `--param kernel=`); `None` = the run's
+    /// `--kernel`.
+    pub shape: Option<SplatShape>,
     /// What to draw.
     pub items: Vec<DrawItem>,
     /// Chunks the method would like loaded for later frames (the renderer may ignore them).

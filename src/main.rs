@@ -99,18 +99,12 @@ struct RenderArgs {
     /// Image height, pixels.
     #[arg(long, default_value_t = 512)]
     height: u32,
-    /// Splat kernel.
+    /// Splat kernel (a method's `--param kernel=` overrides it).
     #[arg(long, value_enum, default_value = "square")]
-    kernel: KernelArg,
+    kernel: Kernel,
     /// GPU chunk-cache budget, MiB.
     #[arg(long, default_value_t = 512)]
     gpu_cache_mb: u64,
-}
-
-#[derive(Clone, Copy, clap::ValueEnum)]
-enum KernelArg {
-    Square,
-    Circle,
 }
 
 #[derive(Args, Clone)]
@@ -258,10 +252,7 @@ fn run_config(a: &RunArgs) -> anyhow::Result<RunConfig> {
         render: RenderSettings {
             width: a.render.width,
             height: a.render.height,
-            kernel: match a.render.kernel {
-                KernelArg::Square => Kernel::Square,
-                KernelArg::Circle => Kernel::Circle,
-            },
+            kernel: a.render.kernel,
             cache_bytes: a
                 .render
                 .gpu_cache_mb

@@ -1,8 +1,8 @@
 //! Render tests on whatever adapter exists (lavapipe in CI; "skipped: no adapter" printed
 //! loudly when there is none, a failure when `SPLATBENCH_REQUIRE_GPU=1`).
 //!
-//! - GPU output agrees with the CPU mirror (`render::cpu`) for both kernels and both size
-//!   modes: coverage differs only on pixels whose centre is within rounding of a splat edge.
+//! - GPU output agrees with the CPU mirror (`render::cpu`) for every kernel (square, circle,
+//!   ellipse, gaussian) and both size modes: coverage differs only on pixels whose centre is within rounding of a splat edge.
 //! - One golden image per kernel, compared with a FLIP threshold. Regenerate with
 //!   `SPLATBENCH_BLESS=1 cargo test -p harness --test render`; on failure `-actual` and
 //!   `-difference` images go to `target/golden-failures/`.
@@ -84,7 +84,7 @@ fn gpu_matches_cpu_mirror() {
             *size = SplatSize::Pixels(3.0);
         }
     }
-    for kernel in [Kernel::Square, Kernel::Circle] {
+    for &kernel in Kernel::ALL {
         let mut r = Renderer::new(&gpu, settings(200, 150, kernel)).unwrap();
         for (name, list) in [("radius", &radius_list), ("pixels", &px_list)] {
             let (stats, img) = r.draw(&v, list, m.as_ref(), true).unwrap();
@@ -102,7 +102,12 @@ fn gpu_matches_cpu_mirror() {
                 "{name}/{kernel:?}: coverage differs on {:.3} % of pixels",
                 cov * 100.0
             );
-            assert!(col < 2.0, "{name}/{kernel:?}: mean colour difference {col}");
+            // The gaussian accumulates in f16 on the GPU, f32 here: a little more colour slack.
+            let max_col = if kernel == Kernel::Gaussian { 3.0 } else { 2.0 };
+            assert!(
+                col < max_col,
+                "{name}/{kernel:?}: mean colour difference {col}"
+            );
         }
     }
 }

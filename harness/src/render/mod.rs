@@ -2,8 +2,15 @@
 //!
 //! Draws a [`DrawList`] into an offscreen RGBA8 colour target (sRGB-encoded values, alpha = 1
 //! where a splat landed, 0 = background) with a Depth32Float depth test. Splats are instanced
-//! screen-aligned quads (square, or circle by discarding outside the unit disk), sized per
-//! draw in pixels or per splat from the object-space radius (`splat.wgsl`).
+//! screen-aligned quads sized per draw in pixels or per splat from the object-space radius
+//! (`splat.wgsl`), in one of four shapes ([`Kernel`] = [`methods::SplatShape`]):
+//! - square; circle (discard outside the unit disk);
+//! - ellipse: the quad's minor axis along the projected normal, minor/major = |n̂·v̂| clamped
+//!   at 1/10 (QSplat §4.3); a circle for splats without normals;
+//! - gaussian, QSplat's two-pass blend: (1) circles into depth only, pushed back by
+//!   [`GAUSS_DEPTH_OFFSET`] × the splat diameter; (2) weighted linear colour `w = exp(−2r²)`
+//!   added into an Rgba16Float target with depth test and no depth write; (3) a full-screen
+//!   pass divides by the summed weight and encodes sRGB.
 //!
 //! Chunks live in an [`LruCache`] of GPU buffers with a byte budget: a chunk missing from the
 //! cache is decoded by the method and uploaded (counted in `upload_bytes`); streams are
@@ -13,7 +20,7 @@
 
 pub mod cpu;
 
-use std::collections::HashSet;
+use std::collections::{HashMap, HashSet};
 use std::time::Instant;
 
 use anyhow::{Context as _, bail};
@@ -25,28 +32,7 @@ use crate::cache::LruCache;
 use crate::gpu::Gpu;
 use crate::image::Image;
 
-/// Splat shape.
-#[derive(Debug, Clone, Copy, PartialEq, Eq, Default, serde::Serialize, serde::Deserialize)]
-#[serde(rename_all = "lowercase")]
-pub enum Kernel {
-    /// Screen-aligned square (the fastest; QSplat's default).
-    #[default]
-    Square,
-    /// Opaque circle.
-    Circle,
-}
-
-impl Kernel {
-    /// All kernels.
-    pub const ALL: &'static [Kernel] = &[Kernel::Square, Kernel::Circle];
-    /// Name.
-    pub fn name(self) -> &'static str {
-        match self {
-            Kernel::Square => "square",
-            Kernel::Circle => "circle",
-        }
-    }
-}
+pub use methods::SplatShape as Kernel;
 
 /// Fixed settings of a renderer.
 #[derive(Debug, Clone, Copy, PartialEq, serde::Serialize)]
@@ -76,6 +62,9 @@ impl Default for RenderSettings {
 pub const AMBIENT: f32 = 0.25;
 /// Linear RGB of splats in scenes without colour.
 pub const BASE_COLOR: [f32; 3] = [0.8, 0.8, 0.8];
+/// Gaussian kernel, pass 1: depth pushed back by this × the splat's object-space diameter,
+/// so splats within that distance of the front surface blend in pass 2.
+pub const GAUSS_DEPTH_OFFSET: f32 = 0.5;
 
 /// `Frame` uniform of `splat.wgsl`.
 #[repr(C)]
@@ -95,8 +84,14 @@ pub struct FrameUniform {
     pub _pad0: f32,
     /// offset 96
     pub base_color: [f32; 4],
+    /// offset 112
+    pub view: [[f32; 4]; 4],
+    /// offset 176
+    pub depth_offset: f32,
+    /// offset 180
+    pub _pad1: [f32; 3],
 }
-const _: () = assert!(std::mem::size_of::<FrameUniform>() == 112);
+const _: () = assert!(std::mem::size_of::<FrameUniform>() == 192);
 
 /// `Draw` uniform of `splat.wgsl`.
 #[repr(C)]
@@ -181,7 +176,10 @@ pub struct Renderer<'g> {
     color: wgpu::Texture,
     color_view: wgpu::TextureView,
     depth_view: wgpu::TextureView,
-    pipeline: wgpu::RenderPipeline,
+    module: wgpu::ShaderModule,
+    layout: wgpu::PipelineLayout,
+    pipelines: HashMap<PassKind, wgpu::RenderPipeline>,
+    gauss: Option<GaussTargets>,
     frame_ubo: wgpu::Buffer,
     draw_ubo: wgpu::Buffer,
     draw_capacity: u64,
@@ -193,6 +191,24 @@ pub struct Renderer<'g> {
     timestamps: Option<Timestamps>,
     draw_stride: u64,
 }
+
+/// Which pipeline: an opaque kernel, or one of the gaussian passes.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Hash)]
+enum PassKind {
+    Opaque(Kernel),
+    GaussDepth,
+    GaussAccum,
+}
+
+/// What the gaussian kernel needs beyond the opaque ones (made on first use).
+struct GaussTargets {
+    accum_view: wgpu::TextureView,
+    normalize: wgpu::RenderPipeline,
+    normalize_bg: wgpu::BindGroup,
+}
+
+/// Accumulation format of the gaussian kernel's pass 2.
+const ACCUM_FORMAT: wgpu::TextureFormat = wgpu::TextureFormat::Rgba16Float;
 
 /// Colour target format.
 pub const COLOR_FORMAT: wgpu::TextureFormat = wgpu::TextureFormat::Rgba8Unorm;
@@ -277,40 +293,6 @@ impl<'g> Renderer<'g> {
             immediate_size: 0,
         });
         let module = d.create_shader_module(wgpu::include_wgsl!("splat.wgsl"));
-        let pipeline = d.create_render_pipeline(&wgpu::RenderPipelineDescriptor {
-            label: Some("splat"),
-            layout: Some(&layout),
-            vertex: wgpu::VertexState {
-                module: &module,
-                entry_point: Some("vs_main"),
-                compilation_options: Default::default(),
-                buffers: &[],
-            },
-            primitive: wgpu::PrimitiveState::default(),
-            depth_stencil: Some(wgpu::DepthStencilState {
-                format: DEPTH_FORMAT,
-                depth_write_enabled: Some(true),
-                depth_compare: Some(wgpu::CompareFunction::Less),
-                stencil: Default::default(),
-                bias: Default::default(),
-            }),
-            multisample: Default::default(),
-            fragment: Some(wgpu::FragmentState {
-                module: &module,
-                entry_point: Some(match settings.kernel {
-                    Kernel::Square => "fs_square",
-                    Kernel::Circle => "fs_circle",
-                }),
-                compilation_options: Default::default(),
-                targets: &[Some(wgpu::ColorTargetState {
-                    format: COLOR_FORMAT,
-                    blend: None,
-                    write_mask: wgpu::ColorWrites::ALL,
-                })],
-            }),
-            multiview_mask: None,
-            cache: None,
-        });
         let frame_ubo = d.create_buffer(&wgpu::BufferDescriptor {
             label: Some("frame"),
             size: std::mem::size_of::<FrameUniform>() as u64,
@@ -358,7 +340,10 @@ impl<'g> Renderer<'g> {
             color_view: color.create_view(&Default::default()),
             color,
             depth_view: depth.create_view(&Default::default()),
-            pipeline,
+            module,
+            layout,
+            pipelines: HashMap::new(),
+            gauss: None,
             frame_ubo,
             draw_ubo,
             draw_capacity,
@@ -370,6 +355,184 @@ impl<'g> Renderer<'g> {
             timestamps,
             draw_stride,
         })
+    }
+
+    /// Makes the pipelines `shape` needs, once.
+    fn ensure_pipelines(&mut self, shape: Kernel) {
+        let kinds: &[PassKind] = match shape {
+            Kernel::Gaussian => &[PassKind::GaussDepth, PassKind::GaussAccum],
+            k => &[PassKind::Opaque(k)],
+        };
+        for &kind in kinds {
+            if !self.pipelines.contains_key(&kind) {
+                let p = self.make_pipeline(kind);
+                self.pipelines.insert(kind, p);
+            }
+        }
+        if shape == Kernel::Gaussian && self.gauss.is_none() {
+            self.gauss = Some(self.make_gauss_targets());
+        }
+    }
+
+    fn make_pipeline(&self, kind: PassKind) -> wgpu::RenderPipeline {
+        let (vs, fs, target, depth_write, compare) = match kind {
+            PassKind::Opaque(k) => (
+                if k == Kernel::Ellipse {
+                    "vs_ellipse"
+                } else {
+                    "vs_main"
+                },
+                if k == Kernel::Square {
+                    "fs_square"
+                } else {
+                    "fs_circle"
+                },
+                Some((COLOR_FORMAT, None)),
+                true,
+                wgpu::CompareFunction::Less,
+            ),
+            PassKind::GaussDepth => (
+                "vs_gauss_depth",
+                "fs_gauss_depth",
+                None,
+                true,
+                wgpu::CompareFunction::Less,
+            ),
+            PassKind::GaussAccum => {
+                let add = wgpu::BlendComponent {
+                    src_factor: wgpu::BlendFactor::One,
+                    dst_factor: wgpu::BlendFactor::One,
+                    operation: wgpu::BlendOperation::Add,
+                };
+                (
+                    "vs_main",
+                    "fs_gauss_accum",
+                    Some((
+                        ACCUM_FORMAT,
+                        Some(wgpu::BlendState {
+                            color: add,
+                            alpha: add,
+                        }),
+                    )),
+                    false,
+                    wgpu::CompareFunction::LessEqual,
+                )
+            }
+        };
+        let targets: Vec<Option<wgpu::ColorTargetState>> = target
+            .map(|(format, blend)| wgpu::ColorTargetState {
+                format,
+                blend,
+                write_mask: wgpu::ColorWrites::ALL,
+            })
+            .into_iter()
+            .map(Some)
+            .collect();
+        self.gpu
+            .device
+            .create_render_pipeline(&wgpu::RenderPipelineDescriptor {
+                label: Some(fs),
+                layout: Some(&self.layout),
+                vertex: wgpu::VertexState {
+                    module: &self.module,
+                    entry_point: Some(vs),
+                    compilation_options: Default::default(),
+                    buffers: &[],
+                },
+                primitive: wgpu::PrimitiveState::default(),
+                depth_stencil: Some(wgpu::DepthStencilState {
+                    format: DEPTH_FORMAT,
+                    depth_write_enabled: Some(depth_write),
+                    depth_compare: Some(compare),
+                    stencil: Default::default(),
+                    bias: Default::default(),
+                }),
+                multisample: Default::default(),
+                fragment: Some(wgpu::FragmentState {
+                    module: &self.module,
+                    entry_point: Some(fs),
+                    compilation_options: Default::default(),
+                    targets: &targets,
+                }),
+                multiview_mask: None,
+                cache: None,
+            })
+    }
+
+    fn make_gauss_targets(&self) -> GaussTargets {
+        let d = &self.gpu.device;
+        let accum = d.create_texture(&wgpu::TextureDescriptor {
+            label: Some("gaussian accumulation"),
+            size: wgpu::Extent3d {
+                width: self.settings.width,
+                height: self.settings.height,
+                depth_or_array_layers: 1,
+            },
+            mip_level_count: 1,
+            sample_count: 1,
+            dimension: wgpu::TextureDimension::D2,
+            format: ACCUM_FORMAT,
+            usage: wgpu::TextureUsages::RENDER_ATTACHMENT | wgpu::TextureUsages::TEXTURE_BINDING,
+            view_formats: &[],
+        });
+        let accum_view = accum.create_view(&Default::default());
+        let bgl = d.create_bind_group_layout(&wgpu::BindGroupLayoutDescriptor {
+            label: Some("normalize"),
+            entries: &[wgpu::BindGroupLayoutEntry {
+                binding: 0,
+                visibility: wgpu::ShaderStages::FRAGMENT,
+                ty: wgpu::BindingType::Texture {
+                    sample_type: wgpu::TextureSampleType::Float { filterable: false },
+                    view_dimension: wgpu::TextureViewDimension::D2,
+                    multisampled: false,
+                },
+                count: None,
+            }],
+        });
+        let normalize_bg = d.create_bind_group(&wgpu::BindGroupDescriptor {
+            label: Some("normalize"),
+            layout: &bgl,
+            entries: &[wgpu::BindGroupEntry {
+                binding: 0,
+                resource: wgpu::BindingResource::TextureView(&accum_view),
+            }],
+        });
+        let layout = d.create_pipeline_layout(&wgpu::PipelineLayoutDescriptor {
+            label: Some("normalize"),
+            bind_group_layouts: &[Some(&bgl)],
+            immediate_size: 0,
+        });
+        let module = d.create_shader_module(wgpu::include_wgsl!("normalize.wgsl"));
+        let normalize = d.create_render_pipeline(&wgpu::RenderPipelineDescriptor {
+            label: Some("normalize"),
+            layout: Some(&layout),
+            vertex: wgpu::VertexState {
+                module: &module,
+                entry_point: Some("vs_fullscreen"),
+                compilation_options: Default::default(),
+                buffers: &[],
+            },
+            primitive: wgpu::PrimitiveState::default(),
+            depth_stencil: None,
+            multisample: Default::default(),
+            fragment: Some(wgpu::FragmentState {
+                module: &module,
+                entry_point: Some("fs_normalize"),
+                compilation_options: Default::default(),
+                targets: &[Some(wgpu::ColorTargetState {
+                    format: COLOR_FORMAT,
+                    blend: None,
+                    write_mask: wgpu::ColorWrites::ALL,
+                })],
+            }),
+            multiview_mask: None,
+            cache: None,
+        });
+        GaussTargets {
+            accum_view,
+            normalize,
+            normalize_bg,
+        }
     }
 
     fn draw_buffer(d: &wgpu::Device, size: u64) -> wgpu::Buffer {
@@ -473,6 +636,8 @@ impl<'g> Renderer<'g> {
             );
         }
         let t0 = Instant::now();
+        let shape = list.shape.unwrap_or(self.settings.kernel);
+        self.ensure_pipelines(shape);
         self.cache.begin_frame();
         let mut stats = FrameStats::default();
         // Upload what is missing; streams get their own buffers this frame.
@@ -555,45 +720,99 @@ impl<'g> Renderer<'g> {
                 ],
             });
         let mut enc = self.gpu.device.create_command_encoder(&Default::default());
-        {
-            let mut pass = enc.begin_render_pass(&wgpu::RenderPassDescriptor {
-                label: Some("splats"),
-                color_attachments: &[Some(wgpu::RenderPassColorAttachment {
-                    view: &self.color_view,
-                    depth_slice: None,
-                    resolve_target: None,
-                    ops: wgpu::Operations {
-                        load: wgpu::LoadOp::Clear(wgpu::Color::TRANSPARENT),
-                        store: wgpu::StoreOp::Store,
-                    },
-                })],
-                depth_stencil_attachment: Some(wgpu::RenderPassDepthStencilAttachment {
-                    view: &self.depth_view,
-                    depth_ops: Some(wgpu::Operations {
-                        load: wgpu::LoadOp::Clear(1.0),
-                        store: wgpu::StoreOp::Discard,
-                    }),
-                    stencil_ops: None,
-                }),
-                timestamp_writes: self.timestamps.as_ref().map(|t| {
-                    wgpu::RenderPassTimestampWrites {
-                        query_set: &t.set,
-                        beginning_of_pass_write_index: Some(0),
-                        end_of_pass_write_index: Some(1),
-                    }
-                }),
-                occlusion_query_set: None,
-                multiview_mask: None,
-            });
-            pass.set_pipeline(&self.pipeline);
-            pass.set_index_buffer(self.quad_indices.slice(..), wgpu::IndexFormat::Uint16);
-            for (i, (g, count)) in resolved.iter().enumerate() {
-                if *count == 0 {
-                    continue;
+        let ts = |begin: bool, end: bool| {
+            self.timestamps.as_ref().filter(|_| begin || end).map(|t| {
+                wgpu::RenderPassTimestampWrites {
+                    query_set: &t.set,
+                    beginning_of_pass_write_index: begin.then_some(0),
+                    end_of_pass_write_index: end.then_some(1),
                 }
-                pass.set_bind_group(0, &bg0, &[(i as u64 * self.draw_stride) as u32]);
-                pass.set_bind_group(1, &g.bind_group, &[]);
-                pass.draw_indexed(0..6, 0, 0..*count);
+            })
+        };
+        let color = |view, clear| {
+            Some(wgpu::RenderPassColorAttachment {
+                view,
+                depth_slice: None,
+                resolve_target: None,
+                ops: wgpu::Operations {
+                    load: wgpu::LoadOp::Clear(clear),
+                    store: wgpu::StoreOp::Store,
+                },
+            })
+        };
+        let depth = |clear: bool, store: bool| {
+            Some(wgpu::RenderPassDepthStencilAttachment {
+                view: &self.depth_view,
+                depth_ops: Some(wgpu::Operations {
+                    load: if clear {
+                        wgpu::LoadOp::Clear(1.0)
+                    } else {
+                        wgpu::LoadOp::Load
+                    },
+                    store: if store {
+                        wgpu::StoreOp::Store
+                    } else {
+                        wgpu::StoreOp::Discard
+                    },
+                }),
+                stencil_ops: None,
+            })
+        };
+        let splats = Splats {
+            bg0: &bg0,
+            stride: self.draw_stride,
+            indices: &self.quad_indices,
+            batches: &resolved,
+        };
+        let pipeline = |k: PassKind| {
+            self.pipelines
+                .get(&k)
+                .with_context(|| format!("pipeline {k:?} missing"))
+        };
+        match (shape, &self.gauss) {
+            (Kernel::Gaussian, Some(g)) => {
+                let mut p1 = enc.begin_render_pass(&wgpu::RenderPassDescriptor {
+                    label: Some("gaussian depth"),
+                    color_attachments: &[],
+                    depth_stencil_attachment: depth(true, true),
+                    timestamp_writes: ts(true, false),
+                    occlusion_query_set: None,
+                    multiview_mask: None,
+                });
+                splats.record(&mut p1, pipeline(PassKind::GaussDepth)?);
+                drop(p1);
+                let mut p2 = enc.begin_render_pass(&wgpu::RenderPassDescriptor {
+                    label: Some("gaussian accumulate"),
+                    color_attachments: &[color(&g.accum_view, wgpu::Color::TRANSPARENT)],
+                    depth_stencil_attachment: depth(false, false),
+                    timestamp_writes: None,
+                    occlusion_query_set: None,
+                    multiview_mask: None,
+                });
+                splats.record(&mut p2, pipeline(PassKind::GaussAccum)?);
+                drop(p2);
+                let mut p3 = enc.begin_render_pass(&wgpu::RenderPassDescriptor {
+                    label: Some("gaussian normalize"),
+                    color_attachments: &[color(&self.color_view, wgpu::Color::TRANSPARENT)],
+                    depth_stencil_attachment: None,
+                    timestamp_writes: ts(false, true),
+                    occlusion_query_set: None,
+                    multiview_mask: None,
+                });
+                p3.set_pipeline(&g.normalize);
+                p3.set_bind_group(0, &g.normalize_bg, &[]);
+                p3.draw(0..3, 0..1);
+            }
+            _ => {
+                let mut pass = enc.begin_render_pass(&wgpu::RenderPassDescriptor {
+                    label: Some("splats"),
+                    color_attachments: &[color(&self.color_view, wgpu::Color::TRANSPARENT)],
+                    depth_stencil_attachment: depth(true, false),
+                    timestamp_writes: ts(true, true),
+                    occlusion_query_set: None,
+                    multiview_mask: None,
+                });
+                splats.record(&mut pass, pipeline(PassKind::Opaque(shape))?);
             }
         }
         if let Some(t) = &self.timestamps {
@@ -679,6 +898,9 @@ pub fn frame_uniform(view: &View) -> FrameUniform {
         ambient: AMBIENT,
         _pad0: 0.0,
         base_color: [BASE_COLOR[0], BASE_COLOR[1], BASE_COLOR[2], 1.0],
+        view: view.view_matrix().to_cols_array_2d(),
+        depth_offset: GAUSS_DEPTH_OFFSET,
+        _pad1: [0.0; 3],
     }
 }
 
@@ -697,4 +919,27 @@ fn read_buffer(gpu: &Gpu, buf: &wgpu::Buffer, size: u64) -> anyhow::Result<Vec<u
         .to_vec();
     buf.unmap();
     Ok(bytes)
+}
+
+/// One frame's splat draws, recorded identically into every pass that needs them.
+struct Splats<'a> {
+    bg0: &'a wgpu::BindGroup,
+    stride: u64,
+    indices: &'a wgpu::Buffer,
+    batches: &'a [(&'a GpuBatch, u32)],
+}
+
+impl Splats<'_> {
+    fn record(&self, pass: &mut wgpu::RenderPass<'_>, pipeline: &wgpu::RenderPipeline) {
+        pass.set_pipeline(pipeline);
+        pass.set_index_buffer(self.indices.slice(..), wgpu::IndexFormat::Uint16);
+        for (i, (g, count)) in self.batches.iter().enumerate() {
+            if *count == 0 {
+                continue;
+            }
+            pass.set_bind_group(0, self.bg0, &[(i as u64 * self.stride) as u32]);
+            pass.set_bind_group(1, &g.bind_group, &[]);
+            pass.draw_indexed(0..6, 0, 0..*count);
+        }
+    }
 }

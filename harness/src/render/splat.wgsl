@@ -14,7 +14,12 @@ struct Frame {
     ambient: f32,           // offset 88
     _pad0: f32,             // offset 92
     base_color: vec4<f32>,  // offset 96: linear RGB used when the scene has no colour
-}                           // size 112
+    view: mat4x4<f32>,      // offset 112: world → view (ellipse axes)
+    depth_offset: f32,      // offset 176: gaussian depth pass pushes splats back by this × radius
+    _pad1: f32,             // offset 180
+    _pad2: f32,             // offset 184
+    _pad3: f32,             // offset 188
+}                           // size 192
 
 struct Draw {
     size_px: f32,      // offset 0: mode 0, splat size in pixels
@@ -37,7 +42,8 @@ struct Draw {
 struct VsOut {
     @builtin(position) pos: vec4<f32>,
     @location(0) uv: vec2<f32>,
-    @location(1) @interpolate(flat) color: vec4<f32>,
+    @location(1) @interpolate(flat) color: vec4<f32>,  // sRGB-encoded (opaque kernels)
+    @location(2) @interpolate(flat) linear: vec4<f32>, // linear (gaussian accumulation)
 }
 
 const CORNERS = array<vec2<f32>, 4>(
@@ -65,8 +71,9 @@ fn linear_to_srgb(c: vec3<f32>) -> vec3<f32> {
     return select(hi, lo, c <= vec3<f32>(0.0031308));
 }
 
-@vertex
-fn vs_main(@builtin(vertex_index) vi: u32, @builtin(instance_index) ii: u32) -> VsOut {
+// Shared vertex work. `ellipse`: orient and squash the quad by the normal. `depth_push`:
+// move the splat's depth back by depth_offset × its object-space size (gaussian pass 1).
+fn splat_vertex(vi: u32, ii: u32, ellipse: bool, depth_push: bool) -> VsOut {
     var out: VsOut;
     let p = vec3<f32>(positions[3u * ii], positions[3u * ii + 1u], positions[3u * ii + 2u]);
     var clip = frame.view_proj * vec4<f32>(p, 1.0);
@@ -75,15 +82,39 @@ fn vs_main(@builtin(vertex_index) vi: u32, @builtin(instance_index) ii: u32) -> 
         out.pos = vec4<f32>(2.0, 2.0, 2.0, 1.0);
         out.uv = vec2<f32>(0.0);
         out.color = vec4<f32>(0.0);
+        out.linear = vec4<f32>(0.0);
         return out;
     }
     var size = draw.size_px;
     if (draw.mode == 1u) {
         size = max(draw.min_px, 2.0 * radii[ii] * draw.radius_scale * frame.proj_scale / clip.w);
     }
+    let has_normal = (draw.flags & 1u) != 0u;
+    var n = vec3<f32>(0.0, 0.0, 1.0);
+    if (has_normal) {
+        n = oct_decode(normals[ii]);
+    }
+    let l = normalize(frame.eye - p);
     let c = CORNERS[vi];
-    clip.x += c.x * size / frame.viewport.x * clip.w;
-    clip.y += c.y * size / frame.viewport.y * clip.w;
+    var offset = c * size * 0.5; // pixels
+    if (ellipse && has_normal) {
+        // Minor axis along the projected normal, minor/major = |n̂·v̂| clamped at 1/10.
+        let nv = (frame.view * vec4<f32>(n, 0.0)).xy;
+        var d = vec2<f32>(1.0, 0.0);
+        if (dot(nv, nv) > 1e-12) {
+            d = normalize(nv);
+        }
+        let ratio = max(abs(dot(n, l)), 0.1);
+        let major = vec2<f32>(-d.y, d.x);
+        offset = (c.x * major + c.y * d * ratio) * size * 0.5;
+    }
+    clip.x += offset.x * 2.0 / frame.viewport.x * clip.w;
+    clip.y += offset.y * 2.0 / frame.viewport.y * clip.w;
+    if (depth_push) {
+        let world = size * clip.w / frame.proj_scale; // object-space splat diameter
+        let back = frame.view_proj * vec4<f32>(p - l * frame.depth_offset * world, 1.0);
+        clip.z = back.z / back.w * clip.w;
+    }
     out.pos = clip;
     out.uv = c;
 
@@ -92,14 +123,28 @@ fn vs_main(@builtin(vertex_index) vi: u32, @builtin(instance_index) ii: u32) -> 
         base = srgb_to_linear(unpack4x8unorm(colors[ii]).rgb);
     }
     var shade = 1.0;
-    if ((draw.flags & 1u) != 0u) {
+    if (has_normal) {
         // Lambert, headlight at the eye, two-sided (scans carry normals of either sign).
-        let n = oct_decode(normals[ii]);
-        let l = normalize(frame.eye - p);
         shade = frame.ambient + (1.0 - frame.ambient) * abs(dot(n, l));
     }
+    out.linear = vec4<f32>(base * shade, 1.0);
     out.color = vec4<f32>(linear_to_srgb(base * shade), 1.0);
     return out;
+}
+
+@vertex
+fn vs_main(@builtin(vertex_index) vi: u32, @builtin(instance_index) ii: u32) -> VsOut {
+    return splat_vertex(vi, ii, false, false);
+}
+
+@vertex
+fn vs_ellipse(@builtin(vertex_index) vi: u32, @builtin(instance_index) ii: u32) -> VsOut {
+    return splat_vertex(vi, ii, true, false);
+}
+
+@vertex
+fn vs_gauss_depth(@builtin(vertex_index) vi: u32, @builtin(instance_index) ii: u32) -> VsOut {
+    return splat_vertex(vi, ii, false, true);
 }
 
 @fragment
@@ -113,4 +158,29 @@ fn fs_circle(in: VsOut) -> @location(0) vec4<f32> {
         discard;
     }
     return in.color;
+}
+
+/// Gaussian weight at unit-disk coordinate `uv` (σ = 1/2 of the splat radius), 0 outside.
+fn gauss_weight(uv: vec2<f32>) -> f32 {
+    let r2 = dot(uv, uv);
+    if (r2 > 1.0) {
+        return 0.0;
+    }
+    return exp(-2.0 * r2);
+}
+
+@fragment
+fn fs_gauss_depth(in: VsOut) {
+    if (dot(in.uv, in.uv) > 1.0) {
+        discard;
+    }
+}
+
+@fragment
+fn fs_gauss_accum(in: VsOut) -> @location(0) vec4<f32> {
+    let w = gauss_weight(in.uv);
+    if (w <= 0.0) {
+        discard;
+    }
+    return vec4<f32>(in.linear.rgb * w, w);
 }

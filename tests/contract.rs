@@ -80,6 +80,14 @@ fn check_chunks(kind: MethodKind, m: &dyn LodMethod, cloud: &PointCloud, list: &
                 *points as usize,
                 *size,
             ),
+            DrawItem::Sequential {
+                id, prefix, size, ..
+            } => (
+                m.chunk(*id)
+                    .unwrap_or_else(|e| panic!("{kind}: chunk {id}: {e:#}")),
+                *prefix as usize,
+                *size,
+            ),
             DrawItem::Stream { batch, size } => (batch.clone(), batch.len(), *size),
         };
         batch.validate().unwrap();
@@ -172,7 +180,7 @@ fn contract_for(kind: MethodKind, cloud: &PointCloud) {
                 "{kind}: two builds with the same seed disagree at {t:?}"
             );
             for item in &a.items {
-                if let DrawItem::Chunk { id, .. } = item {
+                if let DrawItem::Chunk { id, .. } | DrawItem::Sequential { id, .. } = item {
                     assert_eq!(
                         m.chunk(*id).unwrap(),
                         m2.chunk(*id).unwrap(),

@@ -41,6 +41,9 @@ pub struct SplatBatch {
     pub colors: Option<Vec<u32>>,
     /// Object-space splat radii.
     pub radii: Option<Vec<f32>>,
+    /// Per-splat data of a vertex-stage LOD test (SPT: see `methods::spt`); uploaded only
+    /// by methods that use [`DrawItem::Sequential`].
+    pub lod: Option<Vec<[f32; 4]>>,
 }
 
 impl SplatBatch {
@@ -51,6 +54,7 @@ impl SplatBatch {
             normals: attrs.normals.then(|| Vec::with_capacity(capacity)),
             colors: attrs.colors.then(|| Vec::with_capacity(capacity)),
             radii: attrs.radii.then(|| Vec::with_capacity(capacity)),
+            lod: None,
         }
     }
     /// The samples `range` of `cloud` with the given radii (one per sample of the cloud),
@@ -72,6 +76,7 @@ impl SplatBatch {
                 .colors()
                 .map(|c| c[range.clone()].iter().map(|c| pack_color(*c)).collect()),
             radii: radii.map(|r| r[range].to_vec()),
+            lod: None,
         }
     }
     /// Number of splats.
@@ -95,6 +100,7 @@ impl SplatBatch {
         let n = self.len() as u64;
         let a = self.attributes();
         n * (12 + 4 * (a.normals as u64 + a.colors as u64 + a.radii as u64))
+            + self.lod.as_ref().map_or(0, |l| l.len() as u64 * 16)
     }
     /// Checks that every present column has one value per position.
     pub fn validate(&self) -> Result<(), MethodError> {
@@ -103,6 +109,7 @@ impl SplatBatch {
             ("normals", self.normals.as_ref().map(Vec::len)),
             ("colors", self.colors.as_ref().map(Vec::len)),
             ("radii", self.radii.as_ref().map(Vec::len)),
+            ("lod", self.lod.as_ref().map(Vec::len)),
         ]
         .into_iter()
         .find(|(_, l)| l.is_some_and(|l| l != n));
@@ -134,6 +141,18 @@ pub enum DrawItem {
         /// Splat size.
         size: SplatSize,
     },
+    /// The first `prefix` splats of cached chunk `id`, each kept or culled by an interval
+    /// test in the vertex stage (Sequential Point Trees).
+    Sequential {
+        /// The chunk (uploaded once, kept in the GPU cache).
+        id: ChunkId,
+        /// How many splats of it are sent.
+        prefix: u32,
+        /// The per-splat test.
+        test: IntervalTest,
+        /// Splat size of the splats that pass.
+        size: SplatSize,
+    },
     /// Splats generated this frame, uploaded every frame.
     Stream {
         /// The splats.
@@ -143,11 +162,26 @@ pub enum DrawItem {
     },
 }
 
+/// SPT's per-splat interval test, evaluated in the vertex stage (and mirrored on the CPU by
+/// the method). What `SplatBatch::lod` holds and how `mode`, `scale` and `overlap` combine is
+/// defined by the method that emits it (`methods::spt`).
+#[derive(Debug, Clone, Copy, PartialEq, serde::Serialize)]
+pub struct IntervalTest {
+    /// Error mode (method-defined, e.g. 0 = unified geometric error, 1 = split).
+    pub mode: u32,
+    /// Scale turning stored errors into view distances (e.g. `k / ε`).
+    pub scale: f32,
+    /// Overlap of the intervals (object units or a factor, method-defined).
+    pub overlap: f32,
+}
+
 impl DrawItem {
-    /// Splats this item draws.
+    /// Splats this item draws (for [`DrawItem::Sequential`], the prefix sent: an upper bound
+    /// of what passes the interval test).
     pub fn points(&self) -> u64 {
         match self {
             DrawItem::Chunk { points, .. } => *points as u64,
+            DrawItem::Sequential { prefix, .. } => *prefix as u64,
             DrawItem::Stream { batch, .. } => batch.len() as u64,
         }
     }

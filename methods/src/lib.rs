@@ -20,7 +20,9 @@ pub mod octnormal;
 pub mod params;
 pub mod registry;
 
-pub use draw::{ChunkId, DrawItem, DrawList, Feedback, SplatBatch, SplatShape, SplatSize, Target};
+pub use draw::{
+    ChunkId, DrawItem, DrawList, Feedback, IntervalTest, SplatBatch, SplatShape, SplatSize, Target,
+};
 pub use error::MethodError;
 pub use method::{BuildStats, LodMethod, Manifest, MethodStats};
 pub use params::Params;

@@ -153,6 +153,9 @@ pub fn rasterize(
             DrawItem::Stream { batch, size } => {
                 (std::borrow::Cow::Borrowed(batch), batch.len(), *size)
             }
+            DrawItem::Sequential { .. } => {
+                anyhow::bail!("the CPU mirror does not draw sequential (SPT) items yet")
+            }
         };
         for i in 0..count {
             let p = Vec3::from(batch.positions[i]);

@@ -659,6 +659,9 @@ impl<'g> Renderer<'g> {
                     stats.upload_bytes += batch.byte_size();
                     streams.push(self.upload(batch)?);
                 }
+                DrawItem::Sequential { .. } => {
+                    bail!("sequential (SPT) draw items are not supported by this renderer yet")
+                }
             }
         }
         // Per-draw uniforms.
@@ -685,6 +688,7 @@ impl<'g> Renderer<'g> {
                     let g = s.next().context("stream buffers out of step")?;
                     (g, g.len, *size)
                 }
+                DrawItem::Sequential { .. } => bail!("sequential draw items are not supported yet"),
             };
             if matches!(size, SplatSize::Radius { .. }) && !g.attrs.radii {
                 bail!("draw item {i} asks for per-splat radii but its splats carry none");

@@ -1,0 +1,107 @@
+//! Every WGSL file parses and validates with naga (no GPU needed), and every uniform struct
+//! of the shaders has the size and member offsets its `bytemuck::Pod` mirror in Rust has.
+#![allow(clippy::unwrap_used)]
+
+use std::path::PathBuf;
+
+use harness::render::{DrawUniform, FrameUniform};
+
+fn shaders() -> Vec<PathBuf> {
+    let dir = PathBuf::from(env!("CARGO_MANIFEST_DIR")).join("src");
+    let mut out = Vec::new();
+    let mut stack = vec![dir];
+    while let Some(d) = stack.pop() {
+        for e in std::fs::read_dir(d).unwrap() {
+            let p = e.unwrap().path();
+            if p.is_dir() {
+                stack.push(p);
+            } else if p.extension().is_some_and(|x| x == "wgsl") {
+                out.push(p);
+            }
+        }
+    }
+    out.sort();
+    out
+}
+
+fn module(path: &std::path::Path) -> (naga::Module, naga::valid::ModuleInfo) {
+    let src = std::fs::read_to_string(path).unwrap();
+    let m = naga::front::wgsl::parse_str(&src)
+        .unwrap_or_else(|e| panic!("{}: {}", path.display(), e.emit_to_string(&src)));
+    let info = naga::valid::Validator::new(
+        naga::valid::ValidationFlags::all(),
+        naga::valid::Capabilities::all(),
+    )
+    .validate(&m)
+    .unwrap_or_else(|e| panic!("{}: {e:?}", path.display()));
+    (m, info)
+}
+
+#[test]
+fn every_wgsl_file_validates() {
+    let files = shaders();
+    assert!(files.len() >= 2, "found {files:?}");
+    for f in files {
+        module(&f);
+    }
+}
+
+/// (size, [(member, offset)]) of a struct in a module.
+fn layout(m: &naga::Module, name: &str) -> (u32, Vec<(String, u32)>) {
+    let (_, ty) = m
+        .types
+        .iter()
+        .find(|(_, t)| t.name.as_deref() == Some(name))
+        .unwrap_or_else(|| panic!("struct {name} not found"));
+    match &ty.inner {
+        naga::TypeInner::Struct { members, span } => (
+            *span,
+            members
+                .iter()
+                .map(|mb| (mb.name.clone().unwrap_or_default(), mb.offset))
+                .collect(),
+        ),
+        other => panic!("{name} is not a struct: {other:?}"),
+    }
+}
+
+#[test]
+fn uniform_structs_match_their_rust_mirrors() {
+    let path = PathBuf::from(env!("CARGO_MANIFEST_DIR")).join("src/render/splat.wgsl");
+    let (m, _) = module(&path);
+    let (size, members) = layout(&m, "Frame");
+    assert_eq!(size as usize, std::mem::size_of::<FrameUniform>());
+    let expect = [
+        ("view_proj", std::mem::offset_of!(FrameUniform, view_proj)),
+        ("eye", std::mem::offset_of!(FrameUniform, eye)),
+        ("proj_scale", std::mem::offset_of!(FrameUniform, proj_scale)),
+        ("viewport", std::mem::offset_of!(FrameUniform, viewport)),
+        ("ambient", std::mem::offset_of!(FrameUniform, ambient)),
+        ("base_color", std::mem::offset_of!(FrameUniform, base_color)),
+        ("view", std::mem::offset_of!(FrameUniform, view)),
+        (
+            "depth_offset",
+            std::mem::offset_of!(FrameUniform, depth_offset),
+        ),
+    ];
+    for (name, off) in expect {
+        let got = members.iter().find(|(n, _)| n == name).map(|(_, o)| *o);
+        assert_eq!(got, Some(off as u32), "Frame.{name}");
+    }
+    let (size, members) = layout(&m, "Draw");
+    assert_eq!(size as usize, std::mem::size_of::<DrawUniform>());
+    let expect = [
+        ("size_px", std::mem::offset_of!(DrawUniform, size_px)),
+        (
+            "radius_scale",
+            std::mem::offset_of!(DrawUniform, radius_scale),
+        ),
+        ("min_px", std::mem::offset_of!(DrawUniform, min_px)),
+        ("mode", std::mem::offset_of!(DrawUniform, mode)),
+        ("flags", std::mem::offset_of!(DrawUniform, flags)),
+    ];
+    for (name, off) in expect {
+        let got = members.iter().find(|(n, _)| n == name).map(|(_, o)| *o);
+        assert_eq!(got, Some(off as u32), "Draw.{name}");
+    }
+}

@@ -26,6 +26,10 @@ use crate::metrics::{self, ImageMetrics};
 use crate::render::{FrameStats, Kernel, RenderSettings, Renderer};
 use crate::results::{FrameRow, FramesWriter, median, write_json};
 
+/// Columns appended for methods whose splats pass a vertex-stage interval test (SPT):
+/// splats sent, splats that passed (GPU counter), and the fraction culled on the GPU.
+pub const INTERVAL_COLUMNS: [&str; 3] = ["prefix_points", "gpu_passed", "gpu_culled_fraction"];
+
 /// Bump when the renderer's output changes, to invalidate cached reference images.
 pub const REFERENCE_VERSION: u32 = 1;
 
@@ -338,7 +342,11 @@ pub fn run(cfg: &RunConfig, gpu: &Gpu, progress: &dyn Progress) -> anyhow::Resul
     };
     let summary_path = cfg.out.join("summary.json");
     write_json(&summary_path, &summary)?;
-    let mut frames = FramesWriter::create(&cfg.out, method.extra_columns())?;
+    let mut columns: Vec<&str> = method.extra_columns().to_vec();
+    if method.interval_tested() {
+        columns.extend(INTERVAL_COLUMNS);
+    }
+    let mut frames = FramesWriter::create(&cfg.out, &columns)?;
     let images = cfg.out.join("images");
     if cfg.save_images {
         std::fs::create_dir_all(&images)
@@ -384,6 +392,21 @@ pub fn run(cfg: &RunConfig, gpu: &Gpu, progress: &dyn Progress) -> anyhow::Resul
             img.save_png(&images.join(format!("frame_{i:04}.png")))?;
         }
         let denom = stats.gpu_ms.unwrap_or(stats.wall_ms);
+        // Splats actually drawn: those that passed the GPU's LOD test, if there was one.
+        let drawn = stats.gpu_passed.unwrap_or(stats.points);
+        let mut counters = list.counters.clone();
+        if method.interval_tested() {
+            let passed = stats.gpu_passed.unwrap_or(0);
+            counters.extend([
+                stats.points as f64,
+                passed as f64,
+                if stats.points > 0 {
+                    1.0 - passed as f64 / stats.points as f64
+                } else {
+                    0.0
+                },
+            ]);
+        }
         let row = FrameRow {
             frame: i as u64,
             method: cfg.method.name().into(),
@@ -395,14 +418,14 @@ pub fn run(cfg: &RunConfig, gpu: &Gpu, progress: &dyn Progress) -> anyhow::Resul
             },
             eps_px: target.eps_px().map(f64::from),
             budget: target.budget_points(),
-            points_drawn: stats.points,
+            points_drawn: drawn,
             chunks_drawn: stats.chunks,
             gpu_ms: stats.gpu_ms,
             wall_ms: stats.wall_ms,
             cpu_select_ms,
             upload_bytes: stats.upload_bytes,
             splats_per_s: if denom > 0.0 {
-                stats.points as f64 / denom * 1e3
+                drawn as f64 / denom * 1e3
             } else {
                 0.0
             },
@@ -414,7 +437,7 @@ pub fn run(cfg: &RunConfig, gpu: &Gpu, progress: &dyn Progress) -> anyhow::Resul
             hole_ratio: m.map(|m| m.hole_ratio),
             extra_coverage: m.map(|m| m.extra_coverage),
         };
-        frames.push(&row, &list.counters)?;
+        frames.push(&row, &counters)?;
         rows.push(row);
         last = Some((stats, view));
         progress.inc(1);

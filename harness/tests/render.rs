@@ -255,3 +255,97 @@ fn chunk_cache_uploads_once_and_respects_budget() {
     assert_eq!(b.cache_bytes, 3_000 * 20);
     let _ = Gpu::new;
 }
+
+/// A method that serves one chunk of statue splats with random LOD intervals, drawn as a
+/// `Sequential` prefix: exercises the vertex-stage interval test and its GPU counter.
+struct IntervalMock {
+    batch: SplatBatch,
+}
+
+impl LodMethod for IntervalMock {
+    fn attributes(&self) -> scenes::Attributes {
+        self.batch.attributes()
+    }
+    fn input_points(&self) -> u64 {
+        self.batch.len() as u64
+    }
+    fn frame(
+        &mut self,
+        _: &View,
+        _: Target,
+        _: &Feedback,
+    ) -> Result<DrawList, methods::MethodError> {
+        Ok(DrawList::default())
+    }
+    fn chunk(&self, _: methods::ChunkId) -> Result<SplatBatch, methods::MethodError> {
+        Ok(self.batch.clone())
+    }
+    fn stats(&self) -> methods::MethodStats {
+        Default::default()
+    }
+}
+
+#[test]
+fn interval_test_gpu_count_equals_cpu_mirror() {
+    let Some(gpu) = gpu_for_test("interval_test_gpu_count_equals_cpu_mirror") else {
+        return;
+    };
+    let cloud = Generator::Statue.generate(20_000, 3).unwrap();
+    let radii = methods::leaf::leaf_radii(&cloud);
+    let mut batch = SplatBatch::from_cloud_range(&cloud, 0..cloud.len(), Some(&radii));
+    let mut rng = scenes::rng::Pcg32::new(9);
+    let r = cloud.bounds().radius();
+    batch.lod = Some(
+        (0..cloud.len())
+            .map(|_| {
+                let a = rng.range_f32(0.0, 4.0 * r);
+                [a, a + rng.range_f32(0.0, 2.0 * r), 0.0, 0.0]
+            })
+            .collect(),
+    );
+    let m = IntervalMock { batch };
+    let test = methods::IntervalTest {
+        mode: 0,
+        scale: 1.0,
+        overlap: 0.05 * r,
+    };
+    let mut renderer = Renderer::new(&gpu, settings(160, 120, Kernel::Square)).unwrap();
+    for frame in 0..4 {
+        let v = view(&cloud, 160, 120, frame);
+        for prefix in [20_000u32, 7_777] {
+            let list = DrawList {
+                items: vec![DrawItem::Sequential {
+                    id: 0,
+                    prefix,
+                    test,
+                    size: SplatSize::Radius {
+                        scale: 1.0,
+                        min_px: 1.0,
+                    },
+                }],
+                ..Default::default()
+            };
+            let (stats, img) = renderer.draw(&v, &list, &m, true).unwrap();
+            let cpu_count = (0..prefix as usize)
+                .filter(|&i| cpu::interval_passes(&m.batch, i, &test, v.camera.position))
+                .count() as u64;
+            assert_eq!(stats.points, prefix as u64);
+            assert_eq!(
+                stats.gpu_passed,
+                Some(cpu_count),
+                "frame {frame}, prefix {prefix}"
+            );
+            assert!(
+                cpu_count > 0 && cpu_count < prefix as u64,
+                "the test must cull some: {cpu_count}"
+            );
+            let reference = cpu::rasterize(&v, &list, &m, Kernel::Square).unwrap();
+            let (cov, _) = disagreement(&img.unwrap(), &reference);
+            assert!(
+                cov < 0.01,
+                "coverage differs on {:.3} % of pixels",
+                cov * 100.0
+            );
+        }
+    }
+}

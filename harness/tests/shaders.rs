@@ -4,7 +4,7 @@
 
 use std::path::PathBuf;
 
-use harness::render::{DrawUniform, FrameUniform};
+use harness::render::{DrawUniform, FrameUniform, SHADER_MODULES, SPLAT_WGSL};
 
 fn shaders() -> Vec<PathBuf> {
     let dir = PathBuf::from(env!("CARGO_MANIFEST_DIR")).join("src");
@@ -24,25 +24,34 @@ fn shaders() -> Vec<PathBuf> {
     out
 }
 
-fn module(path: &std::path::Path) -> (naga::Module, naga::valid::ModuleInfo) {
-    let src = std::fs::read_to_string(path).unwrap();
-    let m = naga::front::wgsl::parse_str(&src)
-        .unwrap_or_else(|e| panic!("{}: {}", path.display(), e.emit_to_string(&src)));
+fn module(name: &str, src: &str) -> (naga::Module, naga::valid::ModuleInfo) {
+    let m = naga::front::wgsl::parse_str(src)
+        .unwrap_or_else(|e| panic!("{name}: {}", e.emit_to_string(src)));
     let info = naga::valid::Validator::new(
         naga::valid::ValidationFlags::all(),
         naga::valid::Capabilities::all(),
     )
     .validate(&m)
-    .unwrap_or_else(|e| panic!("{}: {e:?}", path.display()));
+    .unwrap_or_else(|e| panic!("{name}: {e:?}"));
     (m, info)
 }
 
 #[test]
-fn every_wgsl_file_validates() {
+fn every_shader_module_validates_and_covers_every_wgsl_file() {
+    for (name, src) in SHADER_MODULES {
+        module(name, src);
+    }
     let files = shaders();
-    assert!(files.len() >= 2, "found {files:?}");
+    assert!(files.len() >= 3, "found {files:?}");
     for f in files {
-        module(&f);
+        let text = std::fs::read_to_string(&f).unwrap();
+        assert!(
+            SHADER_MODULES
+                .iter()
+                .any(|(_, src)| src.contains(text.trim())),
+            "{} is not part of any shader module the renderer compiles",
+            f.display()
+        );
     }
 }
 
@@ -67,8 +76,7 @@ fn layout(m: &naga::Module, name: &str) -> (u32, Vec<(String, u32)>) {
 
 #[test]
 fn uniform_structs_match_their_rust_mirrors() {
-    let path = PathBuf::from(env!("CARGO_MANIFEST_DIR")).join("src/render/splat.wgsl");
-    let (m, _) = module(&path);
+    let (m, _) = module("splat", SPLAT_WGSL);
     let (size, members) = layout(&m, "Frame");
     assert_eq!(size as usize, std::mem::size_of::<FrameUniform>());
     let expect = [
@@ -99,6 +107,15 @@ fn uniform_structs_match_their_rust_mirrors() {
         ("min_px", std::mem::offset_of!(DrawUniform, min_px)),
         ("mode", std::mem::offset_of!(DrawUniform, mode)),
         ("flags", std::mem::offset_of!(DrawUniform, flags)),
+        ("test_kind", std::mem::offset_of!(DrawUniform, test_kind)),
+        ("test_mode", std::mem::offset_of!(DrawUniform, test_mode)),
+        ("test_scale", std::mem::offset_of!(DrawUniform, test_scale)),
+        (
+            "test_overlap",
+            std::mem::offset_of!(DrawUniform, test_overlap),
+        ),
+        ("count", std::mem::offset_of!(DrawUniform, count)),
+        ("slot", std::mem::offset_of!(DrawUniform, slot)),
     ];
     for (name, off) in expect {
         let got = members.iter().find(|(n, _)| n == name).map(|(_, o)| *o);

@@ -175,6 +175,20 @@ pub struct IntervalTest {
     pub overlap: f32,
 }
 
+impl IntervalTest {
+    /// The CPU mirror of `interval.wgsl` (must stay identical to it; the renderer's tests
+    /// compare GPU counts with this). Mode 0, unified geometric error: `lod = (e_g, e_g of
+    /// the parent, -, -)`, `r = |eye − p|`; pass iff `e_g·scale − overlap ≤ r <
+    /// e_g_parent·scale + overlap`.
+    #[inline]
+    pub fn passes(&self, p: glam::Vec3, _n: glam::Vec3, lod: [f32; 4], eye: glam::Vec3) -> bool {
+        let r = (eye - p).length();
+        let r_min = lod[0] * self.scale - self.overlap;
+        let r_max = lod[1] * self.scale + self.overlap;
+        r >= r_min && r < r_max
+    }
+}
+
 impl DrawItem {
     /// Splats this item draws (for [`DrawItem::Sequential`], the prefix sent: an upper bound
     /// of what passes the interval test).

@@ -31,6 +31,11 @@ pub trait LodMethod: Send {
     fn extra_columns(&self) -> &'static [&'static str] {
         &[]
     }
+    /// True if the method's draw lists carry [`crate::DrawItem::Sequential`] items: the runner
+    /// then appends `prefix_points,gpu_passed,gpu_culled_fraction` (counted on the GPU).
+    fn interval_tested(&self) -> bool {
+        false
+    }
 }
 
 /// What `build` reports (written as `build.json`).

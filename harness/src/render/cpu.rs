@@ -9,7 +9,7 @@
 //! accumulation where the splat's depth ≤ that buffer, normalisation.
 
 use glam::Vec3;
-use methods::{DrawItem, DrawList, LodMethod, SplatBatch, SplatSize};
+use methods::{DrawItem, DrawList, IntervalTest, LodMethod, SplatBatch, SplatSize};
 
 use scenes::View;
 
@@ -109,6 +109,16 @@ impl Footprint {
     }
 }
 
+/// The vertex stage's LOD test for splat `i` (`splat_passes` in `splat.wgsl`).
+pub fn interval_passes(batch: &SplatBatch, i: usize, test: &IntervalTest, eye: Vec3) -> bool {
+    let n = batch
+        .normals
+        .as_ref()
+        .map_or(Vec3::Z, |n| methods::octnormal::decode(n[i]));
+    let lod = batch.lod.as_ref().map_or([0.0; 4], |l| l[i]);
+    test.passes(Vec3::from(batch.positions[i]), n, lod, eye)
+}
+
 /// Visits the pixels whose centre lies in the splat's quad (top-left rule), with their
 /// unit-quad coordinates, when the depth `z` is inside the near/far range.
 fn raster(w: usize, h: usize, z: f32, f: &Footprint, mut visit: impl FnMut(usize, glam::Vec2)) {
@@ -144,20 +154,32 @@ pub fn rasterize(
     let eye = view.camera.position;
     let mut splats = Vec::new();
     for item in &list.items {
-        let (batch, count, size) = match item {
+        let (batch, count, size, test) = match item {
             DrawItem::Chunk { id, points, size } => {
                 let b = method.chunk(*id)?;
                 let c = (*points as usize).min(b.len());
-                (std::borrow::Cow::Owned(b), c, *size)
+                (std::borrow::Cow::Owned(b), c, *size, None)
+            }
+            DrawItem::Sequential {
+                id,
+                prefix,
+                test,
+                size,
+            } => {
+                let b = method.chunk(*id)?;
+                let c = (*prefix as usize).min(b.len());
+                (std::borrow::Cow::Owned(b), c, *size, Some(*test))
             }
             DrawItem::Stream { batch, size } => {
-                (std::borrow::Cow::Borrowed(batch), batch.len(), *size)
-            }
-            DrawItem::Sequential { .. } => {
-                anyhow::bail!("the CPU mirror does not draw sequential (SPT) items yet")
+                (std::borrow::Cow::Borrowed(batch), batch.len(), *size, None)
             }
         };
         for i in 0..count {
+            if let Some(t) = &test
+                && !interval_passes(&batch, i, t, eye)
+            {
+                continue;
+            }
             let p = Vec3::from(batch.positions[i]);
             let clip = vp * p.extend(1.0);
             if clip.w <= 0.0 {

@@ -24,7 +24,7 @@ use std::collections::{HashMap, HashSet};
 use std::time::Instant;
 
 use anyhow::{Context as _, bail};
-use methods::{ChunkId, DrawItem, DrawList, LodMethod, SplatBatch, SplatSize};
+use methods::{ChunkId, DrawItem, DrawList, IntervalTest, LodMethod, SplatBatch, SplatSize};
 use scenes::{Attributes, View};
 use wgpu::util::DeviceExt as _;
 
@@ -107,32 +107,47 @@ pub struct DrawUniform {
     pub mode: u32,
     /// offset 16
     pub flags: u32,
-    /// offset 20
-    pub _pad: [u32; 3],
+    /// offset 20: 0 = none, 1 = SPT interval test
+    pub test_kind: u32,
+    /// offset 24
+    pub test_mode: u32,
+    /// offset 28
+    pub test_scale: f32,
+    /// offset 32
+    pub test_overlap: f32,
+    /// offset 36: splats sent (counting pass)
+    pub count: u32,
+    /// offset 40: counter slot (counting pass)
+    pub slot: u32,
+    /// offset 44
+    pub _pad: u32,
 }
-const _: () = assert!(std::mem::size_of::<DrawUniform>() == 32);
+const _: () = assert!(std::mem::size_of::<DrawUniform>() == 48);
 
 impl DrawUniform {
-    /// The uniform for a splat size and the attributes present.
-    pub fn new(size: SplatSize, attrs: Attributes) -> Self {
-        let flags = attrs.normals as u32 | (attrs.colors as u32) << 1 | (attrs.radii as u32) << 2;
-        match size {
-            SplatSize::Pixels(px) => Self {
-                size_px: px,
-                radius_scale: 0.0,
-                min_px: 0.0,
-                mode: 0,
-                flags,
-                _pad: [0; 3],
-            },
-            SplatSize::Radius { scale, min_px } => Self {
-                size_px: 0.0,
-                radius_scale: scale,
-                min_px,
-                mode: 1,
-                flags,
-                _pad: [0; 3],
-            },
+    /// The uniform for a splat size, the attributes present and an optional interval test.
+    pub fn new(size: SplatSize, attrs: Attributes, lod: bool, test: Option<IntervalTest>) -> Self {
+        let flags = attrs.normals as u32
+            | (attrs.colors as u32) << 1
+            | (attrs.radii as u32) << 2
+            | (lod as u32) << 3;
+        let (size_px, radius_scale, min_px, mode) = match size {
+            SplatSize::Pixels(px) => (px, 0.0, 0.0, 0),
+            SplatSize::Radius { scale, min_px } => (0.0, scale, min_px, 1),
+        };
+        Self {
+            size_px,
+            radius_scale,
+            min_px,
+            mode,
+            flags,
+            test_kind: test.is_some() as u32,
+            test_mode: test.map_or(0, |t| t.mode),
+            test_scale: test.map_or(0.0, |t| t.scale),
+            test_overlap: test.map_or(0.0, |t| t.overlap),
+            count: 0,
+            slot: 0,
+            _pad: 0,
         }
     }
 }
@@ -142,14 +157,18 @@ struct GpuBatch {
     bind_group: wgpu::BindGroup,
     len: u32,
     attrs: Attributes,
+    lod: bool,
     _buffers: Vec<wgpu::Buffer>,
 }
 
 /// What one frame cost.
 #[derive(Debug, Clone, Copy, Default, PartialEq, serde::Serialize)]
 pub struct FrameStats {
-    /// Splats drawn.
+    /// Splats sent to the GPU.
     pub points: u64,
+    /// Of those, splats that passed a vertex-stage LOD test (SPT), counted on the GPU; `None`
+    /// when no draw had a test (then every splat sent is drawn).
+    pub gpu_passed: Option<u64>,
     /// Cached chunks drawn.
     pub chunks: u64,
     /// GPU time of the render pass (timestamps), if available.
@@ -180,6 +199,9 @@ pub struct Renderer<'g> {
     layout: wgpu::PipelineLayout,
     pipelines: HashMap<PassKind, wgpu::RenderPipeline>,
     gauss: Option<GaussTargets>,
+    count: Option<wgpu::ComputePipeline>,
+    count_layout: wgpu::PipelineLayout,
+    bgl2: wgpu::BindGroupLayout,
     frame_ubo: wgpu::Buffer,
     draw_ubo: wgpu::Buffer,
     draw_capacity: u64,
@@ -206,6 +228,20 @@ struct GaussTargets {
     normalize: wgpu::RenderPipeline,
     normalize_bg: wgpu::BindGroup,
 }
+
+/// The splat shader: the interval test (`interval.wgsl`) followed by `splat.wgsl`.
+pub const SPLAT_WGSL: &str = concat!(
+    include_str!("interval.wgsl"),
+    "\n",
+    include_str!("splat.wgsl")
+);
+
+/// Every shader module the renderer compiles, as (name, source): the naga test validates
+/// each, and checks that every `.wgsl` file of the crate is part of one.
+pub const SHADER_MODULES: &[(&str, &str)] = &[
+    ("interval.wgsl + splat.wgsl", SPLAT_WGSL),
+    ("normalize.wgsl", include_str!("normalize.wgsl")),
+];
 
 /// Accumulation format of the gaussian kernel's pass 2.
 const ACCUM_FORMAT: wgpu::TextureFormat = wgpu::TextureFormat::Rgba16Float;
@@ -256,9 +292,10 @@ impl<'g> Renderer<'g> {
             usage: wgpu::TextureUsages::RENDER_ATTACHMENT,
             view_formats: &[],
         });
+        let stages = wgpu::ShaderStages::VERTEX | wgpu::ShaderStages::COMPUTE;
         let uniform = |binding, dynamic, size: u64| wgpu::BindGroupLayoutEntry {
             binding,
-            visibility: wgpu::ShaderStages::VERTEX,
+            visibility: stages,
             ty: wgpu::BindingType::Buffer {
                 ty: wgpu::BufferBindingType::Uniform,
                 has_dynamic_offset: dynamic,
@@ -275,7 +312,7 @@ impl<'g> Renderer<'g> {
         });
         let storage = |binding| wgpu::BindGroupLayoutEntry {
             binding,
-            visibility: wgpu::ShaderStages::VERTEX,
+            visibility: stages,
             ty: wgpu::BindingType::Buffer {
                 ty: wgpu::BufferBindingType::Storage { read_only: true },
                 has_dynamic_offset: false,
@@ -285,14 +322,35 @@ impl<'g> Renderer<'g> {
         };
         let bgl1 = d.create_bind_group_layout(&wgpu::BindGroupLayoutDescriptor {
             label: Some("splat columns"),
-            entries: &[storage(0), storage(1), storage(2), storage(3)],
+            entries: &[storage(0), storage(1), storage(2), storage(3), storage(4)],
         });
         let layout = d.create_pipeline_layout(&wgpu::PipelineLayoutDescriptor {
             label: Some("splat"),
             bind_group_layouts: &[Some(&bgl0), Some(&bgl1)],
             immediate_size: 0,
         });
-        let module = d.create_shader_module(wgpu::include_wgsl!("splat.wgsl"));
+        let module = d.create_shader_module(wgpu::ShaderModuleDescriptor {
+            label: Some("splat.wgsl"),
+            source: wgpu::ShaderSource::Wgsl(SPLAT_WGSL.into()),
+        });
+        let bgl2 = d.create_bind_group_layout(&wgpu::BindGroupLayoutDescriptor {
+            label: Some("counters"),
+            entries: &[wgpu::BindGroupLayoutEntry {
+                binding: 0,
+                visibility: wgpu::ShaderStages::COMPUTE,
+                ty: wgpu::BindingType::Buffer {
+                    ty: wgpu::BufferBindingType::Storage { read_only: false },
+                    has_dynamic_offset: false,
+                    min_binding_size: None,
+                },
+                count: None,
+            }],
+        });
+        let count_layout = d.create_pipeline_layout(&wgpu::PipelineLayoutDescriptor {
+            label: Some("count"),
+            bind_group_layouts: &[Some(&bgl0), Some(&bgl1), Some(&bgl2)],
+            immediate_size: 0,
+        });
         let frame_ubo = d.create_buffer(&wgpu::BufferDescriptor {
             label: Some("frame"),
             size: std::mem::size_of::<FrameUniform>() as u64,
@@ -344,6 +402,9 @@ impl<'g> Renderer<'g> {
             layout,
             pipelines: HashMap::new(),
             gauss: None,
+            count: None,
+            count_layout,
+            bgl2,
             frame_ubo,
             draw_ubo,
             draw_capacity,
@@ -595,8 +656,12 @@ impl<'g> Renderer<'g> {
             .radii
             .as_ref()
             .map(|v| make("radii", bytemuck::cast_slice(v)));
+        let lod = batch
+            .lod
+            .as_ref()
+            .map(|v| make("lod", bytemuck::cast_slice(v)));
         let buf = |i: Option<usize>| i.map(|i| &buffers[i]).unwrap_or(&self.dummy);
-        let entries: Vec<_> = [Some(pos), nrm, col, rad]
+        let entries: Vec<_> = [Some(pos), nrm, col, rad, lod]
             .into_iter()
             .enumerate()
             .map(|(b, i)| wgpu::BindGroupEntry {
@@ -613,6 +678,7 @@ impl<'g> Renderer<'g> {
             bind_group,
             len: batch.len() as u32,
             attrs: batch.attributes(),
+            lod: batch.lod.is_some(),
             _buffers: buffers,
         })
     }
@@ -638,13 +704,30 @@ impl<'g> Renderer<'g> {
         let t0 = Instant::now();
         let shape = list.shape.unwrap_or(self.settings.kernel);
         self.ensure_pipelines(shape);
+        if self.count.is_none()
+            && list
+                .items
+                .iter()
+                .any(|i| matches!(i, DrawItem::Sequential { .. }))
+        {
+            self.count = Some(self.gpu.device.create_compute_pipeline(
+                &wgpu::ComputePipelineDescriptor {
+                    label: Some("interval count"),
+                    layout: Some(&self.count_layout),
+                    module: &self.module,
+                    entry_point: Some("cs_count"),
+                    compilation_options: Default::default(),
+                    cache: None,
+                },
+            ));
+        }
         self.cache.begin_frame();
         let mut stats = FrameStats::default();
         // Upload what is missing; streams get their own buffers this frame.
         let mut streams = Vec::new();
         for item in &list.items {
             match item {
-                DrawItem::Chunk { id, .. } => {
+                DrawItem::Chunk { id, .. } | DrawItem::Sequential { id, .. } => {
                     if self.cache.get(id).is_none() {
                         let batch = method
                             .chunk(*id)
@@ -659,9 +742,6 @@ impl<'g> Renderer<'g> {
                     stats.upload_bytes += batch.byte_size();
                     streams.push(self.upload(batch)?);
                 }
-                DrawItem::Sequential { .. } => {
-                    bail!("sequential (SPT) draw items are not supported by this renderer yet")
-                }
             }
         }
         // Per-draw uniforms.
@@ -673,29 +753,54 @@ impl<'g> Renderer<'g> {
         }
         let mut draws = vec![0u8; (self.draw_stride * n.max(1)) as usize];
         let mut resolved: Vec<(&GpuBatch, u32)> = Vec::with_capacity(list.items.len());
+        // Draws whose splats pass an interval test: (draw index, splats sent); counter slot
+        // = position in this list.
+        let mut tested: Vec<(usize, u32)> = Vec::new();
         let mut s = streams.iter();
         for (i, item) in list.items.iter().enumerate() {
-            let (g, count, size) = match item {
+            let cached = |id: &ChunkId| {
+                self.cache
+                    .peek(id)
+                    .with_context(|| format!("chunk {id} vanished from the cache"))
+            };
+            let (g, count, size, test) = match item {
                 DrawItem::Chunk { id, points, size } => {
-                    let g = self
-                        .cache
-                        .peek(id)
-                        .with_context(|| format!("chunk {id} vanished from the cache"))?;
+                    let g = cached(id)?;
                     stats.chunks += 1;
-                    (g, (*points).min(g.len), *size)
+                    (g, (*points).min(g.len), *size, None)
+                }
+                DrawItem::Sequential {
+                    id,
+                    prefix,
+                    test,
+                    size,
+                } => {
+                    let g = cached(id)?;
+                    if !g.lod {
+                        bail!(
+                            "draw item {i} has an interval test but chunk {id} carries no lod column"
+                        );
+                    }
+                    stats.chunks += 1;
+                    (g, (*prefix).min(g.len), *size, Some(*test))
                 }
                 DrawItem::Stream { size, .. } => {
                     let g = s.next().context("stream buffers out of step")?;
-                    (g, g.len, *size)
+                    (g, g.len, *size, None)
                 }
-                DrawItem::Sequential { .. } => bail!("sequential draw items are not supported yet"),
             };
             if matches!(size, SplatSize::Radius { .. }) && !g.attrs.radii {
                 bail!("draw item {i} asks for per-splat radii but its splats carry none");
             }
-            let u = DrawUniform::new(size, g.attrs);
+            let mut u = DrawUniform::new(size, g.attrs, g.lod, test);
+            if test.is_some() {
+                u.count = count;
+                u.slot = tested.len() as u32;
+                tested.push((i, count));
+            }
             let off = i * self.draw_stride as usize;
-            draws[off..off + 32].copy_from_slice(bytemuck::bytes_of(&u));
+            draws[off..off + std::mem::size_of::<DrawUniform>()]
+                .copy_from_slice(bytemuck::bytes_of(&u));
             stats.points += count as u64;
             resolved.push((g, count));
         }
@@ -718,12 +823,54 @@ impl<'g> Renderer<'g> {
                         resource: wgpu::BindingResource::Buffer(wgpu::BufferBinding {
                             buffer: &self.draw_ubo,
                             offset: 0,
-                            size: wgpu::BufferSize::new(32),
+                            size: wgpu::BufferSize::new(std::mem::size_of::<DrawUniform>() as u64),
                         }),
                     },
                 ],
             });
         let mut enc = self.gpu.device.create_command_encoder(&Default::default());
+        // Interval-tested draws: count the splats that pass, in a compute pass before drawing
+        // (the same `splat_passes` as the vertex stage; outside the render-pass timestamps).
+        let counters = if tested.is_empty() {
+            None
+        } else {
+            let d = &self.gpu.device;
+            let bytes = tested.len() as u64 * 4;
+            let counters = d.create_buffer_init(&wgpu::util::BufferInitDescriptor {
+                label: Some("interval counters"),
+                contents: &vec![0u8; bytes as usize],
+                usage: wgpu::BufferUsages::STORAGE | wgpu::BufferUsages::COPY_SRC,
+            });
+            let readback = d.create_buffer(&wgpu::BufferDescriptor {
+                label: Some("interval counters readback"),
+                size: bytes,
+                usage: wgpu::BufferUsages::MAP_READ | wgpu::BufferUsages::COPY_DST,
+                mapped_at_creation: false,
+            });
+            let bg2 = d.create_bind_group(&wgpu::BindGroupDescriptor {
+                label: Some("counters"),
+                layout: &self.bgl2,
+                entries: &[wgpu::BindGroupEntry {
+                    binding: 0,
+                    resource: counters.as_entire_binding(),
+                }],
+            });
+            let pipeline = self.count.as_ref().context("counting pipeline missing")?;
+            let mut pass = enc.begin_compute_pass(&wgpu::ComputePassDescriptor {
+                label: Some("interval count"),
+                timestamp_writes: None,
+            });
+            pass.set_pipeline(pipeline);
+            pass.set_bind_group(2, &bg2, &[]);
+            for &(i, count) in &tested {
+                pass.set_bind_group(0, &bg0, &[(i as u64 * self.draw_stride) as u32]);
+                pass.set_bind_group(1, &resolved[i].0.bind_group, &[]);
+                pass.dispatch_workgroups(count.div_ceil(64), 1, 1);
+            }
+            drop(pass);
+            enc.copy_buffer_to_buffer(&counters, 0, &readback, 0, bytes);
+            Some((readback, bytes))
+        };
         let ts = |begin: bool, end: bool| {
             self.timestamps.as_ref().filter(|_| begin || end).map(|t| {
                 wgpu::RenderPassTimestampWrites {
@@ -826,6 +973,11 @@ impl<'g> Renderer<'g> {
         q.submit([enc.finish()]);
         self.gpu.wait()?;
         stats.wall_ms = t0.elapsed().as_secs_f64() * 1e3;
+        if let Some((readback, bytes)) = &counters {
+            let raw = read_buffer(self.gpu, readback, *bytes)?;
+            let counts: Vec<u32> = bytemuck::pod_collect_to_vec(&raw);
+            stats.gpu_passed = Some(counts.iter().map(|&c| c as u64).sum());
+        }
         if let Some(t) = &self.timestamps {
             let ts: [u64; 2] = read_buffer(self.gpu, &t.readback, 16)
                 .map(|b| bytemuck::pod_read_unaligned(&b[..16]))?;

@@ -26,11 +26,15 @@ struct Draw {
     radius_scale: f32, // offset 4: mode 1, multiplier on the stored radius
     min_px: f32,       // offset 8: mode 1, smallest size in pixels
     mode: u32,         // offset 12: 0 = pixels, 1 = per-splat radius
-    flags: u32,        // offset 16: bit 0 normals, bit 1 colours, bit 2 radii
-    _p0: u32,          // offset 20
-    _p1: u32,          // offset 24
-    _p2: u32,          // offset 28
-}                      // size 32
+    flags: u32,        // offset 16: bit 0 normals, bit 1 colours, bit 2 radii, bit 3 lod
+    test_kind: u32,    // offset 20: 0 = none, 1 = SPT interval test (interval.wgsl)
+    test_mode: u32,    // offset 24
+    test_scale: f32,   // offset 28
+    test_overlap: f32, // offset 32
+    count: u32,        // offset 36: splats sent (counting pass)
+    slot: u32,         // offset 40: counter slot of this draw (counting pass)
+    _p0: u32,          // offset 44
+}                      // size 48
 
 @group(0) @binding(0) var<uniform> frame: Frame;
 @group(0) @binding(1) var<uniform> draw: Draw;
@@ -38,6 +42,8 @@ struct Draw {
 @group(1) @binding(1) var<storage, read> normals: array<u32>;
 @group(1) @binding(2) var<storage, read> colors: array<u32>;
 @group(1) @binding(3) var<storage, read> radii: array<f32>;
+@group(1) @binding(4) var<storage, read> lods: array<vec4<f32>>;
+@group(2) @binding(0) var<storage, read_write> counters: array<atomic<u32>>;
 
 struct VsOut {
     @builtin(position) pos: vec4<f32>,
@@ -71,14 +77,39 @@ fn linear_to_srgb(c: vec3<f32>) -> vec3<f32> {
     return select(hi, lo, c <= vec3<f32>(0.0031308));
 }
 
+fn splat_position(ii: u32) -> vec3<f32> {
+    return vec3<f32>(positions[3u * ii], positions[3u * ii + 1u], positions[3u * ii + 2u]);
+}
+
+// The draw's per-splat LOD test (SPT); true when the draw has none.
+fn splat_passes(ii: u32) -> bool {
+    if (draw.test_kind == 0u) {
+        return true;
+    }
+    var n = vec3<f32>(0.0, 0.0, 1.0);
+    if ((draw.flags & 1u) != 0u) {
+        n = oct_decode(normals[ii]);
+    }
+    return interval_pass(splat_position(ii), n, lods[ii], frame.eye, draw.test_mode, draw.test_scale, draw.test_overlap);
+}
+
+// Counts the splats of a draw that pass its test (one thread per splat sent).
+@compute @workgroup_size(64)
+fn cs_count(@builtin(global_invocation_id) gid: vec3<u32>) {
+    let i = gid.x;
+    if (i < draw.count && splat_passes(i)) {
+        atomicAdd(&counters[draw.slot], 1u);
+    }
+}
+
 // Shared vertex work. `ellipse`: orient and squash the quad by the normal. `depth_push`:
 // move the splat's depth back by depth_offset × its object-space size (gaussian pass 1).
 fn splat_vertex(vi: u32, ii: u32, ellipse: bool, depth_push: bool) -> VsOut {
     var out: VsOut;
-    let p = vec3<f32>(positions[3u * ii], positions[3u * ii + 1u], positions[3u * ii + 2u]);
+    let p = splat_position(ii);
     var clip = frame.view_proj * vec4<f32>(p, 1.0);
-    if (clip.w <= 0.0) {
-        // Behind the eye: a degenerate primitive outside the clip volume.
+    if (clip.w <= 0.0 || !splat_passes(ii)) {
+        // Behind the eye, or culled by the LOD test: a degenerate primitive outside the clip volume.
         out.pos = vec4<f32>(2.0, 2.0, 2.0, 1.0);
         out.uv = vec2<f32>(0.0);
         out.color = vec4<f32>(0.0);

@@ -12,7 +12,8 @@ use scenes::paths::PathSpec;
 
 #[test]
 fn every_method_leaves_at_most_one_percent_holes_at_1px() {
-    let Some(gpu) = harness::gpu::gpu_for_test("every_method_leaves_at_most_one_percent_holes_at_1px")
+    let Some(gpu) =
+        harness::gpu::gpu_for_test("every_method_leaves_at_most_one_percent_holes_at_1px")
     else {
         return;
     };
@@ -44,7 +45,10 @@ fn every_method_leaves_at_most_one_percent_holes_at_1px() {
         let col = h.iter().position(|c| c == "hole_ratio").unwrap();
         for (i, row) in r.records().enumerate() {
             let holes: f64 = row.unwrap()[col].parse().unwrap();
-            assert!(holes <= 0.01, "{method} frame {i}: hole ratio {holes:.4} > 1 %");
+            assert!(
+                holes <= 0.01,
+                "{method} frame {i}: hole ratio {holes:.4} > 1 %"
+            );
         }
     }
 }

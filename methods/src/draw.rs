@@ -190,6 +190,25 @@ impl IntervalTest {
 }
 
 impl DrawItem {
+    /// For items drawn from a cached chunk (`Chunk` and `Sequential`): the chunk, how many of
+    /// its splats are sent, and the interval test if any. `None` for streams.
+    pub fn cached(&self) -> Option<(ChunkId, u32, Option<IntervalTest>)> {
+        match self {
+            DrawItem::Chunk { id, points, .. } => Some((*id, *points, None)),
+            DrawItem::Sequential {
+                id, prefix, test, ..
+            } => Some((*id, *prefix, Some(*test))),
+            DrawItem::Stream { .. } => None,
+        }
+    }
+    /// The item's splat size.
+    pub fn size(&self) -> SplatSize {
+        match self {
+            DrawItem::Chunk { size, .. }
+            | DrawItem::Sequential { size, .. }
+            | DrawItem::Stream { size, .. } => *size,
+        }
+    }
     /// Splats this item draws (for [`DrawItem::Sequential`], the prefix sent: an upper bound
     /// of what passes the interval test).
     pub fn points(&self) -> u64 {

@@ -73,9 +73,7 @@ impl BuildStats {
 
     /// Reads `build.json` from `dir`.
     pub fn read(dir: &Path) -> Result<Self, MethodError> {
-        let path = dir.join(Self::FILE);
-        let text = std::fs::read_to_string(&path).map_err(|e| MethodError::io(&path, e))?;
-        serde_json::from_str(&text).map_err(|e| MethodError::corrupt(&path, e.to_string()))
+        read_json(&dir.join(Self::FILE))
     }
 
     /// Fills the derived fields from the raw ones.
@@ -134,9 +132,7 @@ impl Manifest {
 
     /// Reads the manifest of `dir`.
     pub fn read(dir: &Path) -> Result<Self, MethodError> {
-        let path = dir.join(Self::FILE);
-        let text = std::fs::read_to_string(&path).map_err(|e| MethodError::io(&path, e))?;
-        serde_json::from_str(&text).map_err(|e| MethodError::corrupt(&path, e.to_string()))
+        read_json(&dir.join(Self::FILE))
     }
 }
 
@@ -148,4 +144,11 @@ pub fn write_json<T: serde::Serialize>(path: &Path, value: &T) -> Result<(), Met
     let tmp = path.with_extension("json.tmp");
     std::fs::write(&tmp, text).map_err(|e| MethodError::io(&tmp, e))?;
     std::fs::rename(&tmp, path).map_err(|e| MethodError::io(path, e))
+}
+
+/// Reads JSON from `path`; a missing file is an I/O error, bad contents are `Corrupt`, both
+/// naming the file.
+pub fn read_json<T: serde::de::DeserializeOwned>(path: &Path) -> Result<T, MethodError> {
+    let text = std::fs::read_to_string(path).map_err(|e| MethodError::io(path, e))?;
+    serde_json::from_str(&text).map_err(|e| MethodError::corrupt(path, e.to_string()))
 }

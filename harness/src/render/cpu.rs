@@ -154,25 +154,17 @@ pub fn rasterize(
     let eye = view.camera.position;
     let mut splats = Vec::new();
     for item in &list.items {
-        let (batch, count, size, test) = match item {
-            DrawItem::Chunk { id, points, size } => {
-                let b = method.chunk(*id)?;
-                let c = (*points as usize).min(b.len());
-                (std::borrow::Cow::Owned(b), c, *size, None)
+        let size = item.size();
+        let (batch, count, test) = match (item, item.cached()) {
+            (_, Some((id, sent, test))) => {
+                let b = method.chunk(id)?;
+                let c = (sent as usize).min(b.len());
+                (std::borrow::Cow::Owned(b), c, test)
             }
-            DrawItem::Sequential {
-                id,
-                prefix,
-                test,
-                size,
-            } => {
-                let b = method.chunk(*id)?;
-                let c = (*prefix as usize).min(b.len());
-                (std::borrow::Cow::Owned(b), c, *size, Some(*test))
+            (DrawItem::Stream { batch, .. }, None) => {
+                (std::borrow::Cow::Borrowed(batch), batch.len(), None)
             }
-            DrawItem::Stream { batch, size } => {
-                (std::borrow::Cow::Borrowed(batch), batch.len(), *size, None)
-            }
+            (item, None) => anyhow::bail!("unexpected draw item {item:?}"),
         };
         for i in 0..count {
             if let Some(t) = &test

@@ -763,30 +763,21 @@ impl<'g> Renderer<'g> {
                     .peek(id)
                     .with_context(|| format!("chunk {id} vanished from the cache"))
             };
-            let (g, count, size, test) = match item {
-                DrawItem::Chunk { id, points, size } => {
-                    let g = cached(id)?;
-                    stats.chunks += 1;
-                    (g, (*points).min(g.len), *size, None)
-                }
-                DrawItem::Sequential {
-                    id,
-                    prefix,
-                    test,
-                    size,
-                } => {
-                    let g = cached(id)?;
-                    if !g.lod {
+            let size = item.size();
+            let (g, count, test) = match item.cached() {
+                Some((id, sent, test)) => {
+                    let g = cached(&id)?;
+                    if test.is_some() && !g.lod {
                         bail!(
                             "draw item {i} has an interval test but chunk {id} carries no lod column"
                         );
                     }
                     stats.chunks += 1;
-                    (g, (*prefix).min(g.len), *size, Some(*test))
+                    (g, sent.min(g.len), test)
                 }
-                DrawItem::Stream { size, .. } => {
+                None => {
                     let g = s.next().context("stream buffers out of step")?;
-                    (g, g.len, *size, None)
+                    (g, g.len, None)
                 }
             };
             if matches!(size, SplatSize::Radius { .. }) && !g.attrs.radii {

@@ -15,9 +15,11 @@
 //!   normals: [`super::errors::bounding_ball`]); errors `e_p, e_t` per the paper. Colour =
 //!   the children's mean; if their spread exceeds the threshold, the errors are raised so
 //!   that `e_g ≥ d` (`e_p, e_t ≥ d/√2`).
-//! - Errors are made monotone (a node's `e_p`, `e_t`, `e_g` are at least its children's) and
-//!   `e_g = sqrt(e_p² + e_t²)` holds exactly after that: when `e_g` had to be raised, `e_p`
-//!   and `e_t` are scaled up by the same factor. Inner nodes have `e_g > 0` (at least
+//! - Errors are made monotone (a node's `e_p`, `e_t`, `e_g` are at least its children's);
+//!   then `φ = atan2(e_t, e_p)` is quantised ([`super::select::PHI_STEPS`]) and `e_g` raised
+//!   (by the least factor, times 1 + 1e-6) so that `e_p = e_g·cos φ_q ≥` the monotone `e_p`
+//!   and likewise `e_t`: the stored split errors are exactly what the GPU decodes, and they
+//!   stay monotone along every chain. Inner nodes have `e_g > 0` (at least
 //!   [`MIN_INNER_ERROR`]). Without normals `e_p = e_t = 0` and `e_g = d` (QSplat's LOD).
 //! - Positions are read from the (possibly memory-mapped) cloud by index; the only per-sample
 //!   copies are the Morton keys and the node array.
@@ -27,6 +29,7 @@ use rayon::prelude::*;
 use scenes::PointCloud;
 
 use super::errors::{self, ChildDisk};
+use super::select;
 
 /// `parent` of the root.
 pub const NO_PARENT: u32 = u32::MAX;
@@ -51,6 +54,9 @@ pub struct Node {
     pub e_t: f32,
     /// Geometric error `sqrt(e_p² + e_t²)` (`d` without normals).
     pub e_g: f32,
+    /// Quantised `φ = atan2(e_t, e_p)` ([`super::select::quantize_phi`]); `e_p = e_g·cos φ`
+    /// and `e_t = e_g·sin φ` hold for the quantised angle.
+    pub phi_q: u32,
     /// Parent index or [`NO_PARENT`].
     pub parent: u32,
     /// Mean colour (zero without colours).
@@ -183,6 +189,7 @@ impl Builder<'_> {
             e_p: 0.0,
             e_t: 0.0,
             e_g: 0.0,
+            phi_q: 0,
             parent: NO_PARENT,
             color: self.cloud.colors().map_or([0; 3], |c| c[i]),
             leaf: true,
@@ -241,17 +248,35 @@ impl Builder<'_> {
             e_t = e_t.max(c.e_t);
             e_g = e_g.max(c.e_g);
         }
+        let mut phi_q = 0;
         if has_normals {
-            let norm = errors::geometric_error(e_p, e_t);
-            e_g = e_g.max(norm).max(MIN_INNER_ERROR);
-            if norm > 0.0 {
-                let f = e_g / norm;
-                e_p *= f;
-                e_t *= f;
-            } else {
-                e_p = e_g * std::f32::consts::FRAC_1_SQRT_2;
-                e_t = e_p;
-            }
+            e_g = e_g
+                .max(errors::geometric_error(e_p, e_t))
+                .max(MIN_INNER_ERROR);
+            // Quantise φ (floor or ceil, whichever needs less raising) and raise e_g so that
+            // the quantised components still dominate (e_p, e_t), hence every child's.
+            let phi = e_t.atan2(e_p) / std::f32::consts::FRAC_PI_2 * select::PHI_STEPS;
+            let need = |q: f32| {
+                let a = q * (std::f32::consts::FRAC_PI_2 / select::PHI_STEPS);
+                let (s, c) = a.sin_cos();
+                let part = |e: f32, w: f32| {
+                    if e <= 0.0 {
+                        0.0
+                    } else if w > 0.0 {
+                        e / w
+                    } else {
+                        f32::INFINITY
+                    }
+                };
+                e_g.max(part(e_p, c)).max(part(e_t, s))
+            };
+            let (lo, hi) = (phi.floor().max(0.0), phi.ceil().min(select::PHI_STEPS));
+            let q = if need(lo) <= need(hi) { lo } else { hi };
+            e_g = need(q) * (1.0 + 1e-6);
+            let (s, c) = (q * (std::f32::consts::FRAC_PI_2 / select::PHI_STEPS)).sin_cos();
+            e_p = e_g * c;
+            e_t = e_g * s;
+            phi_q = q as u32;
         } else {
             e_g = e_g.max(MIN_INNER_ERROR);
         }
@@ -265,6 +290,7 @@ impl Builder<'_> {
             e_p,
             e_t,
             e_g,
+            phi_q,
             parent: NO_PARENT,
             color,
             leaf: false,

@@ -203,6 +203,38 @@ pub fn gpu_bytes_per_node(attrs: Attributes) -> u64 {
     12 + 4 * attrs.normals as u64 + 4 * attrs.colors as u64 + 4 + 16
 }
 
+/// The `lod` entry of every node of a tree, in tree order ([`select`] documents the layout):
+/// `[e_g, parent e_g (ROOT_PARENT_ERROR at the root), δ = |p − p_parent|·(1 + 1e-5), packed φ, φ_par, γ]`.
+pub fn lod_entries(nodes: &[build::Node]) -> Vec<[f32; 4]> {
+    nodes
+        .iter()
+        .map(|nd| {
+            if nd.parent == NO_PARENT {
+                select::pack_lod(
+                    nd.e_g,
+                    ROOT_PARENT_ERROR,
+                    0.0,
+                    nd.phi_q,
+                    select::PHI_STEPS as u32,
+                    select::GAMMA_UNBOUNDED,
+                )
+            } else {
+                let par = &nodes[nd.parent as usize];
+                let delta = nd.p.distance(par.p) * (1.0 + 1e-5) + f32::MIN_POSITIVE;
+                let gamma = nd.n.dot(par.n).clamp(-1.0, 1.0).acos() + 1e-3;
+                select::pack_lod(
+                    nd.e_g,
+                    par.e_g,
+                    delta,
+                    nd.phi_q,
+                    par.phi_q,
+                    select::quantize_gamma(gamma),
+                )
+            }
+        })
+        .collect()
+}
+
 /// Builds the SPT of `cloud` into `dir`.
 pub fn build(
     cloud: &PointCloud,
@@ -223,21 +255,7 @@ pub fn build(
     let t_tree = t0.elapsed().as_secs_f64();
     let nodes = &tree.nodes;
     let has_normals = cloud.normals().is_some();
-    // Per-node lod entries (in tree order) and sort keys.
-    let lod: Vec<[f32; 4]> = nodes
-        .iter()
-        .map(|nd| {
-            let qn = select::quantize_phi(nd.e_p, nd.e_t);
-            if nd.parent == NO_PARENT {
-                select::pack_lod(nd.e_g, ROOT_PARENT_ERROR, 0.0, qn, select::PHI_STEPS as u32)
-            } else {
-                let par = &nodes[nd.parent as usize];
-                let delta = nd.p.distance(par.p) * (1.0 + 1e-5) + f32::MIN_POSITIVE;
-                let qp = select::quantize_phi(par.e_p, par.e_t);
-                select::pack_lod(nd.e_g, par.e_g, delta, qn, qp)
-            }
-        })
-        .collect();
+    let lod = lod_entries(nodes);
     let cluster = |i: usize| {
         if p.normal_clusters && has_normals {
             select::cluster_of(nodes[i].n) as u32

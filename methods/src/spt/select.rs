@@ -9,7 +9,7 @@
 //! | 0 | `e` — the node's geometric error `e_g` (object units; 0 for leaves) |
 //! | 1 | `e_par` — the parent's `e_g`; [`ROOT_PARENT_ERROR`] (= `f32::MAX`) for the root |
 //! | 2 | `δ` — distance from the node's centre to its parent's centre (rounded up; 0 for the root) |
-//! | 3 | `q = 1024·q_node + q_par` (an integer < 2²⁰, exact in f32): `q ∈ 0..=1023` quantises `φ = atan2(e_t, e_p) ∈ [0, π/2]` of the node and of its parent as `φ = q·(π/2)/1023` |
+//! | 3 | `q = (256·q_node + q_par)·256 + q_γ` (an integer < 2²⁴, exact in f32): `q_node, q_par ∈ 0..=255` quantise `φ = atan2(e_t, e_p) ∈ [0, π/2]` of the node and of its parent as `φ = q·(π/2)/255`; `q_γ ∈ 0..=255` bounds the angle `γ` between the node's and the parent's normals: `γ ≤ q_γ·(π/2)/254` (rounded up; 255 = no bound, also the root's) |
 //!
 //! Split errors follow from `e_g` and `φ`: `e_p = e_g·cos φ`, `e_t = e_g·sin φ`, so
 //! `e_p·sin α + e_t·cos α = e_g·sin(α + φ)`.
@@ -22,8 +22,10 @@
 //!
 //! - unified: `g = g_par = 1`;
 //! - split: `c = |n·(eye − p)| / r` (cos α; 1 when r = 0), `sα = sqrt(max(0, 1 − c²))`,
-//!   `g = sα·cos φ_node + c·sin φ_node`, `g_par = sα·cos φ_par + c·sin φ_par` — both with
-//!   the node's own normal and view vector;
+//!   `g = sα·cos φ_node + c·sin φ_node`, and for the parent, evaluated with the node's own
+//!   normal and view vector and widened by the overlap for the angle the parent may see
+//!   differently: `g_par = min(1, sα·cos φ_par + c·sin φ_par + o·(γ + τ))`, `γ = q_γ·(π/2)/254`
+//!   (π when `q_γ = 255`), `τ = (π/2)·δ/r` when `δ < r`, else π (the turn of the view vector);
 //! - pass ⇔ `e·g ≤ s·r` **and** (`e_par ≥ ROOT_PARENT_ERROR` **or**
 //!   `s·max(r − o·δ, 0) < e_par·g_par`).
 //!
@@ -31,10 +33,11 @@
 //! written on the error side so that ε = 0 needs no infinity (shaders may assume none).
 //! `o ≥ 1` makes the unified test hole-free: if no ancestor passes at the distance of a
 //! child `j−1`, then `s·(r_{j−1} − δ) ≥ e_j` and `r_j ≥ r_{j−1} − δ` give `e_j ≤ s·r_j`, so
-//! every leaf's chain has a passing node (induction from the leaf, whose `e = 0`). Split mode
-//! uses the node's normal for the parent's error (only four floats), so that argument holds
-//! only where node and parent see the same angle; the overlap covers the rest in practice
-//! (measured in the tests, see the README).
+//! every leaf's chain has a passing node (induction from the leaf, whose `e = 0`). In split
+//! mode the same argument holds because `sin(α + φ)` is 1-Lipschitz in α and the angle α seen
+//! at the parent differs from the node's by at most `γ + τ`, so the widened `g_par` bounds the
+//! parent's own factor (up to the octahedral normal error, covered by rounding γ up after
+//! adding 1e-3 rad).
 //!
 //! # Prefix search
 //!
@@ -54,12 +57,16 @@ pub const MODE_UNIFIED: u32 = 0;
 pub const MODE_SPLIT: u32 = 1;
 /// `lod[1]` of the root: always passes the upper test.
 pub const ROOT_PARENT_ERROR: f32 = f32::MAX;
-/// Quantisation steps of `φ` (10 bits).
-pub const PHI_STEPS: f32 = 1023.0;
+/// Quantisation steps of `φ` (8 bits).
+pub const PHI_STEPS: f32 = 255.0;
+/// Quantisation step of `γ` (8 bits; code 255 = unbounded).
+pub const GAMMA_STEP: f32 = std::f32::consts::FRAC_PI_2 / 254.0;
+/// The `q_γ` code meaning "no bound on γ".
+pub const GAMMA_UNBOUNDED: u32 = 255;
 /// Clusters of normal clustering (8 octahedron faces × 4²).
 pub const CLUSTERS: usize = 128;
 
-/// Quantises `φ = atan2(e_t, e_p)` to `0..=1023`.
+/// Quantises `φ = atan2(e_t, e_p)` to `0..=255`.
 pub fn quantize_phi(e_p: f32, e_t: f32) -> u32 {
     let phi = e_t.max(0.0).atan2(e_p.max(0.0));
     (phi / std::f32::consts::FRAC_PI_2 * PHI_STEPS)
@@ -67,9 +74,25 @@ pub fn quantize_phi(e_p: f32, e_t: f32) -> u32 {
         .clamp(0.0, PHI_STEPS) as u32
 }
 
+/// Quantises the angle `γ` between a node's normal and its parent's, rounded up, to
+/// `0..=255` (step `(π/2)/254`; 255 = "γ > π/2", no bound).
+pub fn quantize_gamma(gamma: f32) -> u32 {
+    let q = (gamma.max(0.0) / GAMMA_STEP).ceil();
+    if q.is_finite() && q < GAMMA_UNBOUNDED as f32 {
+        q as u32
+    } else {
+        GAMMA_UNBOUNDED
+    }
+}
+
 /// Packs the `lod` entry of a node (see the module doc).
-pub fn pack_lod(e: f32, e_par: f32, delta: f32, q_node: u32, q_par: u32) -> [f32; 4] {
-    [e, e_par, delta, (q_node * 1024 + q_par) as f32]
+pub fn pack_lod(e: f32, e_par: f32, delta: f32, q_node: u32, q_par: u32, q_gamma: u32) -> [f32; 4] {
+    [
+        e,
+        e_par,
+        delta,
+        ((q_node.min(255) * 256 + q_par.min(255)) * 256 + q_gamma.min(GAMMA_UNBOUNDED)) as f32,
+    ]
 }
 
 /// The interval test of one splat (CPU mirror of the vertex stage; see the module doc).
@@ -79,8 +102,10 @@ pub fn interval_pass(p: Vec3, n: Vec3, lod: [f32; 4], eye: Vec3, test: &Interval
     let v = eye - p;
     let r = v.length();
     let s = test.scale;
-    let q_node = (lod[3] / 1024.0).floor();
-    let q_par = lod[3] - 1024.0 * q_node;
+    let hi = (lod[3] / 256.0).floor();
+    let q_gamma = lod[3] - 256.0 * hi;
+    let q_node = (hi / 256.0).floor();
+    let q_par = hi - 256.0 * q_node;
     let phi = q_node * (std::f32::consts::FRAC_PI_2 / PHI_STEPS);
     let phi_par = q_par * (std::f32::consts::FRAC_PI_2 / PHI_STEPS);
     let c = if r > 0.0 {
@@ -95,8 +120,19 @@ pub fn interval_pass(p: Vec3, n: Vec3, lod: [f32; 4], eye: Vec3, test: &Interval
     } else {
         1.0
     };
+    // Slack of the parent's angle: normal change γ plus view-direction change ≤ (π/2)·δ/r.
+    let view_turn = if lod[2] < r {
+        std::f32::consts::FRAC_PI_2 * lod[2] / r
+    } else {
+        std::f32::consts::PI
+    };
+    let turn = if q_gamma > 254.5 {
+        std::f32::consts::PI
+    } else {
+        q_gamma * GAMMA_STEP + view_turn
+    };
     let g_par = if split {
-        sa * phi_par.cos() + c * phi_par.sin()
+        (sa * phi_par.cos() + c * phi_par.sin() + test.overlap * turn).min(1.0)
     } else {
         1.0
     };
@@ -204,6 +240,7 @@ mod tests {
             0.0,
             quantize_phi(0.0, 1.0),
             quantize_phi(0.0, 1.0),
+            0,
         );
         let eye = Vec3::new(0.0, 0.0, 1.0);
         assert!(interval_pass(Vec3::ZERO, Vec3::Z, lod, eye, &t));

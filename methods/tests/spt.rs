@@ -254,7 +254,10 @@ fn chains_have_no_holes_and_little_overlap() {
                 100.0 * dbl_s as f64 / n
             );
             assert_eq!(holes1, 0, "view {vi} eps {eps}: holes with overlap 1");
-            assert_eq!(holes_s, 0, "view {vi} eps {eps}: split-mode holes with overlap 1");
+            assert_eq!(
+                holes_s, 0,
+                "view {vi} eps {eps}: split-mode holes with overlap 1"
+            );
             assert!(dbl0 <= dbl1, "overlap 0 must not add double draws");
             assert!((dbl1 as f64) < 0.5 * n, "overlap band too wide: {dbl1}");
         }
@@ -448,5 +451,79 @@ fn normal_clusters_skip_about_half_of_a_closed_statue() {
             }
         }
         assert!(l.counters[1] as usize == m.cpu_passed_in(view, &l).len());
+    }
+}
+
+/// Figures for the README (not a pass/fail test): build time at 1 M points, CPU time per
+/// frame and the fraction of the prefix passing the CPU mirror along an orbit.
+/// `cargo test -p methods --release --test spt measure_1m -- --ignored --nocapture`
+#[test]
+#[ignore = "measurement, minutes in debug"]
+fn measure_1m() {
+    let n: usize = std::env::var("SPT_MEASURE_N")
+        .ok()
+        .and_then(|v| v.parse().ok())
+        .unwrap_or(1_000_000);
+    let cloud = statue(n);
+    let tmp = tempfile::tempdir().unwrap();
+    for (name, params) in [
+        ("unified", &["cpu_mirror=true"][..]),
+        ("split", &["mode=split", "cpu_mirror=true"][..]),
+        (
+            "unified+clusters",
+            &["normal_clusters=true", "cpu_mirror=true"][..],
+        ),
+    ] {
+        let dir = tmp.path().join(name);
+        std::fs::create_dir_all(&dir).unwrap();
+        let stats = spt::build(
+            &cloud,
+            &Params::parse(params).unwrap(),
+            "measure",
+            &dir,
+            &scenes::NoProgress,
+        )
+        .unwrap();
+        println!(
+            "{name}: {n} points, {} nodes, {} levels, build {:.2} s ({:.2} M points/s), tree {:.2} s, {:.1} bits/sample",
+            stats.nodes,
+            stats.levels,
+            stats.seconds,
+            stats.points_per_s / 1e6,
+            stats.extra["tree_seconds"].as_f64().unwrap(),
+            stats.bits_per_sample
+        );
+        let mut m = Spt::open(&dir, Manifest::read(&dir).unwrap()).unwrap();
+        let b = cloud.bounds();
+        for eps in [1.0f32, 4.0] {
+            let (mut prefix, mut passed, mut us, mut skipped) = (0f64, 0f64, 0f64, 0f64);
+            let frames = 16;
+            for i in 0..frames {
+                let view = View {
+                    camera: PathSpec::parse("orbit").unwrap().camera(i, frames, &b),
+                    width: 1280,
+                    height: 1024,
+                };
+                let t = std::time::Instant::now();
+                let sel = m.select(&view, Target::Tolerance(eps)).unwrap();
+                us += t.elapsed().as_secs_f64() * 1e6;
+                let _ = sel;
+                let l = m
+                    .frame(&view, Target::Tolerance(eps), &Feedback::default())
+                    .unwrap();
+                prefix += l.counters[0];
+                passed += l.counters[1];
+                skipped += l.counters[2];
+            }
+            let f = frames as f64;
+            println!(
+                "  eps {eps} px, orbit of {frames} at 1280×1024: CPU select {:.1} µs/frame, prefix {:.0}, pass {:.0} ({:.1} % of the prefix culled by the test), clusters skipped {:.1}",
+                us / f,
+                prefix / f,
+                passed / f,
+                100.0 * (1.0 - passed / prefix),
+                skipped / f
+            );
+        }
     }
 }

@@ -270,8 +270,14 @@ impl Builder<'_> {
                 };
                 e_g.max(part(e_p, c)).max(part(e_t, s))
             };
-            let (lo, hi) = (phi.floor().max(0.0), phi.ceil().min(select::PHI_STEPS));
-            let q = if need(lo) <= need(hi) { lo } else { hi };
+            // Candidates around φ (a neighbour too: at q = 0 or q = 255 one component
+            // would need an infinite factor).
+            let base = phi.floor();
+            let q = [base - 1.0, base, base + 1.0, base + 2.0]
+                .into_iter()
+                .filter(|q| (0.0..=select::PHI_STEPS).contains(q))
+                .min_by(|&a, &b| need(a).total_cmp(&need(b)))
+                .unwrap_or(0.0);
             e_g = need(q) * (1.0 + 1e-6);
             let (s, c) = (q * (std::f32::consts::FRAC_PI_2 / select::PHI_STEPS)).sin_cos();
             e_p = e_g * c;

@@ -256,6 +256,12 @@ pub fn build(
     let nodes = &tree.nodes;
     let has_normals = cloud.normals().is_some();
     let lod = lod_entries(nodes);
+    if let Some(i) = lod.iter().position(|l| !l.iter().all(|v| v.is_finite())) {
+        return Err(MethodError::Limit(format!(
+            "spt: node {i} got a non-finite lod entry {:?} (centre {}, radius {})",
+            lod[i], nodes[i].p, nodes[i].r
+        )));
+    }
     let cluster = |i: usize| {
         if p.normal_clusters && has_normals {
             select::cluster_of(nodes[i].n) as u32

@@ -527,3 +527,120 @@ fn measure_1m() {
         }
     }
 }
+
+/// The registry contract (`tests/contract.rs`) applied to `spt` before it is registered:
+/// tolerance 0 sends every visible sample, monotone in tolerance and budget, budgets
+/// respected, bad targets rejected, chunks decode with the scene's attributes.
+#[test]
+fn obeys_the_registry_contract() {
+    for (cloud, params) in [
+        (statue(20_000), &["mode=split", "normal_clusters=true"][..]),
+        (statue(20_000), &[][..]),
+        (Generator::Terrain.generate(20_000, 3).unwrap(), &[][..]),
+    ] {
+        let tmp = tempfile::tempdir().unwrap();
+        let mut m = build_open(&cloud, params, tmp.path()).unwrap();
+        assert_eq!(m.input_points(), cloud.len() as u64);
+        let b = cloud.bounds();
+        let mut vs: Vec<View> = (0..3)
+            .map(|i| View {
+                camera: PathSpec::parse("orbit").unwrap().camera(i, 3, &b),
+                width: 256,
+                height: 192,
+            })
+            .collect();
+        vs.push(View {
+            camera: PathSpec::parse("zoom").unwrap().camera(7, 10, &b),
+            width: 256,
+            height: 192,
+        });
+        for view in &vs {
+            let f = view.frustum();
+            let eye = view.camera.position;
+            let visible = (0..cloud.len())
+                .filter(|&i| {
+                    let p = Vec3::from(cloud.positions()[i]);
+                    f.contains(p)
+                        && cloud
+                            .normals()
+                            .is_none_or(|n| Vec3::from(n[i]).dot(eye - p) > 0.0)
+                })
+                .count() as u64;
+            let all = m
+                .frame(view, Target::Tolerance(0.0), &Feedback::default())
+                .unwrap();
+            assert!(
+                all.points() >= visible,
+                "{params:?}: {} < {visible}",
+                all.points()
+            );
+            for item in &all.items {
+                let DrawItem::Sequential { id, prefix, .. } = item else {
+                    panic!("only Sequential items")
+                };
+                let c = m.chunk(*id).unwrap();
+                c.validate().unwrap();
+                assert!(c.len() >= *prefix as usize);
+                assert_eq!(c.attributes().normals, cloud.attributes().normals);
+                assert_eq!(c.attributes().colors, cloud.attributes().colors);
+                assert!(c.radii.is_some() && c.lod.is_some());
+            }
+            let mut last = 0;
+            for eps in [32.0, 16.0, 8.0, 4.0, 2.0, 1.0, 0.5, 0.0] {
+                let l = m
+                    .frame(view, Target::Tolerance(eps), &Feedback::default())
+                    .unwrap();
+                assert!(l.points() >= last);
+                last = l.points();
+            }
+            let mut last = 0;
+            for b in [1u64, 100, 1_000, 5_000, 15_000, 50_000] {
+                let l = m
+                    .frame(view, Target::Budget(b), &Feedback::default())
+                    .unwrap();
+                assert!(l.points() <= b && l.points() >= last);
+                last = l.points();
+            }
+            for t in [
+                Target::Tolerance(f32::NAN),
+                Target::Tolerance(f32::INFINITY),
+                Target::Tolerance(-1.0),
+                Target::Budget(0),
+            ] {
+                assert!(m.frame(view, t, &Feedback::default()).is_err());
+            }
+        }
+    }
+}
+
+#[test]
+fn corrupt_files_and_bad_params_are_named() {
+    let cloud = statue(5_000);
+    let tmp = tempfile::tempdir().unwrap();
+    let e = build_open(&cloud, &["overlapp=1"], &tmp.path().join("p"))
+        .err()
+        .unwrap();
+    assert!(e.to_string().contains("overlapp"), "{e}");
+    let e = build_open(&cloud, &["overlap=-1"], &tmp.path().join("q"))
+        .err()
+        .unwrap();
+    assert!(e.to_string().contains("overlap"), "{e}");
+    let dir = tmp.path().join("c");
+    build_open(&cloud, &[], &dir).unwrap();
+    let lod = dir.join("lod.bin");
+    let mut bytes = std::fs::read(&lod).unwrap();
+    let last = bytes.len() - 1;
+    bytes[last] ^= 0x40;
+    std::fs::write(&lod, &bytes).unwrap();
+    let e = Spt::open(&dir, Manifest::read(&dir).unwrap())
+        .err()
+        .unwrap()
+        .to_string();
+    assert!(e.contains("lod.bin") && e.contains("checksum"), "{e}");
+    std::fs::write(&lod, &bytes[..100]).unwrap();
+    let e = Spt::open(&dir, Manifest::read(&dir).unwrap())
+        .err()
+        .unwrap()
+        .to_string();
+    assert!(e.contains("lod.bin"), "{e}");
+}

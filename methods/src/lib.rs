@@ -19,6 +19,7 @@ pub mod method;
 pub mod octnormal;
 pub mod params;
 pub mod registry;
+pub mod spt;
 
 pub use draw::{
     ChunkId, DrawItem, DrawList, Feedback, IntervalTest, SplatBatch, SplatShape, SplatSize, Target,

@@ -1,0 +1,306 @@
+//! The SPT point tree: an octree over the samples, built bottom-up with per-node disks and
+//! errors ([`super::errors`]).
+//!
+//! Contract:
+//! - Samples are sorted by 63-bit Morton code (21 bits per axis in the cloud's bounding cube;
+//!   ties by sample index, so the tree is deterministic). Each octree cell holding one
+//!   sample is a leaf (leaves are single samples, never buckets, so tolerance 0 draws every
+//!   sample); a cell with one occupied child cell is not a node (chains collapse); a cell at
+//!   the finest level (2⁻²¹ of the cube) holding several samples (duplicates) gets one leaf
+//!   per sample.
+//! - Leaf: centre = sample, normal = sample normal, radius = leaf radius
+//!   ([`crate::leaf::leaf_radii`]), errors 0.
+//! - Inner node: normal = normalised sum of children's normals (the first child's normal if
+//!   they cancel); centre and radius `d/2` from [`super::errors::bounding_disk`] (without
+//!   normals: [`super::errors::bounding_ball`]); errors `e_p, e_t` per the paper. Colour =
+//!   the children's mean; if their spread exceeds the threshold, the errors are raised so
+//!   that `e_g ≥ d` (`e_p, e_t ≥ d/√2`).
+//! - Errors are made monotone (a node's `e_p`, `e_t`, `e_g` are at least its children's);
+//!   then `φ = atan2(e_t, e_p)` is quantised ([`super::select::PHI_STEPS`]) and `e_g` raised
+//!   (by the least factor, times 1 + 1e-6) so that `e_p = e_g·cos φ_q ≥` the monotone `e_p`
+//!   and likewise `e_t`: the stored split errors are exactly what the GPU decodes, and they
+//!   stay monotone along every chain. Inner nodes have `e_g > 0` (at least
+//!   [`MIN_INNER_ERROR`]). Without normals `e_p = e_t = 0` and `e_g = d` (QSplat's LOD).
+//! - Positions are read from the (possibly memory-mapped) cloud by index; the only per-sample
+//!   copies are the Morton keys and the node array.
+
+use glam::Vec3;
+use rayon::prelude::*;
+use scenes::PointCloud;
+
+use super::errors::{self, ChildDisk};
+use super::select;
+
+/// `parent` of the root.
+pub const NO_PARENT: u32 = u32::MAX;
+/// Smallest error of an inner node (so that leaves alone pass at tolerance 0).
+pub const MIN_INNER_ERROR: f32 = 1e-30;
+/// Smallest stored radius (radii must be > 0 in a column file).
+pub const MIN_RADIUS: f32 = 1e-30;
+const BITS: u32 = 21;
+
+/// One node of the point tree.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct Node {
+    /// Centre.
+    pub p: Vec3,
+    /// Unit normal (`Vec3::Z` when the scene has no normals).
+    pub n: Vec3,
+    /// Radius `d/2` of the bounding disk.
+    pub r: f32,
+    /// Perpendicular error (monotone, see the module doc).
+    pub e_p: f32,
+    /// Tangential error.
+    pub e_t: f32,
+    /// Geometric error `sqrt(e_p² + e_t²)` (`d` without normals).
+    pub e_g: f32,
+    /// Quantised `φ = atan2(e_t, e_p)` ([`super::select::quantize_phi`]); `e_p = e_g·cos φ`
+    /// and `e_t = e_g·sin φ` hold for the quantised angle.
+    pub phi_q: u32,
+    /// Parent index or [`NO_PARENT`].
+    pub parent: u32,
+    /// Mean colour (zero without colours).
+    pub color: [u8; 3],
+    /// True for a leaf (one sample).
+    pub leaf: bool,
+}
+
+/// The tree: nodes in post-order (children before parents; the root is last).
+#[derive(Debug, Clone, PartialEq)]
+pub struct PointTree {
+    /// All nodes.
+    pub nodes: Vec<Node>,
+    /// Number of levels (1 for a single sample).
+    pub levels: u32,
+    /// For each sample, its leaf node.
+    pub leaf_of: Vec<u32>,
+}
+
+impl PointTree {
+    /// The root's index.
+    pub fn root(&self) -> usize {
+        self.nodes.len() - 1
+    }
+}
+
+fn spread(v: u32) -> u64 {
+    let mut x = v as u64 & 0x1f_ffff;
+    x = (x | x << 32) & 0x1f_0000_0000_ffff;
+    x = (x | x << 16) & 0x1f_0000_ff00_00ff;
+    x = (x | x << 8) & 0x100f_00f0_0f00_f00f;
+    x = (x | x << 4) & 0x10c3_0c30_c30c_30c3;
+    x = (x | x << 2) & 0x1249_2492_4924_9249;
+    x
+}
+
+struct Builder<'a> {
+    cloud: &'a PointCloud,
+    radii: &'a [f32],
+    keys: Vec<(u64, u32)>,
+    nodes: Vec<Node>,
+    leaf_of: Vec<u32>,
+    color_threshold: f32,
+}
+
+/// Builds the point tree of `cloud` with leaf radii `radii` (one per sample);
+/// `color_threshold` is the colour rule's threshold in 0..=255 units (ignored without colours).
+pub fn build_tree(cloud: &PointCloud, radii: &[f32], color_threshold: f32) -> PointTree {
+    let b = cloud.bounds();
+    let size = b.size().max_element().max(f32::MIN_POSITIVE);
+    let cells = (1u32 << BITS) as f32;
+    let q = |v: f32, lo: f32| (((v - lo) / size * cells) as u32).min((1 << BITS) - 1);
+    let mut keys: Vec<(u64, u32)> = cloud
+        .positions()
+        .par_iter()
+        .enumerate()
+        .map(|(i, p)| {
+            let code = spread(q(p[0], b.min.x))
+                | spread(q(p[1], b.min.y)) << 1
+                | spread(q(p[2], b.min.z)) << 2;
+            (code, i as u32)
+        })
+        .collect();
+    keys.par_sort_unstable();
+    let n = cloud.len();
+    let mut bld = Builder {
+        cloud,
+        radii,
+        keys,
+        nodes: Vec::with_capacity(n + n / 2),
+        leaf_of: vec![0; n],
+        color_threshold,
+    };
+    let (_, height) = bld.subtree(0, n, BITS);
+    PointTree {
+        nodes: bld.nodes,
+        levels: height,
+        leaf_of: bld.leaf_of,
+    }
+}
+
+impl Builder<'_> {
+    /// Builds the cell holding `keys[lo..hi]` whose codes agree above `level·3` bits;
+    /// returns (node index, height).
+    fn subtree(&mut self, lo: usize, hi: usize, level: u32) -> (u32, u32) {
+        if hi - lo == 1 {
+            return (self.leaf(lo), 1);
+        }
+        let mut children = Vec::with_capacity(8);
+        let mut height = 0;
+        if level == 0 {
+            for i in lo..hi {
+                children.push(self.leaf(i));
+            }
+            height = 1;
+        } else {
+            let shift = 3 * (level - 1);
+            let oct = |k: &(u64, u32)| (k.0 >> shift) & 7;
+            let mut ranges = Vec::with_capacity(8);
+            let mut s = lo;
+            while s < hi {
+                let o = oct(&self.keys[s]);
+                let e = s + self.keys[s..hi].partition_point(|k| oct(k) == o);
+                ranges.push((s, e));
+                s = e;
+            }
+            if ranges.len() == 1 {
+                return self.subtree(lo, hi, level - 1);
+            }
+            for (s, e) in ranges {
+                let (c, h) = self.subtree(s, e, level - 1);
+                children.push(c);
+                height = height.max(h);
+            }
+        }
+        (self.inner(&children), height + 1)
+    }
+
+    fn leaf(&mut self, k: usize) -> u32 {
+        let i = self.keys[k].1 as usize;
+        let idx = self.nodes.len() as u32;
+        self.leaf_of[i] = idx;
+        self.nodes.push(Node {
+            p: Vec3::from(self.cloud.positions()[i]),
+            n: self
+                .cloud
+                .normals()
+                .map_or(Vec3::Z, |n| Vec3::from(n[i]).normalize_or(Vec3::Z)),
+            r: self.radii[i].max(MIN_RADIUS),
+            e_p: 0.0,
+            e_t: 0.0,
+            e_g: 0.0,
+            phi_q: 0,
+            parent: NO_PARENT,
+            color: self.cloud.colors().map_or([0; 3], |c| c[i]),
+            leaf: true,
+        });
+        idx
+    }
+
+    fn inner(&mut self, children: &[u32]) -> u32 {
+        let idx = self.nodes.len() as u32;
+        let kids: Vec<Node> = children.iter().map(|&c| self.nodes[c as usize]).collect();
+        let disks: Vec<ChildDisk> = kids
+            .iter()
+            .map(|c| ChildDisk {
+                p: c.p,
+                n: c.n,
+                r: c.r,
+            })
+            .collect();
+        let has_normals = self.cloud.normals().is_some();
+        let (p, n, r, mut e_p, mut e_t, mut e_g);
+        if has_normals {
+            n = kids
+                .iter()
+                .map(|c| c.n)
+                .sum::<Vec3>()
+                .try_normalize()
+                .unwrap_or(kids[0].n);
+            (p, r) = errors::bounding_disk(n, &disks);
+            e_p = errors::perpendicular_error(p, n, &disks);
+            e_t = errors::tangential_error(n, 2.0 * r, &disks);
+            e_g = errors::geometric_error(e_p, e_t);
+        } else {
+            n = Vec3::Z;
+            (p, r) = errors::bounding_ball(&disks);
+            e_p = 0.0;
+            e_t = 0.0;
+            e_g = 2.0 * r;
+        }
+        let mut color = [0u8; 3];
+        if self.cloud.colors().is_some() {
+            let cols: Vec<[u8; 3]> = kids.iter().map(|c| c.color).collect();
+            for (ch, out) in color.iter_mut().enumerate() {
+                let sum: u32 = cols.iter().map(|c| c[ch] as u32).sum();
+                *out = ((sum + cols.len() as u32 / 2) / cols.len() as u32) as u8;
+            }
+            if errors::color_spread(&cols) as f32 > self.color_threshold {
+                let d = 2.0 * r;
+                e_p = e_p.max(d * std::f32::consts::FRAC_1_SQRT_2);
+                e_t = e_t.max(d * std::f32::consts::FRAC_1_SQRT_2);
+                e_g = e_g.max(d);
+            }
+        }
+        // Monotone errors, then e_g = sqrt(e_p² + e_t²) exactly.
+        for c in &kids {
+            e_p = e_p.max(c.e_p);
+            e_t = e_t.max(c.e_t);
+            e_g = e_g.max(c.e_g);
+        }
+        let mut phi_q = 0;
+        if has_normals {
+            e_g = e_g
+                .max(errors::geometric_error(e_p, e_t))
+                .max(MIN_INNER_ERROR);
+            // Quantise φ (floor or ceil, whichever needs less raising) and raise e_g so that
+            // the quantised components still dominate (e_p, e_t), hence every child's.
+            let phi = e_t.atan2(e_p) / std::f32::consts::FRAC_PI_2 * select::PHI_STEPS;
+            let need = |q: f32| {
+                let a = q * (std::f32::consts::FRAC_PI_2 / select::PHI_STEPS);
+                let (s, c) = a.sin_cos();
+                let part = |e: f32, w: f32| {
+                    if e <= 0.0 {
+                        0.0
+                    } else if w > 0.0 {
+                        e / w
+                    } else {
+                        f32::INFINITY
+                    }
+                };
+                e_g.max(part(e_p, c)).max(part(e_t, s))
+            };
+            // Candidates around φ (a neighbour too: at q = 0 or q = 255 one component
+            // would need an infinite factor).
+            let base = phi.floor();
+            let q = [base - 1.0, base, base + 1.0, base + 2.0]
+                .into_iter()
+                .filter(|q| (0.0..=select::PHI_STEPS).contains(q))
+                .min_by(|&a, &b| need(a).total_cmp(&need(b)))
+                .unwrap_or(0.0);
+            e_g = need(q) * (1.0 + 1e-6);
+            let (s, c) = (q * (std::f32::consts::FRAC_PI_2 / select::PHI_STEPS)).sin_cos();
+            e_p = e_g * c;
+            e_t = e_g * s;
+            phi_q = q as u32;
+        } else {
+            e_g = e_g.max(MIN_INNER_ERROR);
+        }
+        for &c in children {
+            self.nodes[c as usize].parent = idx;
+        }
+        self.nodes.push(Node {
+            p,
+            n,
+            r: r.max(MIN_RADIUS),
+            e_p,
+            e_t,
+            e_g,
+            phi_q,
+            parent: NO_PARENT,
+            color,
+            leaf: false,
+        });
+        idx
+    }
+}

@@ -1,0 +1,228 @@
+//! SPT node geometry and error measures (Dachsbacher et al. 2003, §3.2–3.3), as pure functions
+//! of a node's children, each given as a disk ([`ChildDisk`]: centre, unit normal, radius).
+//!
+//! - [`bounding_disk`]: centre and radius of a disk (in the plane through the children's mean
+//!   centre, normal `n`) that contains every child disk projected into that plane. Each
+//!   projected child (an ellipse) is bounded by the circle of the child's full radius, and the
+//!   circle enclosing those circles is approximated: the best of the centroid, the bounding-box
+//!   centre and 24 Bădoiu–Clarkson steps (conservative: it always contains every child; at
+//!   most a few per cent larger than the minimal one for ≤ 8 children).
+//!   Without normals ([`bounding_ball`]) the same is done with balls in 3D.
+//! - [`perpendicular_error`]: `e_p = max_i((pᵢ−p)·n + ρᵢ) − min_i((pᵢ−p)·n − ρᵢ)`,
+//!   `ρᵢ = rᵢ·sqrt(1 − (nᵢ·n)²)`.
+//! - [`tangential_error`]: `e_t = max(0, d − w)`, `w` the width of the tightest of
+//!   [`SLAB_DIRECTIONS`] slabs (directions `u_j`, `j·π/8` apart in the node's plane) around
+//!   the child disks; a disk's extent along `u` is `pᵢ·u ± rᵢ·sqrt(1 − (nᵢ·u)²)`, which is
+//!   also the extent of its projection into the plane.
+//! - [`geometric_error`]: `e_g = sqrt(e_p² + e_t²)`.
+//! - [`color_spread`]: the largest per-channel difference among children's colours (the
+//!   colour rule raises a node's error to its diameter when it exceeds a threshold).
+
+use glam::{Vec2, Vec3};
+
+/// Number of slab orientations of the tangential error (the paper asks for "several").
+pub const SLAB_DIRECTIONS: usize = 8;
+/// Bădoiu–Clarkson refinement steps of the bounding circle/ball.
+const BC_STEPS: usize = 24;
+
+/// A child of a node seen as a disk.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct ChildDisk {
+    /// Centre.
+    pub p: Vec3,
+    /// Unit normal (ignored by the normal-less functions).
+    pub n: Vec3,
+    /// Radius (`d/2`).
+    pub r: f32,
+}
+
+/// An orthonormal basis `(t1, t2)` of the plane orthogonal to unit `n` (deterministic).
+pub fn tangent_basis(n: Vec3) -> (Vec3, Vec3) {
+    let a = if n.x.abs() < 0.6 { Vec3::X } else { Vec3::Y };
+    let t1 = n.cross(a).normalize();
+    (t1, n.cross(t1))
+}
+
+/// Smallest-found circle enclosing circles `(c, r)` (see the module doc): `(centre, radius)`.
+fn enclosing<V>(
+    items: &[(V, f32)],
+    sub: impl Fn(V, V) -> V,
+    len: impl Fn(V) -> f32,
+    add_scaled: impl Fn(V, V, f32) -> V,
+    mean: V,
+    mid: V,
+) -> (V, f32)
+where
+    V: Copy,
+{
+    let radius = |c: V| {
+        items
+            .iter()
+            .map(|&(q, r)| len(sub(q, c)) + r)
+            .fold(0.0f32, f32::max)
+    };
+    let mut best = (mean, radius(mean));
+    let rm = radius(mid);
+    if rm < best.1 {
+        best = (mid, rm);
+    }
+    let mut c = mean;
+    for step in 1..=BC_STEPS {
+        // Farthest point of the farthest circle from c.
+        let mut far = None;
+        let mut fd = -1.0f32;
+        for &(q, r) in items {
+            let v = sub(q, c);
+            let l = len(v);
+            if l + r > fd {
+                fd = l + r;
+                far = Some(if l > 0.0 { add_scaled(q, v, r / l) } else { q });
+            }
+        }
+        let Some(f) = far else { break };
+        c = add_scaled(c, sub(f, c), 1.0 / (step as f32 + 1.0));
+        let rc = radius(c);
+        if rc < best.1 {
+            best = (c, rc);
+        }
+    }
+    best
+}
+
+/// The node's bounding disk in the plane with unit normal `n` through the children's mean
+/// centre: `(centre, radius)`; the radius bounds every child disk (each projected child is
+/// bounded by its full radius).
+pub fn bounding_disk(n: Vec3, children: &[ChildDisk]) -> (Vec3, f32) {
+    let k = children.len().max(1) as f32;
+    let mean = children.iter().map(|c| c.p).sum::<Vec3>() / k;
+    let (t1, t2) = tangent_basis(n);
+    let items: Vec<(Vec2, f32)> = children
+        .iter()
+        .map(|c| {
+            let v = c.p - mean;
+            (Vec2::new(v.dot(t1), v.dot(t2)), c.r)
+        })
+        .collect();
+    let (lo, hi) = items.iter().fold(
+        (Vec2::splat(f32::INFINITY), Vec2::splat(f32::NEG_INFINITY)),
+        |(lo, hi), &(q, r)| (lo.min(q - r), hi.max(q + r)),
+    );
+    let (c, r) = enclosing(
+        &items,
+        |a, b| a - b,
+        Vec2::length,
+        |a, v, s| a + v * s,
+        Vec2::ZERO,
+        (lo + hi) * 0.5,
+    );
+    (mean + t1 * c.x + t2 * c.y, r)
+}
+
+/// Without normals: a ball bounding the children's balls, `(centre, radius)`.
+pub fn bounding_ball(children: &[ChildDisk]) -> (Vec3, f32) {
+    let k = children.len().max(1) as f32;
+    let mean = children.iter().map(|c| c.p).sum::<Vec3>() / k;
+    let items: Vec<(Vec3, f32)> = children.iter().map(|c| (c.p, c.r)).collect();
+    let (lo, hi) = items.iter().fold(
+        (Vec3::splat(f32::INFINITY), Vec3::splat(f32::NEG_INFINITY)),
+        |(lo, hi), &(q, r)| (lo.min(q - r), hi.max(q + r)),
+    );
+    enclosing(
+        &items,
+        |a, b| a - b,
+        Vec3::length,
+        |a, v, s| a + v * s,
+        mean,
+        (lo + hi) * 0.5,
+    )
+}
+
+/// `ρ = r·sqrt(1 − (a·b)²)`: the half-extent of a disk of radius `r`, normal `a`, along unit `b`.
+#[inline]
+fn half_extent(r: f32, a: Vec3, b: Vec3) -> f32 {
+    r * (1.0 - a.dot(b).powi(2)).max(0.0).sqrt()
+}
+
+/// Perpendicular error `e_p` of a node with centre `p` and unit normal `n`.
+pub fn perpendicular_error(p: Vec3, n: Vec3, children: &[ChildDisk]) -> f32 {
+    let (mut hi, mut lo) = (f32::NEG_INFINITY, f32::INFINITY);
+    for c in children {
+        let h = (c.p - p).dot(n);
+        let rho = half_extent(c.r, c.n, n);
+        hi = hi.max(h + rho);
+        lo = lo.min(h - rho);
+    }
+    if children.is_empty() {
+        0.0
+    } else {
+        (hi - lo).max(0.0)
+    }
+}
+
+/// Width of the slab with in-plane unit direction `u` around the child disks.
+pub fn slab_width(u: Vec3, children: &[ChildDisk]) -> f32 {
+    let (mut hi, mut lo) = (f32::NEG_INFINITY, f32::INFINITY);
+    for c in children {
+        let h = c.p.dot(u);
+        let e = half_extent(c.r, c.n, u);
+        hi = hi.max(h + e);
+        lo = lo.min(h - e);
+    }
+    if children.is_empty() { 0.0 } else { hi - lo }
+}
+
+/// Tangential error `e_t = max(0, d − w)` of a node with unit normal `n` and diameter `d`.
+pub fn tangential_error(n: Vec3, d: f32, children: &[ChildDisk]) -> f32 {
+    let (t1, t2) = tangent_basis(n);
+    let w = (0..SLAB_DIRECTIONS)
+        .map(|j| {
+            let a = j as f32 * std::f32::consts::PI / SLAB_DIRECTIONS as f32;
+            slab_width(t1 * a.cos() + t2 * a.sin(), children)
+        })
+        .fold(f32::INFINITY, f32::min);
+    (d - w).max(0.0)
+}
+
+/// Geometric error `e_g = sqrt(e_p² + e_t²)`.
+#[inline]
+pub fn geometric_error(e_p: f32, e_t: f32) -> f32 {
+    (e_p * e_p + e_t * e_t).sqrt()
+}
+
+/// Largest per-channel difference between any two children's colours (0..=255).
+pub fn color_spread(colors: &[[u8; 3]]) -> u8 {
+    (0..3)
+        .map(|ch| {
+            let (lo, hi) = colors
+                .iter()
+                .fold((u8::MAX, 0u8), |(lo, hi), c| (lo.min(c[ch]), hi.max(c[ch])));
+            hi.saturating_sub(lo)
+        })
+        .max()
+        .unwrap_or(0)
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn bounding_disk_contains_children_and_is_tight_for_two() {
+        let c = [
+            ChildDisk {
+                p: Vec3::new(-1.0, 0.0, 0.0),
+                n: Vec3::Z,
+                r: 0.5,
+            },
+            ChildDisk {
+                p: Vec3::new(1.0, 0.0, 0.0),
+                n: Vec3::Z,
+                r: 0.5,
+            },
+        ];
+        let (p, r) = bounding_disk(Vec3::Z, &c);
+        assert!(p.length() < 1e-4 && (r - 1.5).abs() < 1e-3, "{p} {r}");
+        let (p, r) = bounding_ball(&c);
+        assert!(p.length() < 1e-4 && (r - 1.5).abs() < 1e-3, "{p} {r}");
+    }
+}

@@ -1,0 +1,847 @@
+//! `spt`: Sequential Point Trees (Dachsbacher, Vogelgsang, Stamminger, SIGGRAPH 2003).
+//!
+//! Build ([`build`]): a point tree over the samples ([`build`](mod@build) module: octree,
+//! node disks, errors from [`errors`]), flattened into one list sorted by the parent's error
+//! descending (per normal cluster when `normal_clusters=true`), written as
+//! - `nodes.sbc`: a column file (positions, normals and colours where the scene has them,
+//!   radii = `d/2`), in list order;
+//! - `lod.bin`: the per-node `lod` entries ([`select`] documents the four floats): magic
+//!   `SPTLOD01`, `u64` count, `u64` FNV-1a 64 of the entries, then `count × [f32; 4]` LE;
+//! - `index.json`: clusters (list range, normal cone, bounding sphere) and chunks (≤
+//!   [`CHUNK_NODES`] consecutive nodes of one cluster, with max `e_par` and a bounding sphere).
+//!
+//! Frame ([`Spt`]): per cluster, `r_lo` = lower bound of the eye distance over its bounding
+//! sphere; binary search of the prefix that can pass ([`select::prefix_len`]); one
+//! [`DrawItem::Sequential`] per chunk with a non-empty prefix, the test `IntervalTest { mode,
+//! scale: ε/k, overlap }` for the vertex stage ([`select::interval_pass`] is its CPU mirror),
+//! splat size `2·(d/2)·k/z`. CPU work is O(clusters · log n).
+//!
+//! Budget `B`: the smallest scale `s` (largest ε) whose total prefix is ≤ B, by bisection on
+//! `log s` (the prefix is non-increasing in `s`). When no `s` gets there (the eye inside a
+//! cluster's sphere makes `r_lo = 0`), each cluster's prefix is cut proportionally to fit B
+//! (coarse nodes first; holes possible, documented in the README). `points()` (the prefixes)
+//! never exceeds B.
+//!
+//! Limits: the whole list is resident on the GPU (the paper's limitation); `open` refuses a
+//! model whose GPU bytes exceed `gpu_limit_mb`.
+
+pub mod build;
+pub mod errors;
+pub mod select;
+
+use std::io::Write;
+use std::path::Path;
+use std::time::Instant;
+
+use glam::Vec3;
+use scenes::{Attributes, PointCloud, Progress, View};
+
+use crate::{
+    BuildStats, ChunkId, DrawItem, DrawList, Feedback, IntervalTest, LodMethod, Manifest,
+    MethodError, MethodStats, Params, SplatBatch, SplatSize, Target,
+};
+use build::NO_PARENT;
+use select::{MODE_SPLIT, MODE_UNIFIED, ROOT_PARENT_ERROR};
+
+/// Registry name.
+pub const NAME: &str = "spt";
+/// Largest chunk (nodes): 3 MiB of positions fit every storage binding.
+pub const CHUNK_NODES: usize = 1 << 18;
+/// Version of the on-disk layout.
+pub const FORMAT_VERSION: u32 = 1;
+const NODES_FILE: &str = "nodes.sbc";
+const LOD_FILE: &str = "lod.bin";
+const INDEX_FILE: &str = "index.json";
+const LOD_MAGIC: &[u8; 8] = b"SPTLOD01";
+
+/// Error mode of the interval test.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Default, serde::Deserialize, serde::Serialize)]
+#[serde(rename_all = "lowercase")]
+pub enum SptMode {
+    /// `ẽ_g = e_g / r` (view-angle independent).
+    #[default]
+    Unified,
+    /// `ẽ_p + ẽ_t = (e_p·sin α + e_t·cos α) / r` (needs normals).
+    Split,
+}
+
+/// Parameters of `spt`.
+#[derive(Debug, Clone, serde::Deserialize)]
+#[serde(deny_unknown_fields, default)]
+pub struct SptParams {
+    /// `unified` or `split`.
+    pub mode: SptMode,
+    /// Overlap factor `o` on each node's distance `δ` to its parent (1 = hole-free in
+    /// unified mode, 0 = the paper's bare intervals).
+    pub overlap: f32,
+    /// 128 lists by normal, back-facing lists skipped per frame (needs normals).
+    pub normal_clusters: bool,
+    /// Colour rule threshold, largest per-channel difference among children in 0..=255
+    /// (≥ 255 disables the rule; ignored without colours).
+    pub color_threshold: f32,
+    /// GPU memory the whole model may take, MiB (`open` refuses larger models).
+    pub gpu_limit_mb: u64,
+    /// Compute the `cpu_passed` counter (O(prefix) per frame); NaN otherwise.
+    pub cpu_mirror: bool,
+}
+
+impl Default for SptParams {
+    fn default() -> Self {
+        Self {
+            mode: SptMode::Unified,
+            overlap: 1.0,
+            normal_clusters: false,
+            color_threshold: 40.0,
+            gpu_limit_mb: 4096,
+            cpu_mirror: false,
+        }
+    }
+}
+
+impl SptParams {
+    fn parse(params: &Params, attrs: Attributes) -> Result<Self, MethodError> {
+        let p: SptParams = params.to_typed(NAME)?;
+        if !(p.overlap.is_finite() && p.overlap >= 0.0) {
+            return Err(MethodError::Param(format!(
+                "method 'spt': overlap must be a finite number ≥ 0, got {}",
+                p.overlap
+            )));
+        }
+        if !(p.color_threshold.is_finite() && p.color_threshold >= 0.0) {
+            return Err(MethodError::Param(format!(
+                "method 'spt': color_threshold must be a finite number ≥ 0, got {}",
+                p.color_threshold
+            )));
+        }
+        if p.gpu_limit_mb == 0 {
+            return Err(MethodError::Param(
+                "method 'spt': gpu_limit_mb must be ≥ 1".into(),
+            ));
+        }
+        if !attrs.normals && p.mode == SptMode::Split {
+            return Err(MethodError::Param(
+                "method 'spt': mode=split needs normals and the scene has none (use mode=unified)"
+                    .into(),
+            ));
+        }
+        if !attrs.normals && p.normal_clusters {
+            return Err(MethodError::Param(
+                "method 'spt': normal_clusters=true needs normals and the scene has none".into(),
+            ));
+        }
+        Ok(p)
+    }
+}
+
+/// A normal cluster: a range of the node list.
+#[derive(Debug, Clone, PartialEq, serde::Serialize, serde::Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct ClusterInfo {
+    /// Octahedral cluster id (0..128), 0 without clustering.
+    pub id: u32,
+    /// First node.
+    pub start: u64,
+    /// Nodes.
+    pub count: u64,
+    /// Cone axis (unit).
+    pub axis: [f32; 3],
+    /// Cone half-angle (radians) covering every node normal of the cluster.
+    pub half_angle: f32,
+    /// Bounding sphere centre of the node centres.
+    pub center: [f32; 3],
+    /// Bounding sphere radius.
+    pub radius: f32,
+}
+
+/// A chunk: consecutive nodes of one cluster.
+#[derive(Debug, Clone, PartialEq, serde::Serialize, serde::Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct ChunkInfo {
+    /// Index into the cluster list.
+    pub cluster: u32,
+    /// First node.
+    pub start: u64,
+    /// Nodes.
+    pub count: u32,
+    /// Largest `e_par` (its first node's).
+    pub max_e_par: f32,
+    /// Bounding sphere centre (node disks included).
+    pub center: [f32; 3],
+    /// Bounding sphere radius.
+    pub radius: f32,
+}
+
+/// `index.json`.
+#[derive(Debug, Clone, PartialEq, serde::Serialize, serde::Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct Index {
+    /// Total nodes.
+    pub nodes: u64,
+    /// Levels of the tree.
+    pub levels: u32,
+    /// Clusters, in list order.
+    pub clusters: Vec<ClusterInfo>,
+    /// Chunks, in list order (chunk id = position here).
+    pub chunks: Vec<ChunkInfo>,
+}
+
+fn sphere_of(points: impl Iterator<Item = (Vec3, f32)> + Clone) -> ([f32; 3], f32) {
+    let (lo, hi) = points.clone().fold(
+        (Vec3::splat(f32::INFINITY), Vec3::splat(f32::NEG_INFINITY)),
+        |(lo, hi), (p, _)| (lo.min(p), hi.max(p)),
+    );
+    let c = (lo + hi) * 0.5;
+    let r = points
+        .map(|(p, r)| p.distance(c) + r)
+        .fold(0.0f32, f32::max);
+    (c.to_array(), r * (1.0 + 1e-5))
+}
+
+/// Bytes one node takes on the GPU with these attributes (position, normal, colour, radius,
+/// lod).
+pub fn gpu_bytes_per_node(attrs: Attributes) -> u64 {
+    12 + 4 * attrs.normals as u64 + 4 * attrs.colors as u64 + 4 + 16
+}
+
+/// The `lod` entry of every node of a tree, in tree order ([`select`] documents the layout):
+/// `[e_g, parent e_g (ROOT_PARENT_ERROR at the root), δ = |p − p_parent|·(1 + 1e-5), packed φ, φ_par, γ]`.
+pub fn lod_entries(nodes: &[build::Node]) -> Vec<[f32; 4]> {
+    nodes
+        .iter()
+        .map(|nd| {
+            if nd.parent == NO_PARENT {
+                select::pack_lod(
+                    nd.e_g,
+                    ROOT_PARENT_ERROR,
+                    0.0,
+                    nd.phi_q,
+                    select::PHI_STEPS as u32,
+                    select::GAMMA_UNBOUNDED,
+                )
+            } else {
+                let par = &nodes[nd.parent as usize];
+                let delta = nd.p.distance(par.p) * (1.0 + 1e-5) + f32::MIN_POSITIVE;
+                let gamma = nd.n.dot(par.n).clamp(-1.0, 1.0).acos() + 1e-3;
+                select::pack_lod(
+                    nd.e_g,
+                    par.e_g,
+                    delta,
+                    nd.phi_q,
+                    par.phi_q,
+                    select::quantize_gamma(gamma),
+                )
+            }
+        })
+        .collect()
+}
+
+/// Builds the SPT of `cloud` into `dir`.
+pub fn build(
+    cloud: &PointCloud,
+    params: &Params,
+    scene: &str,
+    dir: &Path,
+    progress: &dyn Progress,
+) -> Result<BuildStats, MethodError> {
+    let p = SptParams::parse(params, cloud.attributes())?;
+    let t0 = Instant::now();
+    let n = cloud.len();
+    progress.start("spt: leaf radii", n as u64);
+    let radii = crate::leaf::leaf_radii(cloud);
+    progress.finish();
+    progress.start("spt: point tree", n as u64);
+    let tree = build::build_tree(cloud, &radii, p.color_threshold);
+    progress.finish();
+    let t_tree = t0.elapsed().as_secs_f64();
+    let nodes = &tree.nodes;
+    let has_normals = cloud.normals().is_some();
+    let lod = lod_entries(nodes);
+    if let Some(i) = lod.iter().position(|l| !l.iter().all(|v| v.is_finite())) {
+        return Err(MethodError::Limit(format!(
+            "spt: node {i} got a non-finite lod entry {:?} (centre {}, radius {})",
+            lod[i], nodes[i].p, nodes[i].r
+        )));
+    }
+    let cluster = |i: usize| {
+        if p.normal_clusters && has_normals {
+            select::cluster_of(nodes[i].n) as u32
+        } else {
+            0
+        }
+    };
+    let mut order: Vec<u32> = (0..nodes.len() as u32).collect();
+    order.sort_by(|&a, &b| {
+        let (a, b) = (a as usize, b as usize);
+        cluster(a)
+            .cmp(&cluster(b))
+            .then(lod[b][1].total_cmp(&lod[a][1]))
+            .then(lod[b][0].total_cmp(&lod[a][0]))
+            .then(a.cmp(&b))
+    });
+    // Clusters and chunks.
+    let mut clusters = Vec::new();
+    let mut chunks = Vec::new();
+    let mut s = 0usize;
+    while s < order.len() {
+        let id = cluster(order[s] as usize);
+        let e = s + order[s..].partition_point(|&i| cluster(i as usize) == id);
+        let members = &order[s..e];
+        let axis = members
+            .iter()
+            .map(|&i| nodes[i as usize].n)
+            .sum::<Vec3>()
+            .try_normalize()
+            .unwrap_or(Vec3::Z);
+        let half_angle = if p.normal_clusters {
+            members
+                .iter()
+                .map(|&i| axis.dot(nodes[i as usize].n).clamp(-1.0, 1.0).acos())
+                .fold(0.0f32, f32::max)
+                * (1.0 + 1e-4)
+                + 1e-4
+        } else {
+            std::f32::consts::PI
+        };
+        let (center, radius) = sphere_of(members.iter().map(|&i| (nodes[i as usize].p, 0.0)));
+        let ci = clusters.len() as u32;
+        clusters.push(ClusterInfo {
+            id,
+            start: s as u64,
+            count: (e - s) as u64,
+            axis: axis.to_array(),
+            half_angle,
+            center,
+            radius,
+        });
+        for (k, part) in members.chunks(CHUNK_NODES).enumerate() {
+            let (center, radius) = sphere_of(
+                part.iter()
+                    .map(|&i| (nodes[i as usize].p, nodes[i as usize].r)),
+            );
+            chunks.push(ChunkInfo {
+                cluster: ci,
+                start: (s + k * CHUNK_NODES) as u64,
+                count: part.len() as u32,
+                max_e_par: lod[part[0] as usize][1],
+                center,
+                radius,
+            });
+        }
+        s = e;
+    }
+    // Files.
+    let mut attrs = cloud.attributes();
+    attrs.radii = true;
+    let nodes_path = dir.join(NODES_FILE);
+    let mut w = scenes::colfile::ColumnWriter::create(
+        &nodes_path,
+        attrs,
+        cloud.origin(),
+        order.len() as u64,
+    )?;
+    progress.start("spt: writing", order.len() as u64);
+    for block in order.chunks(1 << 16) {
+        let at = |i: &u32| &nodes[*i as usize];
+        let pos: Vec<[f32; 3]> = block.iter().map(|i| at(i).p.to_array()).collect();
+        let nrm: Option<Vec<[f32; 3]>> =
+            has_normals.then(|| block.iter().map(|i| at(i).n.to_array()).collect());
+        let col: Option<Vec<[u8; 3]>> = cloud
+            .colors()
+            .map(|_| block.iter().map(|i| at(i).color).collect());
+        let rad: Vec<f32> = block.iter().map(|i| at(i).r).collect();
+        w.push(&pos, nrm.as_deref(), col.as_deref(), Some(&rad))?;
+        progress.inc(block.len() as u64);
+    }
+    w.finish()?;
+    progress.finish();
+    let sorted_lod: Vec<[f32; 4]> = order.iter().map(|&i| lod[i as usize]).collect();
+    write_lod(&dir.join(LOD_FILE), &sorted_lod)?;
+    let index = Index {
+        nodes: order.len() as u64,
+        levels: tree.levels,
+        clusters,
+        chunks,
+    };
+    crate::method::write_json(&dir.join(INDEX_FILE), &index)?;
+    Manifest {
+        method: NAME.into(),
+        format_version: FORMAT_VERSION,
+        params: params.clone(),
+        attributes: attrs,
+        points: n as u64,
+        scene: scene.into(),
+    }
+    .write(dir)?;
+    let mut bytes_out = 0;
+    for f in [NODES_FILE, LOD_FILE, INDEX_FILE] {
+        let path = dir.join(f);
+        bytes_out += std::fs::metadata(&path)
+            .map_err(|e| MethodError::io(&path, e))?
+            .len();
+    }
+    let mut extra = serde_json::Map::new();
+    let inner = nodes.iter().filter(|n| !n.leaf).count();
+    extra.insert("inner_nodes".into(), inner.into());
+    extra.insert("clusters".into(), index.clusters.len().into());
+    extra.insert("chunks".into(), index.chunks.len().into());
+    extra.insert("tree_seconds".into(), t_tree.into());
+    Ok(BuildStats {
+        points_in: n as u64,
+        nodes: order.len() as u64,
+        levels: tree.levels,
+        bytes_in: cloud.column_bytes(),
+        bytes_out,
+        seconds: t0.elapsed().as_secs_f64(),
+        extra,
+        ..Default::default()
+    }
+    .finish())
+}
+
+fn write_lod(path: &Path, lod: &[[f32; 4]]) -> Result<(), MethodError> {
+    let data: &[u8] = bytemuck::cast_slice(lod);
+    let tmp = path.with_extension("bin.tmp");
+    let mut f =
+        std::io::BufWriter::new(std::fs::File::create(&tmp).map_err(|e| MethodError::io(&tmp, e))?);
+    let io = |e| MethodError::io(&tmp, e);
+    f.write_all(LOD_MAGIC).map_err(io)?;
+    f.write_all(&(lod.len() as u64).to_le_bytes()).map_err(io)?;
+    f.write_all(&scenes::hash::fnv1a64(data).to_le_bytes())
+        .map_err(io)?;
+    f.write_all(data).map_err(io)?;
+    f.into_inner()
+        .map_err(|e| MethodError::io(&tmp, e.into_error()))?
+        .sync_all()
+        .map_err(io)?;
+    std::fs::rename(&tmp, path).map_err(|e| MethodError::io(path, e))
+}
+
+fn read_lod(path: &Path, count: u64) -> Result<Vec<[f32; 4]>, MethodError> {
+    let bytes = std::fs::read(path).map_err(|e| MethodError::io(path, e))?;
+    let bad = |m: String| MethodError::corrupt(path, m);
+    if bytes.len() < 24 || &bytes[0..8] != LOD_MAGIC {
+        return Err(bad("bad magic (expected SPTLOD01)".into()));
+    }
+    let word = |o: usize| u64::from_le_bytes(bytes[o..o + 8].try_into().unwrap_or([0; 8]));
+    let n = word(8);
+    if n != count || bytes.len() as u64 != 24 + 16 * n {
+        return Err(bad(format!(
+            "{n} entries in {} bytes, index.json says {count} nodes",
+            bytes.len()
+        )));
+    }
+    let data = &bytes[24..];
+    if scenes::hash::fnv1a64(data) != word(16) {
+        return Err(bad("checksum mismatch in the lod entries".into()));
+    }
+    let lod: Vec<[f32; 4]> = data
+        .chunks_exact(16)
+        .map(|c| {
+            let f = |k: usize| f32::from_le_bytes([c[k], c[k + 1], c[k + 2], c[k + 3]]);
+            [f(0), f(4), f(8), f(12)]
+        })
+        .collect();
+    if let Some(i) = lod
+        .iter()
+        .position(|l| !l.iter().all(|v| v.is_finite() && *v >= 0.0))
+    {
+        return Err(bad(format!(
+            "node {i}: lod entry {:?} is not finite ≥ 0",
+            lod[i]
+        )));
+    }
+    Ok(lod)
+}
+
+/// An opened SPT build.
+pub struct Spt {
+    cloud: PointCloud,
+    attrs: Attributes,
+    params: SptParams,
+    index: Index,
+    lod: Vec<[f32; 4]>,
+    /// Suffix maximum of `δ` within each cluster (for the prefix search).
+    d_suffix: Vec<f32>,
+    /// `lod[i][1]` as a contiguous column (for the prefix search).
+    e_par: Vec<f32>,
+    input_points: u64,
+}
+
+/// What one frame selected (before turning into draw items).
+#[derive(Debug, Clone, PartialEq)]
+pub struct Selection {
+    /// The test sent with every item.
+    pub test: IntervalTest,
+    /// Prefix per cluster (0 for skipped clusters).
+    pub prefixes: Vec<u64>,
+    /// Clusters skipped as back-facing.
+    pub clusters_skipped: u32,
+}
+
+impl Spt {
+    /// Opens a build directory; refuses a model larger than `gpu_limit_mb`.
+    pub fn open(dir: &Path, manifest: Manifest) -> Result<Self, MethodError> {
+        if manifest.format_version != FORMAT_VERSION {
+            return Err(MethodError::corrupt(
+                dir.join(Manifest::FILE),
+                format!(
+                    "format_version {} (this build reads {FORMAT_VERSION})",
+                    manifest.format_version
+                ),
+            ));
+        }
+        let params = SptParams::parse(&manifest.params, manifest.attributes)?;
+        let index_path = dir.join(INDEX_FILE);
+        let text =
+            std::fs::read_to_string(&index_path).map_err(|e| MethodError::io(&index_path, e))?;
+        let index: Index = serde_json::from_str(&text)
+            .map_err(|e| MethodError::corrupt(&index_path, e.to_string()))?;
+        let bytes = index.nodes * gpu_bytes_per_node(manifest.attributes);
+        let limit = params.gpu_limit_mb * (1 << 20);
+        if bytes > limit {
+            return Err(MethodError::Limit(format!(
+                "spt: the model needs {:.1} MiB of GPU memory ({} nodes × {} bytes, all resident), \
+                 more than gpu_limit_mb = {} MiB",
+                bytes as f64 / (1u64 << 20) as f64,
+                index.nodes,
+                gpu_bytes_per_node(manifest.attributes),
+                params.gpu_limit_mb
+            )));
+        }
+        let nodes_path = dir.join(NODES_FILE);
+        let cloud = scenes::colfile::open(&nodes_path)?;
+        if cloud.len() as u64 != index.nodes
+            || cloud.radii().is_none()
+            || cloud.attributes() != manifest.attributes
+        {
+            return Err(MethodError::corrupt(
+                &nodes_path,
+                format!(
+                    "{} nodes with attributes {} (index.json says {} nodes, method.json {})",
+                    cloud.len(),
+                    cloud.attributes(),
+                    index.nodes,
+                    manifest.attributes
+                ),
+            ));
+        }
+        let mut next = 0u64;
+        for (i, c) in index.clusters.iter().enumerate() {
+            if c.start != next || c.count == 0 {
+                return Err(MethodError::corrupt(
+                    &index_path,
+                    format!(
+                        "cluster {i} covers {}..+{}, expected start {next}",
+                        c.start, c.count
+                    ),
+                ));
+            }
+            next += c.count;
+        }
+        let mut cnext = 0u64;
+        for (i, c) in index.chunks.iter().enumerate() {
+            let in_cluster = index.clusters.get(c.cluster as usize).is_some_and(|cl| {
+                c.start >= cl.start && c.start + c.count as u64 <= cl.start + cl.count
+            });
+            if c.start != cnext || c.count == 0 || !in_cluster {
+                return Err(MethodError::corrupt(
+                    &index_path,
+                    format!(
+                        "chunk {i} ({}..+{}) does not tile its cluster",
+                        c.start, c.count
+                    ),
+                ));
+            }
+            cnext += c.count as u64;
+        }
+        if next != index.nodes || cnext != index.nodes {
+            return Err(MethodError::corrupt(
+                &index_path,
+                format!(
+                    "clusters/chunks cover {next}/{cnext} of {} nodes",
+                    index.nodes
+                ),
+            ));
+        }
+        let lod = read_lod(&dir.join(LOD_FILE), index.nodes)?;
+        let e_par: Vec<f32> = lod.iter().map(|l| l[1]).collect();
+        let mut d_suffix = vec![0f32; lod.len()];
+        for c in &index.clusters {
+            let mut m = 0f32;
+            for i in (c.start as usize..(c.start + c.count) as usize).rev() {
+                m = m.max(lod[i][2]);
+                d_suffix[i] = m;
+                if i + 1 < (c.start + c.count) as usize && e_par[i] < e_par[i + 1] {
+                    return Err(MethodError::corrupt(
+                        dir.join(LOD_FILE),
+                        format!("node {i}: list not sorted by parent error"),
+                    ));
+                }
+            }
+        }
+        Ok(Self {
+            attrs: cloud.attributes(),
+            cloud,
+            params,
+            index,
+            lod,
+            d_suffix,
+            e_par,
+            input_points: manifest.points,
+        })
+    }
+
+    /// The index (clusters and chunks).
+    pub fn index(&self) -> &Index {
+        &self.index
+    }
+
+    /// The `lod` entries of all nodes, in list order.
+    pub fn lod(&self) -> &[[f32; 4]] {
+        &self.lod
+    }
+
+    /// Node centres, in list order.
+    pub fn positions(&self) -> &[[f32; 3]] {
+        self.cloud.positions()
+    }
+
+    /// The normal the GPU sees for node `i` (octahedral round trip; `Vec3::Z` without normals).
+    pub fn gpu_normal(&self, i: usize) -> Vec3 {
+        self.cloud.normals().map_or(Vec3::Z, |n| {
+            crate::octnormal::decode(crate::octnormal::encode(Vec3::from(n[i])))
+        })
+    }
+
+    /// The interval test at tolerance `eps` px for `view` (mode and overlap from the params).
+    pub fn test_for(&self, view: &View, eps: f32) -> IntervalTest {
+        self.test_with_scale(eps / view.proj_scale())
+    }
+
+    fn test_with_scale(&self, scale: f32) -> IntervalTest {
+        IntervalTest {
+            mode: match self.params.mode {
+                SptMode::Unified => MODE_UNIFIED,
+                SptMode::Split => MODE_SPLIT,
+            },
+            scale,
+            overlap: self.params.overlap,
+        }
+    }
+
+    fn passes(&self, i: usize, eye: Vec3, test: &IntervalTest) -> bool {
+        select::interval_pass(
+            Vec3::from(self.cloud.positions()[i]),
+            self.gpu_normal(i),
+            self.lod[i],
+            eye,
+            test,
+        )
+    }
+
+    /// CPU mirror over the whole list: the indices (list order) of nodes passing the interval
+    /// test at tolerance `eps` px (no cluster culling, no prefix).
+    pub fn cpu_select(&self, view: &View, eps: f32) -> Vec<u32> {
+        let test = self.test_for(view, eps);
+        let eye = view.camera.position;
+        (0..self.lod.len())
+            .filter(|&i| self.passes(i, eye, &test))
+            .map(|i| i as u32)
+            .collect()
+    }
+
+    /// CPU mirror of a draw list: the nodes of its `Sequential` prefixes that pass their test.
+    pub fn cpu_passed_in(&self, view: &View, list: &DrawList) -> Vec<u32> {
+        let eye = view.camera.position;
+        let mut out = Vec::new();
+        for item in &list.items {
+            if let DrawItem::Sequential {
+                id, prefix, test, ..
+            } = item
+                && let Some(c) = self.index.chunks.get(*id as usize)
+            {
+                let s = c.start as usize;
+                out.extend(
+                    (s..s + *prefix as usize)
+                        .filter(|&i| self.passes(i, eye, test))
+                        .map(|i| i as u32),
+                );
+            }
+        }
+        out
+    }
+
+    fn cluster_skipped(&self, eye: Vec3) -> Vec<bool> {
+        self.index
+            .clusters
+            .iter()
+            .map(|c| {
+                self.params.normal_clusters
+                    && select::cone_backfacing(
+                        Vec3::from(c.axis),
+                        c.half_angle,
+                        Vec3::from(c.center),
+                        c.radius,
+                        eye,
+                    )
+            })
+            .collect()
+    }
+
+    fn prefixes(&self, s: f32, eye: Vec3, skipped: &[bool]) -> Vec<u64> {
+        self.index
+            .clusters
+            .iter()
+            .zip(skipped)
+            .map(|(c, &skip)| {
+                if skip {
+                    return 0;
+                }
+                let r = c.start as usize..(c.start + c.count) as usize;
+                let r_lo = select::sphere_distance_lower_bound(eye, Vec3::from(c.center), c.radius);
+                select::prefix_len(
+                    &self.e_par[r.clone()],
+                    &self.d_suffix[r],
+                    s,
+                    self.params.overlap,
+                    r_lo,
+                ) as u64
+            })
+            .collect()
+    }
+
+    /// Selects the prefixes for `view` at `target` (validated).
+    pub fn select(&self, view: &View, target: Target) -> Result<Selection, MethodError> {
+        let target = target.validate()?;
+        let eye = view.camera.position;
+        let skipped = self.cluster_skipped(eye);
+        let clusters_skipped = skipped.iter().filter(|&&s| s).count() as u32;
+        let (scale, prefixes) = match target {
+            Target::Tolerance(eps) => {
+                let s = (eps / view.proj_scale()).min(f32::MAX);
+                (s, self.prefixes(s, eye, &skipped))
+            }
+            Target::Budget(b) => self.budget(b, eye, &skipped),
+        };
+        Ok(Selection {
+            test: self.test_with_scale(scale),
+            prefixes,
+            clusters_skipped,
+        })
+    }
+
+    fn budget(&self, b: u64, eye: Vec3, skipped: &[bool]) -> (f32, Vec<u64>) {
+        let total = |p: &[u64]| p.iter().sum::<u64>();
+        let p0 = self.prefixes(0.0, eye, skipped);
+        if total(&p0) <= b {
+            return (0.0, p0);
+        }
+        // Find hi with total ≤ b by doubling, then bisect log s.
+        let (mut lo, mut hi) = (0.0f32, 2f32.powi(-40));
+        let mut p_hi = self.prefixes(hi, eye, skipped);
+        while total(&p_hi) > b && hi < 2f32.powi(100) {
+            lo = hi;
+            hi *= 2.0;
+            p_hi = self.prefixes(hi, eye, skipped);
+        }
+        if total(&p_hi) > b {
+            // Unreachable by the tolerance alone: cut every prefix proportionally.
+            let t = total(&p_hi) as u128;
+            let cut = p_hi
+                .iter()
+                .map(|&p| (p as u128 * b as u128 / t) as u64)
+                .collect();
+            return (hi, cut);
+        }
+        for _ in 0..32 {
+            let mid = if lo > 0.0 { (lo * hi).sqrt() } else { hi * 0.5 };
+            if !(mid > lo && mid < hi) {
+                break;
+            }
+            let p = self.prefixes(mid, eye, skipped);
+            if total(&p) <= b {
+                hi = mid;
+                p_hi = p;
+            } else {
+                lo = mid;
+            }
+        }
+        (hi, p_hi)
+    }
+}
+
+/// Extra CSV columns of `spt`.
+pub const EXTRA_COLUMNS: &[&str] = &["prefix_points", "cpu_passed", "clusters_skipped"];
+
+impl LodMethod for Spt {
+    fn attributes(&self) -> Attributes {
+        self.attrs
+    }
+    fn input_points(&self) -> u64 {
+        self.input_points
+    }
+    fn frame(
+        &mut self,
+        view: &View,
+        target: Target,
+        _feedback: &Feedback,
+    ) -> Result<DrawList, MethodError> {
+        let sel = self.select(view, target)?;
+        let size = SplatSize::Radius {
+            scale: 1.0,
+            min_px: 1.0,
+        };
+        let mut items = Vec::new();
+        for (id, c) in self.index.chunks.iter().enumerate() {
+            let cl = &self.index.clusters[c.cluster as usize];
+            let into = c.start - cl.start;
+            let prefix = sel.prefixes[c.cluster as usize]
+                .saturating_sub(into)
+                .min(c.count as u64);
+            if prefix > 0 {
+                items.push(DrawItem::Sequential {
+                    id: id as ChunkId,
+                    prefix: prefix as u32,
+                    test: sel.test,
+                    size,
+                });
+            }
+        }
+        let mut list = DrawList {
+            items,
+            ..Default::default()
+        };
+        let cpu = if self.params.cpu_mirror {
+            self.cpu_passed_in(view, &list).len() as f64
+        } else {
+            f64::NAN
+        };
+        list.counters = vec![
+            sel.prefixes.iter().sum::<u64>() as f64,
+            cpu,
+            sel.clusters_skipped as f64,
+        ];
+        Ok(list)
+    }
+    fn chunk(&self, id: ChunkId) -> Result<SplatBatch, MethodError> {
+        let c = usize::try_from(id)
+            .ok()
+            .and_then(|i| self.index.chunks.get(i))
+            .ok_or(MethodError::NoChunk(id))?;
+        let range = c.start as usize..(c.start as usize + c.count as usize);
+        let mut batch =
+            SplatBatch::from_cloud_range(&self.cloud, range.clone(), self.cloud.radii());
+        batch.lod = Some(self.lod[range].to_vec());
+        Ok(batch)
+    }
+    fn stats(&self) -> MethodStats {
+        MethodStats {
+            resident_bytes: (self.lod.len() * 16 + self.e_par.len() * 8) as u64,
+            nodes: self.index.nodes,
+            levels: self.index.levels,
+        }
+    }
+    fn extra_columns(&self) -> &'static [&'static str] {
+        EXTRA_COLUMNS
+    }
+}

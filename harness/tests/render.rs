@@ -349,3 +349,49 @@ fn interval_test_gpu_count_equals_cpu_mirror() {
         }
     }
 }
+
+/// Sequential Point Trees on the GPU: the vertex-stage test (interval.wgsl) passes exactly
+/// the splats the CPU mirror (`methods::spt::select::interval_pass`) passes, in both error
+/// modes, with and without normal clusters, on several views and tolerances.
+#[test]
+fn spt_gpu_pass_count_equals_cpu_mirror() {
+    let Some(gpu) = gpu_for_test("spt_gpu_pass_count_equals_cpu_mirror") else {
+        return;
+    };
+    let cloud = Generator::Statue.generate(30_000, 4).unwrap();
+    let tmp = tempfile::tempdir().unwrap();
+    for (k, params) in [vec![], vec!["mode=split"], vec!["normal_clusters=true"]]
+        .into_iter()
+        .enumerate()
+    {
+        let dir = tmp.path().join(k.to_string());
+        let params = Params::parse(&params).unwrap();
+        MethodKind::Spt
+            .build(&cloud, &params, "test", &dir, &scenes::NoProgress)
+            .unwrap();
+        let mut spt =
+            methods::spt::Spt::open(&dir, methods::Manifest::read(&dir).unwrap()).unwrap();
+        let mut r = Renderer::new(&gpu, settings(200, 150, Kernel::Square)).unwrap();
+        let zoom = PathSpec::parse("zoom").unwrap();
+        let views = [
+            view(&cloud, 200, 150, 0),
+            view(&cloud, 200, 150, 3),
+            View {
+                camera: zoom.camera(6, 10, &cloud.bounds()),
+                width: 200,
+                height: 150,
+            },
+        ];
+        for v in &views {
+            for eps in [0.5f32, 1.0, 4.0] {
+                let list = spt
+                    .frame(v, Target::Tolerance(eps), &Feedback::default())
+                    .unwrap();
+                let cpu = spt.cpu_passed_in(v, &list).len() as u64;
+                let (stats, _) = r.draw(v, &list, &spt, false).unwrap();
+                assert_eq!(stats.gpu_passed, Some(cpu), "{params:?} eps {eps}");
+                assert!(cpu <= stats.points);
+            }
+        }
+    }
+}

@@ -162,30 +162,27 @@ pub enum DrawItem {
     },
 }
 
-/// SPT's per-splat interval test, evaluated in the vertex stage (and mirrored on the CPU by
-/// the method). What `SplatBatch::lod` holds and how `mode`, `scale` and `overlap` combine is
-/// defined by the method that emits it (`methods::spt`).
+/// SPT's per-splat interval test, evaluated in the vertex stage and mirrored on the CPU by
+/// [`IntervalTest::passes`]. What `SplatBatch::lod` holds and how `mode`, `scale` and
+/// `overlap` combine is defined in `methods::spt::select` (there `scale = ε/k`).
 #[derive(Debug, Clone, Copy, PartialEq, serde::Serialize)]
 pub struct IntervalTest {
-    /// Error mode (method-defined, e.g. 0 = unified geometric error, 1 = split).
+    /// Error mode: 0 = unified geometric error, 1 = split (perpendicular + tangential).
     pub mode: u32,
-    /// Scale turning stored errors into view distances (e.g. `k / ε`).
+    /// `ε / k`: pixel tolerance over the projection scale.
     pub scale: f32,
-    /// Overlap of the intervals (object units or a factor, method-defined).
+    /// Overlap factor on the distance to the parent (1 = provably no holes, 0 = bare intervals).
     pub overlap: f32,
 }
 
 impl IntervalTest {
-    /// The CPU mirror of `interval.wgsl` (must stay identical to it; the renderer's tests
-    /// compare GPU counts with this). Mode 0, unified geometric error: `lod = (e_g, e_g of
-    /// the parent, -, -)`, `r = |eye − p|`; pass iff `e_g·scale − overlap ≤ r <
-    /// e_g_parent·scale + overlap`.
+    /// The CPU mirror of the vertex-stage test (`harness/src/render/interval.wgsl` is a
+    /// line-for-line port; the renderer's tests compare GPU pass counts with this). Defined
+    /// by [`crate::spt::select::interval_pass`], where `lod`, `scale` and `overlap` are
+    /// documented.
     #[inline]
-    pub fn passes(&self, p: glam::Vec3, _n: glam::Vec3, lod: [f32; 4], eye: glam::Vec3) -> bool {
-        let r = (eye - p).length();
-        let r_min = lod[0] * self.scale - self.overlap;
-        let r_max = lod[1] * self.scale + self.overlap;
-        r >= r_min && r < r_max
+    pub fn passes(&self, p: glam::Vec3, n: glam::Vec3, lod: [f32; 4], eye: glam::Vec3) -> bool {
+        crate::spt::select::interval_pass(p, n, lod, eye, self)
     }
 }
 

@@ -357,8 +357,9 @@ impl<'g> Renderer<'g> {
             usage: wgpu::BufferUsages::UNIFORM | wgpu::BufferUsages::COPY_DST,
             mapped_at_creation: false,
         });
-        let draw_stride = (gpu.limits.min_uniform_buffer_offset_alignment as u64)
-            .max(std::mem::size_of::<DrawUniform>() as u64);
+        // Dynamic offsets must be multiples of the alignment: round the struct size up to it.
+        let draw_stride = (std::mem::size_of::<DrawUniform>() as u64)
+            .next_multiple_of(gpu.limits.min_uniform_buffer_offset_alignment as u64);
         let draw_capacity = 256;
         let draw_ubo = Self::draw_buffer(d, draw_stride * draw_capacity);
         let dummy = d.create_buffer(&wgpu::BufferDescriptor {

@@ -841,6 +841,9 @@ impl LodMethod for Spt {
             levels: self.index.levels,
         }
     }
+    fn interval_tested(&self) -> bool {
+        true
+    }
     fn extra_columns(&self) -> &'static [&'static str] {
         EXTRA_COLUMNS
     }

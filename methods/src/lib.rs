@@ -18,11 +18,10 @@ pub mod leaf;
 pub mod method;
 pub mod octnormal;
 pub mod params;
+pub mod qsplat;
 pub mod registry;
 
-pub use draw::{
-    ChunkId, DrawItem, DrawList, Feedback, SplatBatch, SplatShape, SplatSize, Target,
-};
+pub use draw::{ChunkId, DrawItem, DrawList, Feedback, SplatBatch, SplatShape, SplatSize, Target};
 pub use error::MethodError;
 pub use method::{BuildStats, LodMethod, Manifest, MethodStats};
 pub use params::Params;

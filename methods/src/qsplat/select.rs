@@ -1,0 +1,374 @@
+//! Per-frame traversal of the mapped `.qs` file, decoding nodes as it goes.
+//!
+//! Contract: [`select_threshold`] is QSplat's recursive traversal: frustum culling (a sphere
+//! entirely inside stops the tests below it), back-face culling with the quantised normal
+//! cone (entirely back-facing ⇒ dropped; entirely front-facing ⇒ no more tests below), and a
+//! splat per node that is a leaf or whose projected diameter `2·r·k/z` is ≤ the threshold.
+//! [`select_budget`] refines coarse-first (largest projected size first, ties by file
+//! offset) and stops at the first refinement that would exceed the budget, so a larger
+//! budget refines a superset and never draws fewer splats. Both are deterministic, allocate
+//! only the output (and, for budgets, the queue) and return an error, never panic, on
+//! malformed bytes.
+//!
+//! Culling is conservative: a node's decoded sphere encloses every sample below it and its
+//! cone every normal below it, so a sample inside the frustum and facing the eye is never
+//! culled (the contract's tolerance-0 rule).
+
+use std::cmp::Reverse;
+use std::collections::BinaryHeap;
+
+use glam::Vec3;
+use scenes::View;
+use scenes::camera::{Containment, Frustum};
+
+use super::format::{self, Header};
+use super::quant;
+use crate::{MethodError, SplatBatch};
+
+/// Per-frame counters (the method's extra CSV columns, in order).
+#[derive(Debug, Clone, Copy, Default, PartialEq)]
+pub struct Counters {
+    /// Nodes decoded and tested.
+    pub nodes_visited: u64,
+    /// Splats emitted.
+    pub splats_emitted: u64,
+    /// Nodes dropped by the frustum test.
+    pub culled_frustum: u64,
+    /// Nodes dropped by the normal-cone test.
+    pub culled_backface: u64,
+    /// The threshold used (budget mode: the projected size of the largest node left
+    /// unrefined, 0 if every visible leaf was reached).
+    pub threshold_px: f64,
+}
+
+/// A decoded node with what is needed to reach its children.
+#[derive(Debug, Clone, Copy, Default)]
+struct Node {
+    c: Vec3,
+    r: f32,
+    normal: u16,
+    cone: u8,
+    color: u16,
+    children: u8,
+    child_off: u32,
+    child_ptr: bool,
+}
+
+#[derive(Clone, Copy, PartialEq, Eq)]
+enum Facing {
+    Back,
+    Front,
+    Mixed,
+}
+
+/// Cosines of the cone classes' half-angles.
+const CONE_COS: [f32; 4] = [0.998_045, 0.968_245_9, 0.826_797_3, 0.0];
+
+struct Ctx<'a> {
+    body: &'a [u8],
+    nb: usize,
+    colors: bool,
+    normals: bool,
+    frustum: Frustum,
+    eye: Vec3,
+    fwd: Vec3,
+    k2: f32,
+    near: f32,
+    oct: &'a [u32],
+    out: SplatBatch,
+    n: Counters,
+}
+
+fn corrupt(h: &str, off: usize) -> MethodError {
+    MethodError::Limit(format!(
+        "qsplat: malformed node group at body byte {off} ({h})"
+    ))
+}
+
+impl<'a> Ctx<'a> {
+    fn new(body: &'a [u8], header: &Header, view: &View, capacity: usize) -> Self {
+        let colors = header.flags & format::FLAG_COLORS != 0;
+        let normals = header.flags & format::FLAG_NORMALS != 0;
+        let attrs = scenes::Attributes {
+            normals,
+            colors,
+            radii: true,
+        };
+        Ctx {
+            body,
+            nb: header.node_bytes(),
+            colors,
+            normals,
+            frustum: view.frustum(),
+            eye: view.camera.position,
+            fwd: view.camera.forward(),
+            k2: 2.0 * view.proj_scale(),
+            near: view.camera.near,
+            oct: quant::normal_oct_table(),
+            out: SplatBatch::with_attributes(attrs, capacity),
+            n: Counters::default(),
+        }
+    }
+
+    /// Decodes the group at `off` (children of the decoded sphere `(pc, pr)`).
+    #[inline]
+    fn group(
+        &self,
+        off: usize,
+        count: usize,
+        has_ptr: bool,
+        pc: Vec3,
+        pr: f32,
+    ) -> Result<([Node; 4], usize), MethodError> {
+        let mut out = [Node::default(); 4];
+        let mut p = off;
+        let mut cursor = 0usize;
+        if has_ptr {
+            cursor =
+                format::read_u32(self.body, p).ok_or_else(|| corrupt("pointer", off))? as usize;
+            p += 4;
+        }
+        for slot in out.iter_mut().take(count) {
+            let w = format::read_u32(self.body, p).ok_or_else(|| corrupt("node", off))?;
+            let n = format::unpack(w);
+            let (c, r) = quant::decode_sphere(pc, pr, n.sphere as u32)
+                .ok_or_else(|| corrupt("sphere code", off))?;
+            let color = if self.colors {
+                format::read_u16(self.body, p + 4).ok_or_else(|| corrupt("colour", off))?
+            } else {
+                0
+            };
+            *slot = Node {
+                c,
+                r,
+                normal: n.normal,
+                cone: n.cone,
+                color,
+                children: n.children,
+                child_off: cursor as u32,
+                child_ptr: !n.all_leaves,
+            };
+            if n.children > 0 {
+                cursor += n.children as usize * self.nb + 4 * (!n.all_leaves) as usize;
+            }
+            p += self.nb;
+        }
+        Ok((out, count))
+    }
+
+    fn root(&self, header: &Header) -> Result<Node, MethodError> {
+        let (mut nodes, _) = self.group(0, 1, header.nodes > 1, Vec3::ZERO, 0.0)?;
+        let [x, y, z, r] = header.root;
+        nodes[0].c = Vec3::new(x, y, z);
+        nodes[0].r = r;
+        Ok(nodes[0])
+    }
+
+    #[inline]
+    fn facing(&self, n: &Node) -> Facing {
+        if n.cone >= 3 {
+            return Facing::Mixed;
+        }
+        let v = self.eye - n.c;
+        let d2 = v.length_squared();
+        if d2 <= n.r * n.r {
+            return Facing::Mixed;
+        }
+        let inv = d2.sqrt().recip();
+        let sb = n.r * inv;
+        let cb = (1.0 - sb * sb).max(0.0).sqrt();
+        let (st, ct) = (quant::CONE_SIN[n.cone as usize], CONE_COS[n.cone as usize]);
+        if ct * cb - st * sb <= 0.0 {
+            return Facing::Mixed;
+        }
+        let s = st * cb + ct * sb;
+        let axis = self.normal_vec(n.normal);
+        let ca = axis.dot(v) * inv;
+        if ca < -s - 1e-4 {
+            Facing::Back
+        } else if ca > s + 1e-4 {
+            Facing::Front
+        } else {
+            Facing::Mixed
+        }
+    }
+
+    #[inline]
+    fn normal_vec(&self, code: u16) -> Vec3 {
+        quant::normal_table()
+            .get(code as usize)
+            .copied()
+            .unwrap_or(Vec3::Z)
+    }
+
+    /// Culls `n`; returns false if dropped, updating the flags.
+    #[inline]
+    fn keep(&mut self, n: &Node, inside: &mut bool, front: &mut bool) -> bool {
+        self.n.nodes_visited += 1;
+        if !*inside {
+            match self.frustum.sphere(n.c, n.r) {
+                Containment::Outside => {
+                    self.n.culled_frustum += 1;
+                    return false;
+                }
+                Containment::Inside => *inside = true,
+                Containment::Intersects => {}
+            }
+        }
+        if !*front && self.normals {
+            match self.facing(n) {
+                Facing::Back => {
+                    self.n.culled_backface += 1;
+                    return false;
+                }
+                Facing::Front => *front = true,
+                Facing::Mixed => {}
+            }
+        }
+        true
+    }
+
+    /// Projected diameter in pixels (∞ when the centre is not beyond the near plane).
+    #[inline]
+    fn size(&self, n: &Node) -> f32 {
+        let z = (n.c - self.eye).dot(self.fwd);
+        if z > self.near {
+            n.r * self.k2 / z
+        } else {
+            f32::INFINITY
+        }
+    }
+
+    #[inline]
+    fn emit(&mut self, n: &Node) {
+        self.out.positions.push(n.c.to_array());
+        if let Some(v) = self.out.normals.as_mut() {
+            v.push(self.oct.get(n.normal as usize).copied().unwrap_or(0));
+        }
+        if let Some(v) = self.out.colors.as_mut() {
+            v.push(crate::draw::pack_color(quant::rgb888(n.color)));
+        }
+        if let Some(v) = self.out.radii.as_mut() {
+            v.push(n.r);
+        }
+        self.n.splats_emitted += 1;
+    }
+
+    fn recurse(
+        &mut self,
+        n: &Node,
+        mut inside: bool,
+        mut front: bool,
+        thr: f32,
+    ) -> Result<(), MethodError> {
+        if !self.keep(n, &mut inside, &mut front) {
+            return Ok(());
+        }
+        if n.children == 0 || self.size(n) <= thr {
+            self.emit(n);
+            return Ok(());
+        }
+        let (kids, count) = self.group(
+            n.child_off as usize,
+            n.children as usize,
+            n.child_ptr,
+            n.c,
+            n.r,
+        )?;
+        for kid in &kids[..count] {
+            self.recurse(kid, inside, front, thr)?;
+        }
+        Ok(())
+    }
+}
+
+/// Tolerance mode: the recursive traversal with threshold `thr_px`.
+pub fn select_threshold(
+    body: &[u8],
+    header: &Header,
+    view: &View,
+    thr_px: f32,
+    capacity: usize,
+) -> Result<(SplatBatch, Counters), MethodError> {
+    let mut ctx = Ctx::new(body, header, view, capacity);
+    let root = ctx.root(header)?;
+    ctx.recurse(&root, false, false, thr_px)?;
+    ctx.n.threshold_px = thr_px as f64;
+    Ok((ctx.out, ctx.n))
+}
+
+/// Budget mode: coarse-first refinement within `budget` splats.
+pub fn select_budget(
+    body: &[u8],
+    header: &Header,
+    view: &View,
+    budget: u64,
+    capacity: usize,
+) -> Result<(SplatBatch, Counters), MethodError> {
+    let mut ctx = Ctx::new(body, header, view, capacity);
+    let root = ctx.root(header)?;
+    // Arena of (node, inside, front); the heap orders indices by (size, earliest offset).
+    let mut arena: Vec<(Node, bool, bool)> = Vec::new();
+    let mut done: Vec<usize> = Vec::new();
+    let mut heap: BinaryHeap<(u32, Reverse<u32>, usize)> = BinaryHeap::new();
+    let (mut inside, mut front) = (false, false);
+    let mut count = 0u64;
+    let push = |ctx: &Ctx,
+                arena: &mut Vec<(Node, bool, bool)>,
+                heap: &mut BinaryHeap<_>,
+                done: &mut Vec<usize>,
+                n: Node,
+                i: bool,
+                f: bool| {
+        arena.push((n, i, f));
+        let idx = arena.len() - 1;
+        if n.children == 0 {
+            done.push(idx);
+        } else {
+            heap.push((ctx.size(&n).to_bits(), Reverse(n.child_off), idx));
+        }
+    };
+    if ctx.keep(&root, &mut inside, &mut front) {
+        push(&ctx, &mut arena, &mut heap, &mut done, root, inside, front);
+        count = 1;
+    }
+    let mut kept: [(Node, bool, bool); 4] = [(Node::default(), false, false); 4];
+    while let Some(&(_, _, idx)) = heap.peek() {
+        let (n, inside, front) = arena[idx];
+        let (kids, cnt) = ctx.group(
+            n.child_off as usize,
+            n.children as usize,
+            n.child_ptr,
+            n.c,
+            n.r,
+        )?;
+        let mut visible = 0;
+        for kid in &kids[..cnt] {
+            let (mut i, mut f) = (inside, front);
+            if ctx.keep(kid, &mut i, &mut f) {
+                kept[visible] = (*kid, i, f);
+                visible += 1;
+            }
+        }
+        if count - 1 + visible as u64 > budget {
+            break;
+        }
+        heap.pop();
+        count = count - 1 + visible as u64;
+        for &(kid, i, f) in &kept[..visible] {
+            push(&ctx, &mut arena, &mut heap, &mut done, kid, i, f);
+        }
+    }
+    ctx.n.threshold_px = heap
+        .peek()
+        .map(|&(bits, _, _)| f32::from_bits(bits) as f64)
+        .unwrap_or(0.0);
+    for idx in done
+        .into_iter()
+        .chain(heap.into_sorted_vec().into_iter().rev().map(|(_, _, i)| i))
+    {
+        let n = arena[idx].0;
+        ctx.emit(&n);
+    }
+    Ok((ctx.out, ctx.n))
+}

@@ -154,9 +154,7 @@ impl DrawItem {
 }
 
 /// Splat shape (the renderer's kernel). QSplat's paper offers all four.
-#[derive(
-    Debug, Clone, Copy, PartialEq, Eq, Hash, Default, serde::Serialize, serde::Deserialize,
-)]
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Hash, Default, serde::Serialize, serde::Deserialize)]
 #[serde(rename_all = "lowercase")]
 pub enum SplatShape {
     /// Screen-aligned square (fastest).

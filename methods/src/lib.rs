@@ -21,7 +21,9 @@ pub mod params;
 pub mod qsplat;
 pub mod registry;
 
-pub use draw::{ChunkId, DrawItem, DrawList, Feedback, SplatBatch, SplatShape, SplatSize, Target};
+pub use draw::{
+    ChunkId, DrawItem, DrawList, Feedback, SplatBatch, SplatShape, SplatSize, Target,
+};
 pub use error::MethodError;
 pub use method::{BuildStats, LodMethod, Manifest, MethodStats};
 pub use params::Params;

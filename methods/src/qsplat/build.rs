@@ -6,9 +6,10 @@
 //!   broken by sample index; halves in parallel with `rayon::join` above
 //!   [`PAR_THRESHOLD`]). The binary tree is implicit: range `[lo, hi)` splits at
 //!   `lo + (hi − lo)/2`;
-//! - binary levels are combined pairwise: an inner node's children are its binary
-//!   grandchildren (a binary child that is a leaf is taken as is), so every inner node has 2,
-//!   3 or 4 children and every leaf is one sample;
+//! - binary levels are combined: an inner node's children are its binary grandchildren (a
+//!   binary child that is a leaf is taken as is) or, where that gives fewer interior nodes
+//!   (decided per range size, see `Combine`), its binary children; so every inner node has
+//!   2, 3 or 4 children and every leaf is one sample;
 //! - nodes are numbered breadth-first (level by level), properties computed bottom-up
 //!   (sphere bounding the children's spheres, normalised mean normal, cone covering the
 //!   children's cones, leaf-weighted mean colour) and quantised top-down from the *decoded*
@@ -93,6 +94,9 @@ pub struct Built {
     pub true_spheres: Vec<Vec<(Vec3, f32)>>,
     /// Decoded sphere per node per level, for tests.
     pub decoded_spheres: Vec<Vec<(Vec3, f32)>>,
+    /// True unit normal per node per level (zero without normals), for tests: at a leaf,
+    /// the sample's normal.
+    pub true_normals: Vec<Vec<Vec3>>,
 }
 
 /// A sphere code and the sphere it decodes to.
@@ -134,19 +138,57 @@ fn partition(perm: &mut [u32], pos: &[[f32; 3]]) {
     }
 }
 
-/// Children of range `[lo, hi)` in the combined tree (its binary grandchildren).
-fn children(lo: u32, hi: u32, out: &mut Vec<(u32, u32)>) {
-    if hi - lo < 2 {
-        return;
-    }
-    let mid = lo + (hi - lo) / 2;
-    for (a, b) in [(lo, mid), (mid, hi)] {
-        if b - a == 1 {
-            out.push((a, b));
+/// How binary levels are combined, per range size: `true` = the node's children are its
+/// binary grandchildren (2–4 children), `false` = its binary children (2). Chosen per size by
+/// dynamic programming to minimise the number of interior nodes (so the bottom of the tree
+/// is 4-ary rather than ending in 2-child nodes); sizes at one depth take at most two
+/// values, so the memo stays tiny.
+#[derive(Default)]
+struct Combine {
+    memo: std::collections::HashMap<u32, (u64, bool)>,
+}
+
+impl Combine {
+    /// `(interior nodes of a subtree of n samples, use grandchildren)`.
+    fn plan(&mut self, n: u32) -> (u64, bool) {
+        if n < 2 {
+            return (0, false);
+        }
+        if let Some(&p) = self.memo.get(&n) {
+            return p;
+        }
+        let (a, b) = (n / 2, n - n / 2);
+        let binary = 1 + self.plan(a).0 + self.plan(b).0;
+        let mut grand = 1;
+        for h in [a, b] {
+            if h > 1 {
+                grand += self.plan(h / 2).0 + self.plan(h - h / 2).0;
+            }
+        }
+        let p = if grand <= binary {
+            (grand, true)
         } else {
-            let m = a + (b - a) / 2;
-            out.push((a, m));
-            out.push((m, b));
+            (binary, false)
+        };
+        self.memo.insert(n, p);
+        p
+    }
+
+    /// Children of range `[lo, hi)` in the combined tree.
+    fn children(&mut self, lo: u32, hi: u32, out: &mut Vec<(u32, u32)>) {
+        if hi - lo < 2 {
+            return;
+        }
+        let mid = lo + (hi - lo) / 2;
+        let grand = self.plan(hi - lo).1;
+        for (a, b) in [(lo, mid), (mid, hi)] {
+            if b - a == 1 || !grand {
+                out.push((a, b));
+            } else {
+                let m = a + (b - a) / 2;
+                out.push((a, m));
+                out.push((m, b));
+            }
         }
     }
 }
@@ -205,6 +247,23 @@ fn combine(kids: &[TrueNode], normals: bool) -> TrueNode {
     }
 }
 
+/// Quantises a node's normal and cone: the 14-bit normal nearest to `n`, and the smallest
+/// cone class whose half-angle covers `cone` widened by the normal's quantisation error, so
+/// the quantised cone contains every normal the true cone contains. No normals, or a cone
+/// of π (children cancel out), give class 3 (never culled).
+pub fn quantise_normal(n: Vec3, cone: f64, has_normals: bool) -> (u16, u8) {
+    if !has_normals {
+        return (0, 3);
+    }
+    let code = quant::encode_normal(n);
+    if cone >= std::f64::consts::PI {
+        return (code as u16, 3);
+    }
+    let q = quant::decode_normal(code).unwrap_or(n);
+    let need = cone + quant::angle(n.as_dvec3(), q.as_dvec3());
+    (code as u16, quant::cone_class(need))
+}
+
 /// Builds and quantises the hierarchy of `cloud` with leaf radii `radii`.
 pub fn build_tree(cloud: &PointCloud, radii: &[f32]) -> Result<Built, MethodError> {
     let n = cloud.len();
@@ -225,12 +284,13 @@ pub fn build_tree(cloud: &PointCloud, radii: &[f32]) -> Result<Built, MethodErro
     // Levels of ranges, breadth-first; child_start[l][i] indexes level l + 1.
     let mut ranges: Vec<Vec<(u32, u32)>> = vec![vec![(0, n as u32)]];
     let mut child_start: Vec<Vec<u32>> = Vec::new();
+    let mut combine_plan = Combine::default();
     while let Some(cur) = ranges.last() {
         let mut next = Vec::new();
         let mut starts = Vec::with_capacity(cur.len() + 1);
         for &(lo, hi) in cur {
             starts.push(next.len() as u32);
-            children(lo, hi, &mut next);
+            combine_plan.children(lo, hi, &mut next);
         }
         starts.push(next.len() as u32);
         child_start.push(starts);
@@ -338,16 +398,7 @@ pub fn build_tree(cloud: &PointCloud, radii: &[f32]) -> Result<Built, MethodErro
                         && next_starts.is_none_or(|ns| {
                             (starts[i]..starts[i + 1]).all(|c| ns[c as usize + 1] == ns[c as usize])
                         });
-                    let (normal, cone) = if has_n && t.cone < std::f64::consts::PI {
-                        let code = quant::encode_normal(t.n);
-                        let q = quant::decode_normal(code).unwrap_or(t.n);
-                        let need = t.cone + quant::angle(t.n.as_dvec3(), q.as_dvec3());
-                        (code as u16, quant::cone_class(need))
-                    } else if has_n {
-                        (quant::encode_normal(t.n) as u16, 3)
-                    } else {
-                        (0, 3)
-                    };
+                    let (normal, cone) = quantise_normal(t.n, t.cone, has_n);
                     QNode {
                         sphere: sphere_codes[l][i],
                         normal,
@@ -373,5 +424,107 @@ pub fn build_tree(cloud: &PointCloud, radii: &[f32]) -> Result<Built, MethodErro
             .map(|l| l.iter().map(|t| (t.c, t.r)).collect())
             .collect(),
         decoded_spheres: decoded,
+        true_normals: truth
+            .iter()
+            .map(|l| l.iter().map(|t| t.n).collect())
+            .collect(),
     })
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use scenes::rng::Pcg32;
+
+    #[test]
+    fn quantised_cone_is_never_narrower() {
+        let mut rng = Pcg32::new(17);
+        for _ in 0..20_000 {
+            let axis = rng.unit_vec3();
+            let spread = rng.range_f32(0.0, 1.2);
+            let kids: Vec<TrueNode> = (0..2 + rng.below(3))
+                .map(|_| {
+                    let n = (axis + rng.unit_vec3() * spread).normalize_or(Vec3::Z);
+                    TrueNode {
+                        c: rng.unit_vec3(),
+                        r: rng.range_f32(0.01, 0.5),
+                        n,
+                        cone: if rng.below(2) == 0 {
+                            0.0
+                        } else {
+                            rng.range_f32(0.0, 0.5) as f64
+                        },
+                        color: [0.0; 3],
+                        weight: 1,
+                    }
+                })
+                .collect();
+            let t = combine(&kids, true);
+            let (code, class) = quantise_normal(t.n, t.cone, true);
+            if class == 3 {
+                continue;
+            }
+            let qa = quant::decode_normal(code as u32).unwrap().as_dvec3();
+            let q_angle = quant::cone_angle(class);
+            // Contains the true cone, hence every child's cone.
+            assert!(quant::angle(qa, t.n.as_dvec3()) + t.cone <= q_angle + 1e-12);
+            for k in &kids {
+                assert!(quant::angle(qa, k.n.as_dvec3()) + k.cone <= q_angle + 1e-9);
+            }
+        }
+    }
+
+    #[test]
+    fn tree_invariants_on_a_small_statue() {
+        let cloud = scenes::generators::Generator::Statue
+            .generate(3000, 2)
+            .unwrap();
+        let radii = crate::leaf::leaf_radii(&cloud);
+        let b = build_tree(&cloud, &radii).unwrap();
+        let levels = &b.tree.levels;
+        // Decoded spheres enclose the true ones at every node.
+        for (l, (tl, dl)) in b.true_spheres.iter().zip(&b.decoded_spheres).enumerate() {
+            for (i, (t, d)) in tl.iter().zip(dl).enumerate() {
+                let gap = d.1 as f64 - (d.0.as_dvec3() - t.0.as_dvec3()).length() - t.1 as f64;
+                assert!(
+                    gap >= 0.0,
+                    "level {l} node {i}: decoded sphere misses by {gap}"
+                );
+            }
+        }
+        // Every quantised cone contains every leaf normal below it.
+        let mut below: Vec<Vec<Vec<Vec3>>> = vec![Vec::new(); levels.len()];
+        for l in (0..levels.len()).rev() {
+            let mut next = 0usize;
+            below[l] = levels[l]
+                .iter()
+                .enumerate()
+                .map(|(i, n)| {
+                    if n.children == 0 {
+                        return vec![b.true_normals[l][i]];
+                    }
+                    let kids = next..next + n.children as usize;
+                    next += n.children as usize;
+                    kids.flat_map(|k| below[l + 1][k].clone()).collect()
+                })
+                .collect();
+            for (i, n) in levels[l].iter().enumerate() {
+                assert!(n.children == 0 || (2..=4).contains(&n.children));
+                if n.cone == 3 {
+                    continue;
+                }
+                let a = quant::decode_normal(n.normal as u32).unwrap().as_dvec3();
+                for v in &below[l][i] {
+                    assert!(
+                        quant::angle(a, v.as_dvec3()) <= quant::cone_angle(n.cone) + 1e-6,
+                        "level {l} node {i}"
+                    );
+                }
+            }
+            if l + 1 < levels.len() {
+                below[l + 1].clear();
+            }
+        }
+        assert_eq!(b.tree.leaves(), 3000);
+    }
 }

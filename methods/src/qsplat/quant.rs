@@ -116,22 +116,50 @@ pub fn encode_sphere(pc: Vec3, pr: f32, c: Vec3, r: f32, margin: f64) -> Option<
         let hi = (v.ceil() as i32 + 1).clamp(-6, 6);
         lo..=hi
     };
+    let try_centre = |ix: i32, iy: i32, iz: i32, best: &mut Option<(i32, u32)>| {
+        // The centre does not depend on the radius step: find it once (from the
+        // smallest radius, valid whenever any radius is), then the smallest step
+        // whose decoded radius reaches the needed one.
+        let first = t.lookup[lut_index(ix, iy, iz, 1)];
+        if first == u16::MAX {
+            return;
+        }
+        let Some((gc, _)) = decode_sphere(pc, pr, first as u32) else {
+            return;
+        };
+        // Prune without a square root: this centre cannot beat the best radius.
+        if let Some((bj, _)) = *best {
+            let room = bj as f64 * pr as f64 / GRID as f64 - rd;
+            if room <= 0.0 || (gc.as_dvec3() - cd).length_squared() > room * room {
+                return;
+            }
+        }
+        let need = needed_radius(gc.as_dvec3(), cd, rd, margin);
+        let guess = (need * GRID as f64 / pr as f64).ceil() as i32 - 1;
+        for j in guess.max(1)..=GRID {
+            if best.is_some_and(|b| j > b.0) {
+                break;
+            }
+            let code = t.lookup[lut_index(ix, iy, iz, j)];
+            if code == u16::MAX {
+                break; // larger radii are invalid too
+            }
+            if (t.entries[code as usize][3] * pr) as f64 >= need {
+                consider(code as u32, j, best);
+                break;
+            }
+        }
+    };
+    // The nearest grid centre first (a good bound for pruning), then its neighbourhood.
+    let near = rel
+        .round()
+        .as_ivec3()
+        .clamp(glam::IVec3::splat(-6), glam::IVec3::splat(6));
+    try_centre(near.x, near.y, near.z, &mut best);
     for ix in range(rel.x) {
         for iy in range(rel.y) {
             for iz in range(rel.z) {
-                for j in 1..=GRID {
-                    let code = t.lookup[lut_index(ix, iy, iz, j)];
-                    if code == u16::MAX {
-                        continue;
-                    }
-                    let Some((gc, q)) = decode_sphere(pc, pr, code as u32) else {
-                        continue;
-                    };
-                    if q as f64 >= needed_radius(gc.as_dvec3(), cd, rd, margin) {
-                        consider(code as u32, j, &mut best);
-                        break;
-                    }
-                }
+                try_centre(ix, iy, iz, &mut best);
             }
         }
     }
@@ -175,7 +203,11 @@ fn unwarp(u: f64, a: f64) -> f64 {
     let mut s = u;
     for _ in 0..30 {
         let f = warp(s, a) - u;
-        s = (s - f / (a + 3.0 * (1.0 - a) * s * s)).clamp(-1.0, 1.0);
+        let next = (s - f / (a + 3.0 * (1.0 - a) * s * s)).clamp(-1.0, 1.0);
+        if (next - s).abs() < 1e-12 {
+            return next;
+        }
+        s = next;
     }
     s
 }
@@ -235,7 +267,8 @@ pub fn encode_normal(n: Vec3) -> u32 {
 fn encode_normal_with(n: Vec3, warp_a: f64, table: &[Vec3]) -> u32 {
     let v = n.as_dvec3().normalize_or(DVec3::Z);
     let g = NORMAL_GRID as i64;
-    let mut best = (f64::INFINITY, 0u32);
+    // Nearest = largest cosine (no atan2 needed to compare).
+    let mut best = (f64::NEG_INFINITY, 0u32);
     for axis in 0..3 {
         let m = v[axis];
         if m.abs() < 0.5 {
@@ -250,8 +283,8 @@ fn encode_normal_with(n: Vec3, warp_a: f64, table: &[Vec3]) -> u32 {
         for a in (ca - 1).max(0)..=(ca + 1).min(g - 1) {
             for b in (cb - 1).max(0)..=(cb + 1).min(g - 1) {
                 let code = (face * NORMAL_GRID * NORMAL_GRID) as u32 + (a * g + b) as u32;
-                let e = angle(v, table[code as usize].as_dvec3());
-                if e < best.0 {
+                let e = v.dot(table[code as usize].as_dvec3());
+                if e > best.0 {
                     best = (e, code);
                 }
             }

@@ -75,6 +75,8 @@ struct Ctx<'a> {
     k2: f32,
     near: f32,
     oct: &'a [u32],
+    spheres: &'a [[f32; 4]],
+    dirs: &'a [Vec3],
     out: SplatBatch,
     n: Counters,
 }
@@ -105,6 +107,8 @@ impl<'a> Ctx<'a> {
             k2: 2.0 * view.proj_scale(),
             near: view.camera.near,
             oct: quant::normal_oct_table(),
+            spheres: &quant::sphere_table().entries,
+            dirs: quant::normal_table(),
             out: SplatBatch::with_attributes(attrs, capacity),
             n: Counters::default(),
         }
@@ -131,8 +135,12 @@ impl<'a> Ctx<'a> {
         for slot in out.iter_mut().take(count) {
             let w = format::read_u32(self.body, p).ok_or_else(|| corrupt("node", off))?;
             let n = format::unpack(w);
-            let (c, r) = quant::decode_sphere(pc, pr, n.sphere as u32)
+            // Same arithmetic as `quant::decode_sphere` (bit-identical to the build's).
+            let e = self
+                .spheres
+                .get(n.sphere as usize)
                 .ok_or_else(|| corrupt("sphere code", off))?;
+            let (c, r) = (pc + Vec3::new(e[0], e[1], e[2]) * pr, e[3] * pr);
             let color = if self.colors {
                 format::read_u16(self.body, p + 4).ok_or_else(|| corrupt("colour", off))?
             } else {
@@ -195,10 +203,7 @@ impl<'a> Ctx<'a> {
 
     #[inline]
     fn normal_vec(&self, code: u16) -> Vec3 {
-        quant::normal_table()
-            .get(code as usize)
-            .copied()
-            .unwrap_or(Vec3::Z)
+        self.dirs.get(code as usize).copied().unwrap_or(Vec3::Z)
     }
 
     /// Culls `n`; returns false if dropped, updating the flags.

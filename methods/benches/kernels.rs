@@ -1,7 +1,7 @@
 //! CPU kernels shared by the methods: normal encoding, leaf-radius estimation (k nearest
 //! neighbours), scene generation, `full`'s per-frame selection and QSplat's traversal
-//! (throughput = nodes visited). Timing is reported, never
-//! asserted. Run: `cargo bench -p methods --bench kernels`.
+//! (throughput = nodes visited). Timing is reported, never asserted.
+//! Run: `cargo bench -p methods --bench kernels` (QSplat only: `... -- qsplat/`).
 #![allow(missing_docs, clippy::unwrap_used)]
 
 use criterion::{Criterion, Throughput, criterion_group, criterion_main};

@@ -380,6 +380,7 @@ mod tests {
         }
         // Mean radius overshoot in units of the parent radius (paper: 0.15).
         let mean = sum / 100_000.0;
+        eprintln!("mean radius overshoot {mean:.4} of the parent radius");
         assert!(mean < 0.2, "mean overshoot {mean}");
         assert!(
             rejected < 1000,
@@ -413,12 +414,13 @@ mod tests {
                 (tc, tr, qc, qr) = (c, r, gc, q);
             }
         }
-        // The relative overshoot stays bounded: the deepest levels are no worse than a fixed
-        // constant (measured ≈ 2.3 at every depth; asserted with margin).
+        // The relative overshoot (q − r)/r stays bounded: the deepest levels are no worse than
+        // a fixed constant (measured 0.32 at levels 0–9 and at 30–39; asserted with margin).
         let top = worst[..10].iter().cloned().fold(0.0, f64::max);
         let deep = worst[30..].iter().cloned().fold(0.0, f64::max);
-        assert!(deep < 4.0, "deep overshoot {deep} (top {top}) {worst:?}");
-        assert!(top < 4.0, "top overshoot {top}");
+        eprintln!("worst relative overshoot: levels 0-9 {top:.3}, levels 30-39 {deep:.3}");
+        assert!(deep < 0.5, "deep overshoot {deep} (top {top}) {worst:?}");
+        assert!(top < 0.5, "top overshoot {top}");
     }
 
     #[test]
@@ -434,6 +436,7 @@ mod tests {
             worst = worst.max(e);
         }
         let mean = sum / n as f64;
+        eprintln!("normal error: mean {mean:.5} rad, max {worst:.5} rad");
         assert!(worst <= 0.02, "max {worst}");
         assert!((0.008..0.012).contains(&mean), "mean {mean}");
         for v in [Vec3::X, -Vec3::X, Vec3::Y, -Vec3::Y, Vec3::Z, -Vec3::Z] {

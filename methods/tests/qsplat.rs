@@ -398,3 +398,39 @@ fn fig6_statue_1m() {
         );
     }
 }
+
+#[test]
+fn tiny_and_normal_less_clouds() {
+    // 1..=9 samples (root alone, 2–4 leaf children, mixed) and a cloud without normals
+    // (never back-face culled, batches without normals), with and without radii.
+    for n in 1..=9usize {
+        let pos: Vec<[f32; 3]> = (0..n)
+            .map(|i| [i as f32 * 0.1, (i % 3) as f32 * 0.05, 0.0])
+            .collect();
+        let radii = (n == 1).then(|| vec![0.05f32; n].into());
+        let cloud =
+            PointCloud::new(glam::DVec3::ZERO, pos.into(), None, None, radii).unwrap();
+        let dir = tempfile::tempdir().unwrap();
+        let mut m = build(&cloud, dir.path(), &[]);
+        assert_eq!(m.input_points(), n as u64);
+        let v = View {
+            camera: scenes::Camera {
+                position: Vec3::new(0.4, 0.1, 3.0),
+                target: Vec3::new(0.4, 0.1, 0.0),
+                up: Vec3::Y,
+                fov_y: 1.0,
+                near: 0.01,
+                far: 100.0,
+            },
+            width: 64,
+            height: 64,
+        };
+        let all = m
+            .frame(&v, Target::Tolerance(0.0), &Feedback::default())
+            .unwrap();
+        assert_eq!(all.points(), n as u64, "{n} samples, all in view");
+        assert!(batch(&all).normals.is_none() && batch(&all).colors.is_none());
+        let one = m.frame(&v, Target::Budget(1), &Feedback::default()).unwrap();
+        assert_eq!(one.points(), 1);
+    }
+}

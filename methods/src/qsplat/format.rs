@@ -8,7 +8,8 @@
 //!   offset within the body of the group's first child group) followed by its nodes. The
 //!   pointer is present iff some node of the group has children (for the root group: iff the
 //!   tree has more than one node); the child groups of a group's nodes follow each other, so
-//!   one pointer finds them all. The root group is at body offset 0.
+//!   one pointer finds them all. The root group is at body offset 0. The body is at most
+//!   4 GiB (32-bit offsets: ≈ 10⁹ nodes, ≈ 700 M samples).
 //! - node: one `u32` = sphere code (bits 0–12) | normal (13–26) | cone class (27–28) |
 //!   child-count code 0/1/2/3 = 0/2/3/4 children (29–30) | all-children-are-leaves (31);
 //!   then, only when the scene has colours, a `u16` RGB565 colour. 4 or 6 bytes per node.
@@ -169,6 +170,13 @@ pub fn write(path: &Path, tree: &QTree) -> Result<FileStats, MethodError> {
             }
         }
         groups = next;
+    }
+    if u32::try_from(body.len()).is_err() {
+        return Err(MethodError::Limit(format!(
+            "{}: {} bytes of nodes exceed the 32-bit offsets (4 GiB)",
+            path.display(),
+            body.len()
+        )));
     }
     let leaves = tree.leaves();
     let flags = (FLAG_NORMALS * tree.normals as u32) | (FLAG_COLORS * tree.colors as u32);

@@ -408,8 +408,7 @@ fn tiny_and_normal_less_clouds() {
             .map(|i| [i as f32 * 0.1, (i % 3) as f32 * 0.05, 0.0])
             .collect();
         let radii = (n == 1).then(|| vec![0.05f32; n].into());
-        let cloud =
-            PointCloud::new(glam::DVec3::ZERO, pos.into(), None, None, radii).unwrap();
+        let cloud = PointCloud::new(glam::DVec3::ZERO, pos.into(), None, None, radii).unwrap();
         let dir = tempfile::tempdir().unwrap();
         let mut m = build(&cloud, dir.path(), &[]);
         assert_eq!(m.input_points(), n as u64);
@@ -430,7 +429,9 @@ fn tiny_and_normal_less_clouds() {
             .unwrap();
         assert_eq!(all.points(), n as u64, "{n} samples, all in view");
         assert!(batch(&all).normals.is_none() && batch(&all).colors.is_none());
-        let one = m.frame(&v, Target::Budget(1), &Feedback::default()).unwrap();
+        let one = m
+            .frame(&v, Target::Budget(1), &Feedback::default())
+            .unwrap();
         assert_eq!(one.points(), 1);
     }
 }

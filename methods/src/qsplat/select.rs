@@ -133,32 +133,12 @@ impl<'a> Ctx<'a> {
             p += 4;
         }
         for slot in out.iter_mut().take(count) {
-            let w = format::read_u32(self.body, p).ok_or_else(|| corrupt("node", off))?;
-            let n = format::unpack(w);
-            // Same arithmetic as `quant::decode_sphere` (bit-identical to the build's).
-            let e = self
-                .spheres
-                .get(n.sphere as usize)
-                .ok_or_else(|| corrupt("sphere code", off))?;
-            let (c, r) = (pc + Vec3::new(e[0], e[1], e[2]) * pr, e[3] * pr);
-            let color = if self.colors {
-                format::read_u16(self.body, p + 4).ok_or_else(|| corrupt("colour", off))?
-            } else {
-                0
-            };
-            *slot = Node {
-                c,
-                r,
-                normal: n.normal,
-                cone: n.cone,
-                color,
-                children: n.children,
-                child_off: cursor as u32,
-                child_ptr: !n.all_leaves,
-            };
+            let mut n = self.node_at(p, off, pc, pr)?;
             if n.children > 0 {
-                cursor += n.children as usize * self.nb + 4 * (!n.all_leaves) as usize;
+                n.child_off = cursor as u32;
+                cursor += n.children as usize * self.nb + 4 * n.child_ptr as usize;
             }
+            *slot = n;
             p += self.nb;
         }
         Ok((out, count))
@@ -259,7 +239,72 @@ impl<'a> Ctx<'a> {
         self.n.splats_emitted += 1;
     }
 
-    fn recurse(
+    /// Decodes the node word at body byte `p` (of the group at `off`) relative to the
+    /// decoded parent `(pc, pr)`; `child_off` is left 0 for the caller to fill.
+    #[inline(always)]
+    fn node_at(&self, p: usize, off: usize, pc: Vec3, pr: f32) -> Result<Node, MethodError> {
+        let w = format::read_u32(self.body, p).ok_or_else(|| corrupt("node", off))?;
+        let n = format::unpack(w);
+        // Same arithmetic as `quant::decode_sphere` (bit-identical to the build's).
+        let e = self
+            .spheres
+            .get(n.sphere as usize)
+            .ok_or_else(|| corrupt("sphere code", off))?;
+        let color = if self.colors {
+            format::read_u16(self.body, p + 4).ok_or_else(|| corrupt("colour", off))?
+        } else {
+            0
+        };
+        Ok(Node {
+            c: pc + Vec3::new(e[0], e[1], e[2]) * pr,
+            r: e[3] * pr,
+            normal: n.normal,
+            cone: n.cone,
+            color,
+            children: n.children,
+            child_off: 0,
+            child_ptr: !n.all_leaves,
+        })
+    }
+
+    /// Tolerance traversal of the group at `off`, node by node (no group buffer).
+    #[expect(
+        clippy::too_many_arguments,
+        reason = "hot recursive path; a struct costs copies"
+    )]
+    fn visit_group(
+        &mut self,
+        off: usize,
+        count: usize,
+        has_ptr: bool,
+        pc: Vec3,
+        pr: f32,
+        inside: bool,
+        front: bool,
+        thr: f32,
+    ) -> Result<(), MethodError> {
+        let mut p = off;
+        let mut cursor = 0usize;
+        if has_ptr {
+            cursor =
+                format::read_u32(self.body, p).ok_or_else(|| corrupt("pointer", off))? as usize;
+            p += 4;
+        }
+        for _ in 0..count {
+            let mut n = self.node_at(p, off, pc, pr)?;
+            p += self.nb;
+            if n.children > 0 {
+                n.child_off = cursor as u32;
+                cursor += n.children as usize * self.nb + 4 * n.child_ptr as usize;
+            }
+            self.visit(&n, inside, front, thr)?;
+        }
+        Ok(())
+    }
+
+    /// Tolerance traversal of one decoded node.
+    #[inline(always)]
+    fn visit(
         &mut self,
         n: &Node,
         mut inside: bool,
@@ -273,17 +318,16 @@ impl<'a> Ctx<'a> {
             self.emit(n);
             return Ok(());
         }
-        let (kids, count) = self.group(
+        self.visit_group(
             n.child_off as usize,
             n.children as usize,
             n.child_ptr,
             n.c,
             n.r,
-        )?;
-        for kid in &kids[..count] {
-            self.recurse(kid, inside, front, thr)?;
-        }
-        Ok(())
+            inside,
+            front,
+            thr,
+        )
     }
 }
 
@@ -297,7 +341,7 @@ pub fn select_threshold(
 ) -> Result<(SplatBatch, Counters), MethodError> {
     let mut ctx = Ctx::new(body, header, view, capacity);
     let root = ctx.root(header)?;
-    ctx.recurse(&root, false, false, thr_px)?;
+    ctx.visit(&root, false, false, thr_px)?;
     ctx.n.threshold_px = thr_px as f64;
     Ok((ctx.out, ctx.n))
 }

@@ -435,3 +435,30 @@ fn tiny_and_normal_less_clouds() {
         assert_eq!(one.points(), 1);
     }
 }
+
+/// Fixed work for `perf stat` comparisons of the traversal (timing is never asserted).
+#[test]
+#[ignore]
+fn traversal_fixed_work() {
+    let cloud = Generator::Statue.generate(200_000, 1).unwrap();
+    let dir = tempfile::tempdir().unwrap();
+    let mut m = build(&cloud, dir.path(), &[]);
+    let v = View {
+        width: 1024,
+        height: 1024,
+        ..view(&cloud, 0, 1)
+    };
+    let t0 = std::time::Instant::now();
+    let mut visited = 0.0;
+    for _ in 0..300 {
+        visited += m
+            .frame(&v, Target::Tolerance(1.0), &Feedback::default())
+            .unwrap()
+            .counters[0];
+    }
+    let s = t0.elapsed().as_secs_f64();
+    eprintln!(
+        "{visited} nodes in {s:.3} s: {:.1} M nodes/s",
+        visited / s / 1e6
+    );
+}

@@ -412,9 +412,11 @@ pub fn select_budget(
         .peek()
         .map(|&(bits, _, _)| f32::from_bits(bits) as f64)
         .unwrap_or(0.0);
+    // Output order: finished leaves, then the heap's array (deterministic: the same
+    // operations give the same array; sorting it would cost more than the traversal).
     for idx in done
         .into_iter()
-        .chain(heap.into_sorted_vec().into_iter().rev().map(|(_, _, i)| i))
+        .chain(heap.into_vec().into_iter().map(|(_, _, i)| i))
     {
         let n = arena[idx].0;
         ctx.emit(&n);

@@ -462,3 +462,59 @@ fn traversal_fixed_work() {
         visited / s / 1e6
     );
 }
+
+#[test]
+fn budget_is_monotone_at_every_step() {
+    // Dense budgets on views that cut the model (zoom path): refinements whose children are
+    // all culled must not lower the count.
+    let cloud = Generator::Statue.generate(2000, 6).unwrap();
+    let dir = tempfile::tempdir().unwrap();
+    let mut m = build(&cloud, dir.path(), &[]);
+    let zoom = PathSpec::parse("zoom").unwrap();
+    for i in [3, 7, 9] {
+        let v = View {
+            camera: zoom.camera(i, 10, &cloud.bounds()),
+            width: 200,
+            height: 150,
+        };
+        let mut last = 0;
+        for b in 1..=2200u64 {
+            let p = m
+                .frame(&v, Target::Budget(b), &Feedback::default())
+                .unwrap()
+                .points();
+            assert!(p <= b && p >= last, "view {i} budget {b}: {p} after {last}");
+            last = p;
+        }
+    }
+}
+
+#[test]
+fn tolerance_sweep_on_cutting_views() {
+    let cloud = Generator::Statue.generate(2000, 6).unwrap();
+    let dir = tempfile::tempdir().unwrap();
+    let mut m = build(&cloud, dir.path(), &[]);
+    let zoom = PathSpec::parse("zoom").unwrap();
+    let mut drops = 0;
+    for i in [3, 7, 9] {
+        let v = View {
+            camera: zoom.camera(i, 10, &cloud.bounds()),
+            width: 200,
+            height: 150,
+        };
+        let mut last = 0;
+        for k in (0..=640).rev() {
+            let eps = k as f32 * 0.1;
+            let p = m
+                .frame(&v, Target::Tolerance(eps), &Feedback::default())
+                .unwrap()
+                .points();
+            if p < last {
+                drops += 1;
+                eprintln!("view {i} eps {eps}: {p} after {last}");
+            }
+            last = p;
+        }
+    }
+    assert_eq!(drops, 0);
+}

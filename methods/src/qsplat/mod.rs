@@ -42,6 +42,7 @@ pub const COLUMNS: &[&str] = &[
     "culled_frustum",
     "culled_backface",
     "threshold_px",
+    "dropped_empty",
 ];
 
 /// Parameters of `qsplat`.
@@ -283,6 +284,7 @@ impl LodMethod for Qsplat {
                 c.culled_frustum as f64,
                 c.culled_backface as f64,
                 c.threshold_px,
+                c.dropped_empty as f64,
             ],
         })
     }

@@ -5,14 +5,24 @@
 //! cone (entirely back-facing ⇒ dropped; entirely front-facing ⇒ no more tests below), and a
 //! splat per node that is a leaf or whose projected diameter `2·r·k/z` is ≤ the threshold.
 //! [`select_budget`] refines coarse-first (largest projected size first, ties by file
-//! offset) and stops at the first refinement that would exceed the budget, so a larger
-//! budget refines a superset and never draws fewer splats. Both are deterministic, allocate
+//! offset) and stops at the first refinement that would exceed the budget; a larger budget
+//! runs a longer prefix of the same refinements and never draws fewer splats. Both are deterministic, allocate
 //! only the output (and, for budgets, the queue) and return an error, never panic, on
 //! malformed bytes.
 //!
 //! Culling is conservative: a node's decoded sphere encloses every sample below it and its
 //! cone every normal below it, so a sample inside the frustum and facing the eye is never
 //! culled (the contract's tolerance-0 rule).
+//!
+//! Monotonicity: a node can pass the culling tests while every leaf below it fails them
+//! (its sphere grazes the frustum, or its wider cone is mixed while its children's face
+//! away). Such a node is not drawn ([`Counters::dropped_empty`]): before a non-leaf node is
+//! drawn, a depth-first look-ahead confirms some leaf below it is reached through kept
+//! nodes (immediate for subtrees entirely inside and front-facing). Then every drawn node
+//! has a kept leaf below it, so a smaller threshold, which reaches every node a larger one
+//! drew, draws at least one splat under each: the count never decreases as the threshold
+//! shrinks. In budget mode every node queued has a kept leaf below it, so each refinement
+//! keeps at least one child and never lowers the count.
 
 use std::cmp::Reverse;
 use std::collections::BinaryHeap;
@@ -36,6 +46,9 @@ pub struct Counters {
     pub culled_frustum: u64,
     /// Nodes dropped by the normal-cone test.
     pub culled_backface: u64,
+    /// Nodes not drawn although they pass the culling tests, because no leaf below them
+    /// does (see the module doc).
+    pub dropped_empty: u64,
     /// The threshold used (budget mode: the projected size of the largest node left
     /// unrefined, 0 if every visible leaf was reached).
     pub threshold_px: f64,
@@ -186,31 +199,71 @@ impl<'a> Ctx<'a> {
         self.dirs.get(code as usize).copied().unwrap_or(Vec3::Z)
     }
 
-    /// Culls `n`; returns false if dropped, updating the flags.
-    #[inline]
-    fn keep(&mut self, n: &Node, inside: &mut bool, front: &mut bool) -> bool {
-        self.n.nodes_visited += 1;
+    /// Culling tests without counters: `Some(true)` frustum-culled, `Some(false)` back-face
+    /// culled, `None` kept (updating the flags).
+    #[inline(always)]
+    fn cull(&self, n: &Node, inside: &mut bool, front: &mut bool) -> Option<bool> {
         if !*inside {
             match self.frustum.sphere(n.c, n.r) {
-                Containment::Outside => {
-                    self.n.culled_frustum += 1;
-                    return false;
-                }
+                Containment::Outside => return Some(true),
                 Containment::Inside => *inside = true,
                 Containment::Intersects => {}
             }
         }
         if !*front && self.normals {
             match self.facing(n) {
-                Facing::Back => {
-                    self.n.culled_backface += 1;
-                    return false;
-                }
+                Facing::Back => return Some(false),
                 Facing::Front => *front = true,
                 Facing::Mixed => {}
             }
         }
-        true
+        None
+    }
+
+    /// Culls `n`; returns false if dropped, updating the flags and counters.
+    #[inline]
+    fn keep(&mut self, n: &Node, inside: &mut bool, front: &mut bool) -> bool {
+        self.n.nodes_visited += 1;
+        match self.cull(n, inside, front) {
+            None => true,
+            Some(true) => {
+                self.n.culled_frustum += 1;
+                false
+            }
+            Some(false) => {
+                self.n.culled_backface += 1;
+                false
+            }
+        }
+    }
+
+    /// True if some leaf below the kept node `n` is reached through kept nodes only (depth
+    /// first, stopping at the first). A subtree entirely inside and front-facing answers at
+    /// once. Nodes looked at count as visited.
+    fn has_visible_leaf(
+        &mut self,
+        n: &Node,
+        inside: bool,
+        front: bool,
+    ) -> Result<bool, MethodError> {
+        if n.children == 0 || (inside && (front || !self.normals)) {
+            return Ok(true);
+        }
+        let (kids, count) = self.group(
+            n.child_off as usize,
+            n.children as usize,
+            n.child_ptr,
+            n.c,
+            n.r,
+        )?;
+        for kid in &kids[..count] {
+            let (mut i, mut f) = (inside, front);
+            self.n.nodes_visited += 1;
+            if self.cull(kid, &mut i, &mut f).is_none() && self.has_visible_leaf(kid, i, f)? {
+                return Ok(true);
+            }
+        }
+        Ok(false)
     }
 
     /// Projected diameter in pixels (∞ when the centre is not beyond the near plane).
@@ -314,8 +367,16 @@ impl<'a> Ctx<'a> {
         if !self.keep(n, &mut inside, &mut front) {
             return Ok(());
         }
-        if n.children == 0 || self.size(n) <= thr {
+        if n.children == 0 {
             self.emit(n);
+            return Ok(());
+        }
+        if self.size(n) <= thr {
+            if self.has_visible_leaf(n, inside, front)? {
+                self.emit(n);
+            } else {
+                self.n.dropped_empty += 1;
+            }
             return Ok(());
         }
         self.visit_group(
@@ -377,7 +438,7 @@ pub fn select_budget(
             heap.push((ctx.size(&n).to_bits(), Reverse(n.child_off), idx));
         }
     };
-    if ctx.keep(&root, &mut inside, &mut front) {
+    if ctx.keep(&root, &mut inside, &mut front) && ctx.has_visible_leaf(&root, inside, front)? {
         push(&ctx, &mut arena, &mut heap, &mut done, root, inside, front);
         count = 1;
     }
@@ -395,8 +456,12 @@ pub fn select_budget(
         for kid in &kids[..cnt] {
             let (mut i, mut f) = (inside, front);
             if ctx.keep(kid, &mut i, &mut f) {
-                kept[visible] = (*kid, i, f);
-                visible += 1;
+                if ctx.has_visible_leaf(kid, i, f)? {
+                    kept[visible] = (*kid, i, f);
+                    visible += 1;
+                } else {
+                    ctx.n.dropped_empty += 1;
+                }
             }
         }
         if count - 1 + visible as u64 > budget {

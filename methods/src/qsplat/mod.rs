@@ -35,7 +35,7 @@ pub const FORMAT_VERSION: u32 = 1;
 pub const TREE_FILE: &str = "tree.qs";
 /// Registry name.
 pub const NAME: &str = "qsplat";
-/// Extra CSV columns, in [`select::Counters`] order.
+/// Extra CSV columns (values from [`select::Counters`], in this order).
 pub const COLUMNS: &[&str] = &[
     "nodes_visited",
     "splats_emitted",

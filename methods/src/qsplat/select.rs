@@ -6,9 +6,9 @@
 //! splat per node that is a leaf or whose projected diameter `2·r·k/z` is ≤ the threshold.
 //! [`select_budget`] refines coarse-first (largest projected size first, ties by file
 //! offset) and stops at the first refinement that would exceed the budget; a larger budget
-//! runs a longer prefix of the same refinements and never draws fewer splats. Both are deterministic, allocate
-//! only the output (and, for budgets, the queue) and return an error, never panic, on
-//! malformed bytes.
+//! runs a longer prefix of the same refinements and never draws fewer splats. Both are
+//! deterministic, allocate only the output (and, for budgets, the queue) and return an
+//! error, never panic, on malformed bytes.
 //!
 //! Culling is conservative: a node's decoded sphere encloses every sample below it and its
 //! cone every normal below it, so a sample inside the frustum and facing the eye is never

@@ -1,6 +1,7 @@
 //! CPU kernels shared by the methods: normal encoding, leaf-radius estimation (k nearest
-//! neighbours), scene generation and `full`'s per-frame selection. Timing is reported, never
-//! asserted. Run: `cargo bench -p methods --bench kernels`.
+//! neighbours), scene generation, `full`'s per-frame selection and QSplat's traversal
+//! (throughput = nodes visited). Timing is reported, never asserted.
+//! Run: `cargo bench -p methods --bench kernels` (QSplat only: `... -- qsplat/`).
 #![allow(missing_docs, clippy::unwrap_used)]
 
 use criterion::{Criterion, Throughput, criterion_group, criterion_main};
@@ -55,6 +56,37 @@ fn kernels(c: &mut Criterion) {
                 .unwrap()
         })
     });
+    g.finish();
+
+    // QSplat's per-frame traversal, per node visited (decode + cull + project + emit).
+    let qdir = tempfile::tempdir().unwrap();
+    MethodKind::Qsplat
+        .build(
+            &cloud,
+            &Params::default(),
+            "bench",
+            qdir.path(),
+            &scenes::NoProgress,
+        )
+        .unwrap();
+    let mut q = MethodKind::open(qdir.path()).unwrap();
+    let mut g = c.benchmark_group("qsplat");
+    g.sample_size(20);
+    for (name, target) in [
+        ("traverse_eps0", Target::Tolerance(0.0)),
+        ("traverse_eps1", Target::Tolerance(1.0)),
+        ("traverse_eps4", Target::Tolerance(4.0)),
+        ("traverse_budget50k", Target::Budget(50_000)),
+    ] {
+        let visited = q
+            .frame(&view, target, &Feedback::default())
+            .unwrap()
+            .counters[0];
+        g.throughput(Throughput::Elements(visited as u64));
+        g.bench_function(name, |b| {
+            b.iter(|| q.frame(&view, target, &Feedback::default()).unwrap())
+        });
+    }
     g.finish();
 }
 

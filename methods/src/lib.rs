@@ -18,6 +18,7 @@ pub mod leaf;
 pub mod method;
 pub mod octnormal;
 pub mod params;
+pub mod qsplat;
 pub mod registry;
 pub mod spt;
 

@@ -5,7 +5,7 @@ use std::path::Path;
 
 use scenes::{PointCloud, Progress};
 
-use crate::{BuildStats, LodMethod, Manifest, MethodError, Params, full, spt};
+use crate::{BuildStats, LodMethod, Manifest, MethodError, Params, full, qsplat, spt};
 
 /// Every registered method.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Hash, clap::ValueEnum, serde::Serialize)]
@@ -13,18 +13,21 @@ use crate::{BuildStats, LodMethod, Manifest, MethodError, Params, full, spt};
 pub enum MethodKind {
     /// No LOD: every sample drawn with its own spacing. Also the full-resolution reference.
     Full,
+    /// QSplat: quantised bounding-sphere hierarchy traversed on the CPU every frame.
+    Qsplat,
     /// Sequential Point Trees (Dachsbacher, Vogelgsang, Stamminger 2003).
     Spt,
 }
 
 impl MethodKind {
     /// All methods, in registry order.
-    pub const ALL: &'static [MethodKind] = &[MethodKind::Full, MethodKind::Spt];
+    pub const ALL: &'static [MethodKind] = &[MethodKind::Full, MethodKind::Qsplat, MethodKind::Spt];
 
     /// The registry name (`--method` value, `method.json`).
     pub fn name(self) -> &'static str {
         match self {
             MethodKind::Full => "full",
+            MethodKind::Qsplat => qsplat::NAME,
             MethodKind::Spt => spt::NAME,
         }
     }
@@ -34,6 +37,9 @@ impl MethodKind {
         match self {
             MethodKind::Full => {
                 "no LOD: every sample as a splat of its own spacing (the reference)"
+            }
+            MethodKind::Qsplat => {
+                "QSplat (2000): quantised bounding-sphere tree, per-frame CPU traversal, streamed splats"
             }
             MethodKind::Spt => {
                 "Sequential Point Trees: sorted node list, CPU prefix search, GPU interval test"
@@ -60,6 +66,7 @@ impl MethodKind {
     pub fn check_params(self, params: &Params) -> Result<(), MethodError> {
         match self {
             MethodKind::Full => params.to_typed::<full::FullParams>(self.name()).map(drop),
+            MethodKind::Qsplat => qsplat::QsplatParams::from_params(params).map(drop),
             MethodKind::Spt => params.to_typed::<spt::SptParams>(self.name()).map(drop),
         }
     }
@@ -76,6 +83,7 @@ impl MethodKind {
         std::fs::create_dir_all(dir).map_err(|e| MethodError::io(dir, e))?;
         let stats = match self {
             MethodKind::Full => full::build(cloud, params, scene, dir, progress),
+            MethodKind::Qsplat => qsplat::build(cloud, params, scene, dir, progress),
             MethodKind::Spt => spt::build(cloud, params, scene, dir, progress),
         }?;
         stats.write(dir)?;
@@ -87,6 +95,7 @@ impl MethodKind {
         let manifest = Manifest::read(dir)?;
         match Self::from_name(&manifest.method)? {
             MethodKind::Full => Ok(Box::new(full::Full::open(dir, manifest)?)),
+            MethodKind::Qsplat => Ok(Box::new(qsplat::Qsplat::open(dir, manifest)?)),
             MethodKind::Spt => Ok(Box::new(spt::Spt::open(dir, manifest)?)),
         }
     }

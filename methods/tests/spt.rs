@@ -644,3 +644,57 @@ fn corrupt_files_and_bad_params_are_named() {
         .to_string();
     assert!(e.contains("lod.bin"), "{e}");
 }
+
+/// The colour rule: where a node's children differ in colour by more than the threshold,
+/// its geometric error is raised to at least its diameter; a threshold no spread exceeds
+/// changes nothing; a scene without colours is unaffected by the threshold.
+#[test]
+fn colour_rule_raises_error_to_the_diameter() {
+    use methods::spt::build::build_tree;
+    let cloud = scenes::generators::Generator::Terrain
+        .generate(5_000, 2)
+        .unwrap();
+    let radii = methods::leaf::leaf_radii(&cloud);
+    let strict = build_tree(&cloud, &radii, 0.0);
+    let off = build_tree(&cloud, &radii, 1000.0);
+    assert_eq!(strict.nodes.len(), off.nodes.len());
+    let mut kids: Vec<Vec<usize>> = vec![Vec::new(); strict.nodes.len()];
+    for (i, n) in strict.nodes.iter().enumerate() {
+        if (n.parent as usize) < strict.nodes.len() && n.parent as usize != i {
+            kids[n.parent as usize].push(i);
+        }
+    }
+    let mut raised = 0;
+    for (i, n) in strict.nodes.iter().enumerate() {
+        assert!(
+            n.e_g >= off.nodes[i].e_g,
+            "node {i}: the rule only ever raises errors"
+        );
+        if n.leaf || kids[i].is_empty() {
+            continue;
+        }
+        let cols: Vec<[u8; 3]> = kids[i].iter().map(|&k| strict.nodes[k].color).collect();
+        if methods::spt::errors::color_spread(&cols) > 0 {
+            assert!(
+                n.e_g >= 2.0 * n.r * 0.999,
+                "node {i}: e_g {} < d {}",
+                n.e_g,
+                2.0 * n.r
+            );
+            if off.nodes[i].e_g < 2.0 * n.r * 0.999 {
+                raised += 1;
+            }
+        }
+    }
+    assert!(
+        raised > 0,
+        "some node's error must have been raised by colour"
+    );
+    let grey = scenes::generators::Generator::Statue
+        .generate(3_000, 2)
+        .unwrap();
+    let r = methods::leaf::leaf_radii(&grey);
+    let a = build_tree(&grey, &r, 0.0);
+    let b = build_tree(&grey, &r, 1000.0);
+    assert!(a.nodes.iter().zip(&b.nodes).all(|(x, y)| x.e_g == y.e_g));
+}

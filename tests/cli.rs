@@ -259,6 +259,52 @@ fn bad_flags_are_clear_errors() {
     );
 }
 
+#[test]
+fn spt_refuses_a_model_larger_than_the_gpu_budget() {
+    if !have_gpu("spt_refuses_a_model_larger_than_the_gpu_budget") {
+        return;
+    }
+    let d = tempfile::tempdir().unwrap();
+    let out = d.path().join("o");
+    let out = out.to_str().unwrap();
+    // 60 k samples → ≈ 96 k nodes × 36 bytes ≈ 3.3 MiB > 1 MiB.
+    fails_with(
+        &[
+            "run",
+            "--method",
+            "spt",
+            "--scene",
+            "statue:60000",
+            "--gpu-cache-mb",
+            "1",
+            "--frames",
+            "1",
+            "--no-metrics",
+            "--out",
+            out,
+        ],
+        "more than the GPU cache budget",
+    );
+    // The method's own limit, at open.
+    fails_with(
+        &[
+            "run",
+            "--method",
+            "spt",
+            "--scene",
+            "statue:60000",
+            "--param",
+            "gpu_limit_mb=1",
+            "--frames",
+            "1",
+            "--no-metrics",
+            "--out",
+            out,
+        ],
+        "gpu_limit_mb = 1 MiB",
+    );
+}
+
 fn write(dir: &Path, name: &str, bytes: &[u8]) -> String {
     let p = dir.join(name);
     std::fs::write(&p, bytes).unwrap();

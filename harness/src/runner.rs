@@ -299,6 +299,17 @@ pub fn run(cfg: &RunConfig, gpu: &Gpu, progress: &dyn Progress) -> anyhow::Resul
         .build(&cloud, &cfg.params, &label, &build_dir, progress)
         .with_context(|| format!("building {} on {label}", cfg.method))?;
     let mut method = MethodKind::open(&build_dir)?;
+    if let Some(need) = method.gpu_resident_bytes()
+        && need > cfg.render.cache_bytes
+    {
+        anyhow::bail!(
+            "{} keeps its whole model on the GPU: {:.1} MiB, more than the GPU cache budget of \
+             {:.1} MiB (--gpu-cache-mb); raise the budget or use a smaller scene",
+            cfg.method,
+            need as f64 / (1u64 << 20) as f64,
+            cfg.render.cache_bytes as f64 / (1u64 << 20) as f64
+        );
+    }
     let mut renderer = Renderer::new(gpu, cfg.render)?;
     let mut reference = cfg.metrics.then(|| {
         Reference::new(

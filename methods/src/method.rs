@@ -36,6 +36,12 @@ pub trait LodMethod: Send {
     fn interval_tested(&self) -> bool {
         false
     }
+    /// Bytes that must stay resident on the GPU for the method to work (SPT keeps its whole
+    /// node list there); `None` when chunks may come and go. The runner refuses a GPU cache
+    /// budget smaller than this rather than re-upload the model every frame.
+    fn gpu_resident_bytes(&self) -> Option<u64> {
+        None
+    }
 }
 
 /// What `build` reports (written as `build.json`).

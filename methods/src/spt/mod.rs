@@ -844,6 +844,9 @@ impl LodMethod for Spt {
     fn interval_tested(&self) -> bool {
         true
     }
+    fn gpu_resident_bytes(&self) -> Option<u64> {
+        Some(self.index.nodes * gpu_bytes_per_node(self.attrs))
+    }
     fn extra_columns(&self) -> &'static [&'static str] {
         EXTRA_COLUMNS
     }

@@ -380,6 +380,7 @@ pub fn run(cfg: &RunConfig, gpu: &Gpu, progress: &dyn Progress) -> anyhow::Resul
             frame: i as u64,
             cached: renderer.cached(),
             occluded: Default::default(),
+            visible: Default::default(),
             last_gpu_ms: last.as_ref().and_then(|(s, _)| s.gpu_ms),
             last_wall_ms: last.as_ref().map(|(s, _)| s.wall_ms),
             camera_still: last.as_ref().is_some_and(|(_, v)| v.camera == view.camera),

@@ -274,6 +274,36 @@ pub struct DrawList {
     pub fetch: Vec<ChunkId>,
     /// Values of the method's extra CSV columns ([`crate::LodMethod::extra_columns`]), same order.
     pub counters: Vec<f64>,
+    /// Three-phase occlusion culling (LPC §4), when the method asks for it: `items` are then
+    /// phase 1 (the clouds visible last frame); the renderer queries every candidate's
+    /// bounding sphere against the depth phase 1 left and draws, in phase 3, the candidates
+    /// that turn out visible and were not drawn in phase 1.
+    pub occlusion: Option<OcclusionPass>,
+}
+
+/// Phases 2 and 3 of occlusion culling: what to query and what to draw if visible.
+#[derive(Debug, Clone, Default, PartialEq)]
+pub struct OcclusionPass {
+    /// Every potentially visible cloud of this frame (those drawn in phase 1 included).
+    pub candidates: Vec<OcclusionCandidate>,
+    /// A candidate is visible when more than this many fragments of its sphere pass the
+    /// depth test (0 = any fragment).
+    pub threshold: u64,
+}
+
+/// One potentially visible cloud.
+#[derive(Debug, Clone, PartialEq)]
+pub struct OcclusionCandidate {
+    /// Identifies the cloud in [`Feedback::visible`] / [`Feedback::occluded`].
+    pub id: ChunkId,
+    /// Bounding sphere centre (local coordinates); the query draws an icosahedron that
+    /// circumscribes it. A sphere that contains the eye (or reaches the near plane) is
+    /// visible without a query.
+    pub center: [f32; 3],
+    /// Bounding sphere radius.
+    pub radius: f32,
+    /// What to draw in phase 3 if visible; `None` if already drawn in phase 1.
+    pub item: Option<DrawItem>,
 }
 
 impl DrawList {
@@ -348,8 +378,11 @@ pub struct Feedback {
     pub frame: u64,
     /// Chunks resident in the GPU cache now.
     pub cached: HashSet<ChunkId>,
-    /// Chunks found occluded last frame (when occlusion queries ran).
+    /// Candidates found occluded last frame (when occlusion queries ran).
     pub occluded: HashSet<ChunkId>,
+    /// Candidates found visible last frame (when occlusion queries ran): the occluders of
+    /// this frame's phase 1.
+    pub visible: HashSet<ChunkId>,
     /// GPU time of the previous frame, ms.
     pub last_gpu_ms: Option<f64>,
     /// Wall time of the previous frame, ms.

@@ -9,21 +9,26 @@
 //! - [`draw`]: draw lists, splat batches (what a chunk decodes to), targets, feedback.
 //! - [`params`]: `--param key=value` pairs into a method's typed, `deny_unknown_fields` params.
 //! - [`registry`]: [`MethodKind`], the one explicit list of methods.
+//! - [`store`]: the LZO chunk store with per-chunk checksums and the data-access layer
+//!   (loader thread) shared by the out-of-core methods.
 //! - one module per method: [`full`] (no LOD, the reference), then the four papers' methods.
 
 pub mod draw;
 pub mod error;
 pub mod full;
 pub mod leaf;
+pub mod lpc;
 pub mod method;
 pub mod octnormal;
 pub mod params;
 pub mod qsplat;
 pub mod registry;
 pub mod spt;
+pub mod store;
 
 pub use draw::{
-    ChunkId, DrawItem, DrawList, Feedback, IntervalTest, SplatBatch, SplatShape, SplatSize, Target,
+    ChunkId, DrawItem, DrawList, Feedback, IntervalTest, OcclusionCandidate, OcclusionPass,
+    SplatBatch, SplatShape, SplatSize, Target,
 };
 pub use error::MethodError;
 pub use method::{BuildStats, LodMethod, Manifest, MethodStats};

@@ -36,6 +36,11 @@ pub trait LodMethod: Send {
     fn interval_tested(&self) -> bool {
         false
     }
+    /// True if the method's draw lists may carry an [`crate::OcclusionPass`]: the runner then
+    /// appends `clouds_queried,clouds_occluded` (counted by the renderer's queries).
+    fn occlusion_culled(&self) -> bool {
+        false
+    }
     /// Bytes that must stay resident on the GPU for the method to work (SPT keeps its whole
     /// node list there); `None` when chunks may come and go. The runner refuses a GPU cache
     /// budget smaller than this rather than re-upload the model every frame.

@@ -5,7 +5,7 @@ use std::path::Path;
 
 use scenes::{PointCloud, Progress};
 
-use crate::{BuildStats, LodMethod, Manifest, MethodError, Params, full, qsplat, spt};
+use crate::{BuildStats, LodMethod, Manifest, MethodError, Params, full, lpc, qsplat, spt};
 
 /// Every registered method.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Hash, clap::ValueEnum, serde::Serialize)]
@@ -17,11 +17,18 @@ pub enum MethodKind {
     Qsplat,
     /// Sequential Point Trees (Dachsbacher, Vogelgsang, Stamminger 2003).
     Spt,
+    /// Layered Point Clouds (Gobbetti & Marton 2004).
+    Lpc,
 }
 
 impl MethodKind {
     /// All methods, in registry order.
-    pub const ALL: &'static [MethodKind] = &[MethodKind::Full, MethodKind::Qsplat, MethodKind::Spt];
+    pub const ALL: &'static [MethodKind] = &[
+        MethodKind::Full,
+        MethodKind::Qsplat,
+        MethodKind::Spt,
+        MethodKind::Lpc,
+    ];
 
     /// The registry name (`--method` value, `method.json`).
     pub fn name(self) -> &'static str {
@@ -29,6 +36,7 @@ impl MethodKind {
             MethodKind::Full => "full",
             MethodKind::Qsplat => qsplat::NAME,
             MethodKind::Spt => spt::NAME,
+            MethodKind::Lpc => lpc::NAME,
         }
     }
 
@@ -43,6 +51,9 @@ impl MethodKind {
             }
             MethodKind::Spt => {
                 "Sequential Point Trees: sorted node list, CPU prefix search, GPU interval test"
+            }
+            MethodKind::Lpc => {
+                "Layered Point Clouds: out-of-core binary tree of ~M-sample clouds, LZO repository, loader thread"
             }
         }
     }
@@ -68,6 +79,7 @@ impl MethodKind {
             MethodKind::Full => params.to_typed::<full::FullParams>(self.name()).map(drop),
             MethodKind::Qsplat => qsplat::QsplatParams::from_params(params).map(drop),
             MethodKind::Spt => params.to_typed::<spt::SptParams>(self.name()).map(drop),
+            MethodKind::Lpc => lpc::LpcParams::from_params(params).map(drop),
         }
     }
 
@@ -85,6 +97,7 @@ impl MethodKind {
             MethodKind::Full => full::build(cloud, params, scene, dir, progress),
             MethodKind::Qsplat => qsplat::build(cloud, params, scene, dir, progress),
             MethodKind::Spt => spt::build(cloud, params, scene, dir, progress),
+            MethodKind::Lpc => lpc::build(cloud, params, scene, dir, progress),
         }?;
         stats.write(dir)?;
         Ok(stats)
@@ -97,6 +110,7 @@ impl MethodKind {
             MethodKind::Full => Ok(Box::new(full::Full::open(dir, manifest)?)),
             MethodKind::Qsplat => Ok(Box::new(qsplat::Qsplat::open(dir, manifest)?)),
             MethodKind::Spt => Ok(Box::new(spt::Spt::open(dir, manifest)?)),
+            MethodKind::Lpc => Ok(Box::new(lpc::Lpc::open(dir, manifest)?)),
         }
     }
 }

@@ -72,6 +72,38 @@ impl<T: bytemuck::Pod> Column<T> {
     pub fn is_mapped(&self) -> bool {
         matches!(self, Column::Mapped { .. })
     }
+    /// Drops the resident pages of elements `range` of a mapped column from this process
+    /// (they stay in the OS page cache and are read again on the next touch); does nothing
+    /// for an owned column. Streaming builds call it behind their scan cursor so that the
+    /// resident set measures the method's working memory, not the pages of the scene file.
+    pub fn release(&self, range: std::ops::Range<usize>) {
+        if let Column::Mapped { map, offset, len } = self {
+            let size = std::mem::size_of::<T>();
+            let start = offset + range.start.min(*len) * size;
+            let end = offset + range.end.min(*len) * size;
+            release_map_range(map, start, end);
+        }
+    }
+}
+
+/// `madvise(MADV_DONTNEED)` over the whole pages inside `start..end` of a read-only mapping.
+#[expect(
+    unsafe_code,
+    reason = "MADV_DONTNEED on a read-only shared file mapping only drops resident pages: \
+              the next access reads the same bytes from the file, so no slice borrowed from \
+              the map changes or dangles"
+)]
+fn release_map_range(map: &Mmap, start: usize, end: usize) {
+    const PAGE: usize = 4096;
+    let first = start.div_ceil(PAGE) * PAGE;
+    let last = (end / PAGE) * PAGE;
+    if last > first {
+        // SAFETY: see `reason`; the range lies inside the map. A failure only means the
+        // pages stay resident, so it is ignored.
+        let _ = unsafe {
+            map.unchecked_advise_range(memmap2::UncheckedAdvice::DontNeed, first, last - first)
+        };
+    }
 }
 
 impl<T: bytemuck::Pod> Deref for Column<T> {
@@ -232,14 +264,18 @@ impl PointCloud {
             )));
         }
         let bounds = bounds_parallel(&positions);
-        Ok(Self {
+        let cloud = Self {
             origin,
             positions,
             normals,
             colors,
             radii,
             bounds,
-        })
+        };
+        // Validation touched every page of a mapped cloud: hand them back, so that the
+        // resident set afterwards is what the caller touches, not the whole scene file.
+        cloud.release_pages(0..n);
+        Ok(cloud)
     }
 
     /// Number of samples.
@@ -281,6 +317,20 @@ impl PointCloud {
     /// Bounds of the local positions.
     pub fn bounds(&self) -> Aabb {
         self.bounds
+    }
+    /// Releases the resident pages of samples `range` of every mapped column
+    /// ([`Column::release`]); a no-op for an in-memory cloud.
+    pub fn release_pages(&self, range: std::ops::Range<usize>) {
+        self.positions.release(range.clone());
+        if let Some(c) = &self.normals {
+            c.release(range.clone());
+        }
+        if let Some(c) = &self.colors {
+            c.release(range.clone());
+        }
+        if let Some(c) = &self.radii {
+            c.release(range);
+        }
     }
     /// True if the positions are memory-mapped.
     pub fn is_mapped(&self) -> bool {

@@ -286,6 +286,7 @@ impl LodMethod for Qsplat {
                 c.threshold_px,
                 c.dropped_empty as f64,
             ],
+            occlusion: None,
         })
     }
     fn chunk(&self, id: ChunkId) -> Result<SplatBatch, MethodError> {

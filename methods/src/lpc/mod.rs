@@ -1,0 +1,373 @@
+//! `lpc`: Layered Point Clouds (Gobbetti & Marton, SPBG 2004).
+//!
+//! Build ([`build`](mod@build)): a binary tree of clouds of about `M` samples, out of core —
+//! `M` uniform samples per node by Russian roulette over one linear scan, the remainder split
+//! at the midpoint of the longest axis — then the spacing `r_j` of eqs. (1)–(2), a bounding
+//! sphere and a normal cone per node. Written as
+//! - `index.bin` ([`index`]): the index tree, nodes in repository order (level, then Morton
+//!   code of the sphere centre), loaded whole at `open`;
+//! - `repo.bin` ([`crate::store`]): one LZO-compressed, checksummed chunk per cloud, each
+//!   spatially sorted, quantised and delta-encoded by [`cloud`];
+//! - `lpc.json` ([`Info`]): the input spacing `r` and the build's figures.
+//!
+//! Frame ([`Lpc`], [`traverse`]): the paper's stateless coarse-to-fine traversal. Per node:
+//! frustum and normal-cone culling on its sphere; projected spacing = apparent size of a
+//! sphere of diameter `r_j` at the sphere point closest to the eye. Below the tolerance: draw
+//! the cloud with splat size = tolerance and stop. Above: refine into the (unculled) children
+//! if all of them are available now (GPU cache or in core), else draw this cloud with splat
+//! size = its projected spacing and queue fetch requests by node index; at the end of the
+//! frame at most `fetch_per_frame` requests go to the loader thread, the rest are forgotten.
+//!
+//! Budget `B`: bisection of the tolerance with the same traversal counting points, then a
+//! fill step that refines single children while they fit (so the count is within one cloud
+//! of `B`), never above `B` (README: "Budget").
+//!
+//! Occlusion culling (`occlusion=true`): the three phases of §4 as an
+//! [`crate::OcclusionPass`]: phase 1 draws the clouds visible last frame; the renderer
+//! queries every candidate's sphere and draws the visible rest.
+
+pub mod build;
+pub mod cloud;
+pub mod index;
+pub mod traverse;
+
+use std::path::Path;
+use std::sync::Arc;
+
+use scenes::{Attributes, PointCloud, Progress, View};
+
+use crate::store::access::{DataAccess, Decoder, LocalSource};
+use crate::store::{self, Repository};
+use crate::{
+    BuildStats, ChunkId, DrawItem, DrawList, Feedback, LodMethod, Manifest, MethodError,
+    MethodStats, OcclusionCandidate, OcclusionPass, Params, SplatBatch, Target,
+};
+use index::Node;
+use traverse::{Selection, Traversal};
+
+/// Registry name.
+pub const NAME: &str = "lpc";
+/// Version of the on-disk layout.
+pub const FORMAT_VERSION: u32 = 1;
+/// The index tree.
+pub const INDEX_FILE: &str = "index.bin";
+/// The cloud repository.
+pub const REPO_FILE: &str = "repo.bin";
+/// Build figures read at `open`.
+pub const INFO_FILE: &str = "lpc.json";
+
+/// Parameters of `lpc` (`--param key=value`).
+#[derive(Debug, Clone, serde::Deserialize)]
+#[serde(deny_unknown_fields, default)]
+pub struct LpcParams {
+    /// Samples per cloud `M` (paper: 512–8192, tables with 2048).
+    pub m: u32,
+    /// Russian-roulette oversampling `K > 1`: about `K·M` samples are kept in one scan,
+    /// shuffled, `M` taken and the rest given back to the children.
+    pub k: f32,
+    /// Seed of the roulette and the shuffle.
+    pub seed: u64,
+    /// Working memory of the build, MiB: subtrees larger than this are partitioned through
+    /// temporary files, smaller ones in memory.
+    pub mem_mb: u64,
+    /// Input spacing `r` (object units); estimated from the samples when absent.
+    pub spacing: Option<f32>,
+    /// Fetch requests issued per frame (the paper's "estimated bandwidth").
+    pub fetch_per_frame: u32,
+    /// Decoded clouds kept in core, MiB.
+    pub core_mb: u64,
+    /// Frames between a request and the moment its cloud counts as available (simulated
+    /// latency; 0 = as soon as the loader thread has decoded it).
+    pub delay_frames: u32,
+    /// Three-phase occlusion culling with occlusion queries.
+    pub occlusion: bool,
+    /// Fragments a cloud's sphere must pass to count as visible.
+    pub occlusion_threshold: u64,
+}
+
+impl Default for LpcParams {
+    fn default() -> Self {
+        Self {
+            m: 2048,
+            k: 2.0,
+            seed: 1,
+            mem_mb: 256,
+            spacing: None,
+            fetch_per_frame: 32,
+            core_mb: 64,
+            delay_frames: 0,
+            occlusion: false,
+            occlusion_threshold: 0,
+        }
+    }
+}
+
+impl LpcParams {
+    /// Parses and checks `--param` values.
+    pub fn from_params(params: &Params) -> Result<Self, MethodError> {
+        let p: LpcParams = params.to_typed(NAME)?;
+        let bad = |msg: String| Err(MethodError::Param(format!("method 'lpc': {msg}")));
+        if p.m < 1 {
+            return bad("m must be ≥ 1".into());
+        }
+        if !(p.k.is_finite() && p.k > 1.0) {
+            return bad(format!("k must be a finite number > 1, got {}", p.k));
+        }
+        if p.mem_mb < 16 {
+            return bad(format!("mem_mb must be ≥ 16, got {}", p.mem_mb));
+        }
+        if let Some(r) = p.spacing
+            && !(r.is_finite() && r > 0.0)
+        {
+            return bad(format!("spacing must be a finite number > 0, got {r}"));
+        }
+        if p.fetch_per_frame < 1 {
+            return bad("fetch_per_frame must be ≥ 1".into());
+        }
+        if p.core_mb < 1 {
+            return bad("core_mb must be ≥ 1".into());
+        }
+        Ok(p)
+    }
+}
+
+/// `lpc.json`: figures of a build needed at `open` and reported by `build`.
+#[derive(Debug, Clone, PartialEq, serde::Serialize, serde::Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct Info {
+    /// Input spacing `r` (object units).
+    pub input_spacing: f32,
+    /// `M`.
+    pub m: u32,
+    /// Nodes (= clouds).
+    pub nodes: u64,
+    /// Levels.
+    pub levels: u32,
+    /// Input samples.
+    pub points: u64,
+}
+
+/// Builds an LPC into `dir` (see [`build::build`]).
+pub fn build(
+    cloud: &PointCloud,
+    params: &Params,
+    scene: &str,
+    dir: &Path,
+    progress: &dyn Progress,
+) -> Result<BuildStats, MethodError> {
+    let p = LpcParams::from_params(params)?;
+    build::build(cloud, &p, scene, dir, progress)?;
+    // `build::build` writes index, repository and info; the manifest goes last, so a
+    // directory with a manifest is complete.
+    let stats = BuildStats::read(dir)?;
+    Manifest {
+        method: NAME.into(),
+        format_version: FORMAT_VERSION,
+        params: params.clone(),
+        attributes: lpc_attributes(cloud.attributes()),
+        points: cloud.len() as u64,
+        scene: scene.into(),
+    }
+    .write(dir)?;
+    Ok(stats)
+}
+
+/// LPC stores what the scene has except radii: every cloud is drawn with one screen-space
+/// splat size (the paper's), so a per-sample radius would be stored and never used.
+pub fn lpc_attributes(a: Attributes) -> Attributes {
+    Attributes { radii: false, ..a }
+}
+
+/// An opened LPC.
+pub struct Lpc {
+    nodes: Vec<Node>,
+    info: Info,
+    params: LpcParams,
+    attributes: Attributes,
+    access: Box<dyn DataAccess>,
+    traversal: Traversal,
+}
+
+impl Lpc {
+    /// Opens a build directory with the local data-access layer (loader thread).
+    pub fn open(dir: &Path, manifest: Manifest) -> Result<Self, MethodError> {
+        let params = LpcParams::from_params(&manifest.params)?;
+        let nodes = index::read(&dir.join(INDEX_FILE))?;
+        let repo = Repository::open(&dir.join(REPO_FILE))?;
+        let refs = nodes.iter().map(|n| n.chunk).collect();
+        let source = LocalSource::new(repo, refs, "cloud");
+        let decoder: Decoder = Arc::new(cloud::decode);
+        let access = store::access::Loader::spawn(
+            Arc::new(source),
+            decoder,
+            store::access::LoaderOptions {
+                core_bytes: params.core_mb << 20,
+                delay_frames: params.delay_frames,
+            },
+        );
+        Self::with_access(dir, manifest, nodes, Box::new(access))
+    }
+
+    /// Opens with a given data-access layer (tests use a stalled one).
+    pub fn with_access(
+        dir: &Path,
+        manifest: Manifest,
+        nodes: Vec<Node>,
+        access: Box<dyn DataAccess>,
+    ) -> Result<Self, MethodError> {
+        let params = LpcParams::from_params(&manifest.params)?;
+        let info: Info = crate::method::read_json(&dir.join(INFO_FILE))?;
+        if info.nodes != nodes.len() as u64 || info.points != manifest.points {
+            return Err(MethodError::corrupt(
+                dir.join(INFO_FILE),
+                format!(
+                    "{} nodes / {} points disagree with the index ({}) and manifest ({})",
+                    info.nodes,
+                    info.points,
+                    nodes.len(),
+                    manifest.points
+                ),
+            ));
+        }
+        // The root is the coarsest representation: without it there is nothing to draw, so
+        // it is read (and verified) now.
+        access.get(0)?;
+        Ok(Self {
+            traversal: Traversal::new(nodes.len()),
+            nodes,
+            info,
+            params,
+            attributes: manifest.attributes,
+            access,
+        })
+    }
+
+    /// The index tree.
+    pub fn nodes(&self) -> &[Node] {
+        &self.nodes
+    }
+    /// Build figures.
+    pub fn info(&self) -> &Info {
+        &self.info
+    }
+    /// Selection for `view` at `target` with the given availability (no fetch, no side
+    /// effects): what [`LodMethod::frame`] draws.
+    pub fn select(
+        &mut self,
+        view: &View,
+        target: Target,
+        cached: &dyn Fn(u32) -> bool,
+    ) -> Selection {
+        let access = &self.access;
+        let avail = |id: u32| cached(id) || access.available(id);
+        self.traversal.select(&self.nodes, view, target, &avail)
+    }
+}
+
+/// Extra CSV columns of `lpc`.
+pub const COLUMNS: &[&str] = &[
+    "eps_used_px",
+    "clouds_coarse",
+    "fetch_issued",
+    "fetch_dropped",
+    "loader_pending",
+    "core_bytes",
+];
+
+impl LodMethod for Lpc {
+    fn attributes(&self) -> Attributes {
+        self.attributes
+    }
+    fn input_points(&self) -> u64 {
+        self.info.points
+    }
+    fn frame(
+        &mut self,
+        view: &View,
+        target: Target,
+        feedback: &Feedback,
+    ) -> Result<DrawList, MethodError> {
+        let target = target.validate()?;
+        self.access.begin_frame();
+        let cached = |id: u32| feedback.cached.contains(&(id as ChunkId));
+        let sel = self.select(view, target, &cached);
+        // End of frame: the queue in priority order (node index), at most
+        // `fetch_per_frame` requests, the rest forgotten.
+        let issue = sel.fetch.len().min(self.params.fetch_per_frame as usize);
+        for &id in &sel.fetch[..issue] {
+            self.access.request(id);
+        }
+        let items: Vec<(u32, DrawItem)> = sel
+            .draws
+            .iter()
+            .map(|d| {
+                (
+                    d.node,
+                    DrawItem::Chunk {
+                        id: d.node as ChunkId,
+                        points: d.points,
+                        size: crate::SplatSize::Pixels(d.size_px),
+                    },
+                )
+            })
+            .collect();
+        let mut list = DrawList {
+            counters: vec![
+                sel.eps_px as f64,
+                sel.coarse as f64,
+                issue as f64,
+                (sel.fetch.len() - issue) as f64,
+                self.access.pending() as f64,
+                self.access.resident_bytes() as f64,
+            ],
+            ..Default::default()
+        };
+        if self.params.occlusion {
+            let mut candidates = Vec::with_capacity(items.len());
+            for (node, item) in items {
+                let n = &self.nodes[node as usize];
+                // Phase 1 draws the clouds visible last frame; the others wait for their query.
+                let item = if feedback.visible.contains(&(node as ChunkId)) {
+                    list.items.push(item);
+                    None
+                } else {
+                    Some(item)
+                };
+                candidates.push(OcclusionCandidate {
+                    id: node as ChunkId,
+                    center: n.center,
+                    radius: n.radius,
+                    item,
+                });
+            }
+            list.occlusion = Some(OcclusionPass {
+                candidates,
+                threshold: self.params.occlusion_threshold,
+            });
+        } else {
+            list.items = items.into_iter().map(|(_, i)| i).collect();
+        }
+        Ok(list)
+    }
+    fn chunk(&self, id: ChunkId) -> Result<SplatBatch, MethodError> {
+        let id = u32::try_from(id)
+            .ok()
+            .filter(|&i| (i as usize) < self.nodes.len())
+            .ok_or(MethodError::NoChunk(id))?;
+        Ok(self.access.get(id)?.as_ref().clone())
+    }
+    fn stats(&self) -> MethodStats {
+        MethodStats {
+            resident_bytes: std::mem::size_of_val(self.nodes.as_slice()) as u64
+                + self.access.resident_bytes(),
+            nodes: self.nodes.len() as u64,
+            levels: self.info.levels,
+        }
+    }
+    fn extra_columns(&self) -> &'static [&'static str] {
+        COLUMNS
+    }
+    fn occlusion_culled(&self) -> bool {
+        self.params.occlusion
+    }
+}

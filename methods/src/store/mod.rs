@@ -1,0 +1,311 @@
+//! The chunk store shared by the out-of-core methods (LPC, MWKD): each chunk (an LPC cloud,
+//! an MWKD node) is encoded by its method, LZO-compressed ([`lzo1x`]) and appended to one
+//! repository file with a checksum of the stored bytes; the index (kept by the method) holds a
+//! [`ChunkRef`] per chunk. Reading maps the repository, checks bounds and checksum, then
+//! decompresses: a flipped byte is an error naming the chunk and the file, never garbage or a
+//! panic.
+//!
+//! Layout of a repository file: the magic [`REPO_MAGIC`], then the stored chunks back to back
+//! (offsets in [`ChunkRef::offset`]). Nothing else: the index is the method's.
+//!
+//! [`access`] is the data-access layer on top: a trait with "request asynchronously", "is it
+//! available now" and "get it", and a local implementation that decodes on a loader thread.
+
+pub mod access;
+
+use std::fs::File;
+use std::io::{BufWriter, Write};
+use std::path::{Path, PathBuf};
+
+use memmap2::Mmap;
+
+use crate::MethodError;
+
+/// First bytes of a repository file.
+pub const REPO_MAGIC: &[u8; 8] = b"SBREPO01";
+
+/// Where a chunk lives in the repository and how to check it.
+#[derive(
+    Debug,
+    Clone,
+    Copy,
+    PartialEq,
+    Eq,
+    Default,
+    bytemuck::Pod,
+    bytemuck::Zeroable,
+    serde::Serialize,
+    serde::Deserialize,
+)]
+#[repr(C)]
+pub struct ChunkRef {
+    /// Byte offset of the stored (compressed) bytes in the repository file.
+    pub offset: u64,
+    /// Stored (compressed) length in bytes.
+    pub stored: u32,
+    /// Decompressed length in bytes.
+    pub raw: u32,
+    /// [`checksum`] of the stored bytes.
+    pub checksum: u64,
+}
+
+/// A 64-bit checksum (word-at-a-time multiply–rotate hash; not cryptographic). Detects any
+/// single flipped byte and, with probability 1 − 2⁻⁶⁴, any other corruption.
+pub fn checksum(bytes: &[u8]) -> u64 {
+    const K: u64 = 0x9E37_79B9_7F4A_7C15;
+    let mut h = 0x243F_6A88_85A3_08D3u64 ^ (bytes.len() as u64).wrapping_mul(K);
+    let mut words = bytes.chunks_exact(8);
+    for w in &mut words {
+        let v = u64::from_le_bytes(w.try_into().unwrap_or([0; 8]));
+        h = (h ^ v).wrapping_mul(K).rotate_left(29);
+    }
+    let mut tail = [0u8; 8];
+    let rest = words.remainder();
+    tail[..rest.len()].copy_from_slice(rest);
+    h = (h ^ u64::from_le_bytes(tail)).wrapping_mul(K);
+    h ^ (h >> 32)
+}
+
+/// LZO1X-1 compression of one chunk.
+pub fn compress(raw: &[u8]) -> Vec<u8> {
+    lzo1x::compress(raw, lzo1x::CompressLevel::default())
+}
+
+/// Decompresses `stored` into exactly `raw_len` bytes; `what` names the chunk in the error.
+pub fn decompress(stored: &[u8], raw_len: usize, what: &str) -> Result<Vec<u8>, String> {
+    let mut out = vec![0u8; raw_len];
+    lzo1x::decompress(stored, &mut out)
+        .map_err(|e| format!("{what}: LZO decompression failed: {e:?}"))?;
+    Ok(out)
+}
+
+/// Appends chunks to a new repository file. Written to `<path>.tmp` and renamed by
+/// [`RepoWriter::finish`], so an interrupted build never leaves a repository that looks
+/// complete.
+pub struct RepoWriter {
+    out: BufWriter<File>,
+    path: PathBuf,
+    tmp: PathBuf,
+    offset: u64,
+}
+
+impl RepoWriter {
+    /// Creates `<path>.tmp` and writes the magic.
+    pub fn create(path: &Path) -> Result<Self, MethodError> {
+        let tmp = scenes::colfile::temp_path(path);
+        let file = File::create(&tmp).map_err(|e| MethodError::io(&tmp, e))?;
+        let mut out = BufWriter::with_capacity(1 << 20, file);
+        out.write_all(REPO_MAGIC)
+            .map_err(|e| MethodError::io(&tmp, e))?;
+        Ok(Self {
+            out,
+            path: path.to_owned(),
+            tmp,
+            offset: REPO_MAGIC.len() as u64,
+        })
+    }
+    /// Compresses `raw` and appends it.
+    pub fn append(&mut self, raw: &[u8]) -> Result<ChunkRef, MethodError> {
+        let stored = compress(raw);
+        self.append_compressed(&stored, raw.len())
+    }
+    /// Appends bytes already compressed with [`compress`] from `raw_len` bytes (lets a
+    /// builder compress in parallel and write in order).
+    pub fn append_compressed(
+        &mut self,
+        stored: &[u8],
+        raw_len: usize,
+    ) -> Result<ChunkRef, MethodError> {
+        let too_big = |what: &str| {
+            MethodError::Limit(format!(
+                "{}: a chunk of {what} bytes exceeds the 4 GiB chunk limit",
+                self.path.display()
+            ))
+        };
+        let r = ChunkRef {
+            offset: self.offset,
+            stored: u32::try_from(stored.len()).map_err(|_| too_big("stored"))?,
+            raw: u32::try_from(raw_len).map_err(|_| too_big("raw"))?,
+            checksum: checksum(stored),
+        };
+        self.out
+            .write_all(stored)
+            .map_err(|e| MethodError::io(&self.tmp, e))?;
+        self.offset += stored.len() as u64;
+        Ok(r)
+    }
+    /// Bytes written so far (magic included).
+    pub fn bytes(&self) -> u64 {
+        self.offset
+    }
+    /// Flushes, syncs and renames into place; returns the file size.
+    pub fn finish(self) -> Result<u64, MethodError> {
+        let file = self
+            .out
+            .into_inner()
+            .map_err(|e| MethodError::io(&self.tmp, e.into_error()))?;
+        file.sync_all().map_err(|e| MethodError::io(&self.tmp, e))?;
+        drop(file);
+        std::fs::rename(&self.tmp, &self.path).map_err(|e| MethodError::io(&self.path, e))?;
+        Ok(self.offset)
+    }
+}
+
+/// A repository file, memory-mapped read-only.
+pub struct Repository {
+    map: Mmap,
+    path: PathBuf,
+}
+
+#[expect(
+    unsafe_code,
+    reason = "memory-mapping a file is unsafe if another process truncates it; repositories \
+              are written once through a temporary file and a rename, never changed in place, \
+              and every read is bounds-checked and checksummed"
+)]
+fn map_file(file: &File) -> std::io::Result<Mmap> {
+    // SAFETY: see `reason`.
+    unsafe { Mmap::map(file) }
+}
+
+#[expect(
+    unsafe_code,
+    reason = "MADV_DONTNEED on a read-only shared file mapping only drops resident pages; the \
+              next read faults the same bytes back from the file, and no borrow of the map \
+              outlives `Repository::read`"
+)]
+fn release(map: &Mmap, start: usize, end: usize) {
+    const PAGE: usize = 4096;
+    let first = start / PAGE * PAGE;
+    let last = end.div_ceil(PAGE) * PAGE;
+    let last = last.min(map.len());
+    if last > first {
+        // SAFETY: see `reason`; failure only leaves the pages resident.
+        let _ = unsafe {
+            map.unchecked_advise_range(memmap2::UncheckedAdvice::DontNeed, first, last - first)
+        };
+    }
+}
+
+impl Repository {
+    /// Maps `path` and checks its magic.
+    pub fn open(path: &Path) -> Result<Self, MethodError> {
+        let file = File::open(path).map_err(|e| MethodError::io(path, e))?;
+        let map = map_file(&file).map_err(|e| MethodError::io(path, e))?;
+        if map.len() < REPO_MAGIC.len() || &map[..REPO_MAGIC.len()] != REPO_MAGIC {
+            return Err(MethodError::corrupt(
+                path,
+                "not a splatbench repository (bad magic)",
+            ));
+        }
+        Ok(Self {
+            map,
+            path: path.to_owned(),
+        })
+    }
+    /// The file.
+    pub fn path(&self) -> &Path {
+        &self.path
+    }
+    /// File size in bytes.
+    pub fn len(&self) -> u64 {
+        self.map.len() as u64
+    }
+    /// True if the file holds no chunk.
+    pub fn is_empty(&self) -> bool {
+        self.map.len() <= REPO_MAGIC.len()
+    }
+    /// Reads, verifies and decompresses chunk `r`; `what` names it in errors ("node 17").
+    /// The mapped pages are released afterwards, so the resident set holds decoded chunks
+    /// only, not the repository.
+    pub fn read(&self, r: &ChunkRef, what: &str) -> Result<Vec<u8>, MethodError> {
+        let start = r.offset as usize;
+        let end = start.checked_add(r.stored as usize);
+        let Some(end) = end.filter(|&e| e <= self.map.len() && start >= REPO_MAGIC.len()) else {
+            return Err(MethodError::corrupt(
+                &self.path,
+                format!(
+                    "{what}: bytes {start}..+{} lie outside the repository ({} bytes)",
+                    r.stored,
+                    self.map.len()
+                ),
+            ));
+        };
+        let stored = &self.map[start..end];
+        let sum = checksum(stored);
+        let out = if sum != r.checksum {
+            Err(MethodError::corrupt(
+                &self.path,
+                format!(
+                    "{what}: checksum mismatch (stored {:016x}, computed {sum:016x})",
+                    r.checksum
+                ),
+            ))
+        } else {
+            decompress(stored, r.raw as usize, what)
+                .map_err(|msg| MethodError::corrupt(&self.path, msg))
+        };
+        release(&self.map, start, end);
+        out
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn checksum_sees_every_single_byte_flip() {
+        let data: Vec<u8> = (0..1000u32).map(|i| (i * 7 + 3) as u8).collect();
+        let h = checksum(&data);
+        for i in 0..data.len() {
+            for bit in [0x01u8, 0x80] {
+                let mut d = data.clone();
+                d[i] ^= bit;
+                assert_ne!(checksum(&d), h, "flip at {i}");
+            }
+        }
+        assert_ne!(checksum(&data[..999]), h);
+    }
+
+    #[test]
+    fn repository_round_trip_and_corruption() -> Result<(), MethodError> {
+        let dir = tempfile::tempdir().map_err(|e| MethodError::io("tempdir", e))?;
+        let path = dir.path().join("repo.bin");
+        let chunks: Vec<Vec<u8>> = (0..5u32)
+            .map(|c| (0..(c * 997 + 10)).map(|i| ((i / 3) ^ c) as u8).collect())
+            .collect();
+        let mut w = RepoWriter::create(&path)?;
+        let refs: Vec<ChunkRef> = chunks
+            .iter()
+            .map(|c| w.append(c))
+            .collect::<Result<_, _>>()?;
+        assert!(!path.exists(), "the repository appears only on finish");
+        let size = w.finish()?;
+        assert_eq!(
+            size,
+            std::fs::metadata(&path)
+                .map_err(|e| MethodError::io(&path, e))?
+                .len()
+        );
+        let repo = Repository::open(&path)?;
+        for (i, (c, r)) in chunks.iter().zip(&refs).enumerate() {
+            assert_eq!(&repo.read(r, &format!("chunk {i}"))?, c);
+        }
+        drop(repo);
+        // Flip one stored byte of chunk 3: reading it names the chunk; the others still read.
+        let mut bytes = std::fs::read(&path).map_err(|e| MethodError::io(&path, e))?;
+        bytes[refs[3].offset as usize + 5] ^= 0x10;
+        std::fs::write(&path, &bytes).map_err(|e| MethodError::io(&path, e))?;
+        let repo = Repository::open(&path)?;
+        let e = repo.read(&refs[3], "node 3").unwrap_err().to_string();
+        assert!(e.contains("node 3") && e.contains("checksum"), "{e}");
+        assert_eq!(&repo.read(&refs[2], "node 2")?, &chunks[2]);
+        // A reference outside the file is an error, not a panic.
+        let mut bad = refs[4];
+        bad.offset = size;
+        let e = repo.read(&bad, "node 4").unwrap_err().to_string();
+        assert!(e.contains("outside"), "{e}");
+        Ok(())
+    }
+}

@@ -251,3 +251,211 @@ impl Traversal {
         sel
     }
 }
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::lpc::index::NONE;
+    use scenes::Camera;
+
+    /// A complete binary tree of `levels` levels over the segment x ∈ [-8, 8] (y = z = 0):
+    /// node spheres halve with depth, spacing halves with depth, `m` points per cloud.
+    fn tree(levels: u32, m: u32) -> Vec<Node> {
+        let mut nodes = Vec::new();
+        for level in 0..levels {
+            let count = 1u32 << level;
+            let width = 16.0 / count as f32;
+            for j in 0..count {
+                let first_child = (1u32 << (level + 1)) - 1 + 2 * j;
+                let children = if level + 1 < levels {
+                    [first_child, first_child + 1]
+                } else {
+                    [NONE, NONE]
+                };
+                let i = nodes.len() as u32;
+                nodes.push(Node {
+                    center: [-8.0 + width * (j as f32 + 0.5), 0.0, 0.0],
+                    radius: width * 0.5,
+                    cone_axis: [0.0; 3],
+                    cone_half_angle: std::f32::consts::PI,
+                    spacing: 1.0 / (1u32 << level) as f32,
+                    children,
+                    cloud: i,
+                    points: m,
+                    level,
+                    ..Default::default()
+                });
+            }
+        }
+        nodes
+    }
+
+    fn view_from(z: f32) -> View {
+        View {
+            camera: Camera {
+                position: Vec3::new(0.0, 0.0, z),
+                target: Vec3::ZERO,
+                up: Vec3::Y,
+                fov_y: 1.0,
+                near: 0.01,
+                far: 1000.0,
+            },
+            width: 256,
+            height: 256,
+        }
+    }
+
+    fn all(_: u32) -> bool {
+        true
+    }
+
+    #[test]
+    fn refinement_stops_below_tolerance() {
+        let nodes = tree(5, 100);
+        let view = view_from(40.0);
+        let ctx = Ctx::new(&view);
+        let mut t = Traversal::new(nodes.len());
+        for eps in [0.5f32, 2.0, 8.0, 64.0] {
+            let sel = t.select(&nodes, &view, Target::Tolerance(eps), &all);
+            let drawn: std::collections::HashSet<u32> = sel.draws.iter().map(|d| d.node).collect();
+            // A node is drawn iff it is the root or its parent was refined (its parent's
+            // projected spacing exceeded ε); with everything available and visible.
+            let mut parent = vec![NONE; nodes.len()];
+            for (i, n) in nodes.iter().enumerate() {
+                for c in n.child_ids() {
+                    parent[c as usize] = i as u32;
+                }
+            }
+            for (i, _) in nodes.iter().enumerate() {
+                let expect = i == 0 || {
+                    let p = parent[i] as usize;
+                    drawn.contains(&(p as u32)) && ctx.projected(&nodes[p]) > eps
+                };
+                assert_eq!(drawn.contains(&(i as u32)), expect, "node {i} at ε={eps}");
+            }
+            assert!(sel.fetch.is_empty() && sel.coarse == 0);
+            assert_eq!(sel.points, 100 * sel.draws.len() as u64);
+            for d in &sel.draws {
+                let n = &nodes[d.node as usize];
+                let proj = ctx.projected(n);
+                if n.is_leaf() && proj > eps {
+                    assert_eq!(d.size_px, proj.max(MIN_SPLAT_PX), "leaf keeps its spacing");
+                } else {
+                    assert_eq!(d.size_px, eps.max(MIN_SPLAT_PX));
+                }
+            }
+        }
+        // Coarser tolerance ⇒ never more clouds.
+        let counts: Vec<u64> = [0.5f32, 1.0, 2.0, 4.0, 8.0, 16.0]
+            .iter()
+            .map(|&e| t.select(&nodes, &view, Target::Tolerance(e), &all).points)
+            .collect();
+        assert!(counts.windows(2).all(|w| w[0] >= w[1]), "{counts:?}");
+        assert!(counts[0] > counts[5]);
+    }
+
+    #[test]
+    fn unavailable_children_draw_the_parent_larger_and_queue_fetches() {
+        let nodes = tree(4, 10);
+        let view = view_from(30.0);
+        let ctx = Ctx::new(&view);
+        let mut t = Traversal::new(nodes.len());
+        // Only the root and its children are available.
+        let avail = |id: u32| id <= 2;
+        let sel = t.select(&nodes, &view, Target::Tolerance(0.5), &avail);
+        let drawn: Vec<u32> = sel.draws.iter().map(|d| d.node).collect();
+        assert_eq!(drawn, vec![0, 1, 2]);
+        assert_eq!(sel.coarse, 2);
+        assert_eq!(
+            sel.fetch,
+            vec![3, 4, 5, 6],
+            "coarse first, by node index, once each"
+        );
+        for d in &sel.draws[1..] {
+            let proj = ctx.projected(&nodes[d.node as usize]);
+            assert!(proj > 0.5);
+            assert_eq!(d.size_px, proj.max(MIN_SPLAT_PX));
+        }
+        // One missing child blocks refinement of its parent only.
+        let avail = |id: u32| id != 4;
+        let sel = t.select(&nodes, &view, Target::Tolerance(0.5), &avail);
+        assert!(sel.fetch == vec![4]);
+        assert!(!sel.draws.iter().any(|d| d.node == 3 || d.node == 4));
+        assert!(sel.draws.iter().any(|d| d.node == 5));
+    }
+
+    #[test]
+    fn culled_branches_are_skipped() {
+        let nodes = tree(5, 10);
+        // Looking along +x from x = 20 towards x = 40: everything is behind the camera.
+        let mut view = view_from(0.0);
+        view.camera.position = Vec3::new(20.0, 0.0, 0.0);
+        view.camera.target = Vec3::new(40.0, 0.0, 0.0);
+        let sel = Traversal::new(nodes.len()).select(&nodes, &view, Target::Tolerance(1.0), &all);
+        assert!(sel.draws.is_empty());
+        // Back-facing cone: normals all +z, eye at z = -40 (below the plane y… z = 0).
+        let mut nodes = tree(3, 10);
+        for n in &mut nodes {
+            n.cone_axis = [0.0, 0.0, 1.0];
+            n.cone_half_angle = 0.1;
+        }
+        let sel = Traversal::new(nodes.len()).select(
+            &nodes,
+            &view_from(-40.0),
+            Target::Tolerance(1.0),
+            &all,
+        );
+        assert!(sel.draws.is_empty());
+        let sel = Traversal::new(nodes.len()).select(
+            &nodes,
+            &view_from(40.0),
+            Target::Tolerance(1.0),
+            &all,
+        );
+        assert!(!sel.draws.is_empty());
+    }
+
+    #[test]
+    fn budget_never_exceeded_and_within_one_cloud() {
+        let nodes = tree(7, 50);
+        let view = view_from(25.0);
+        let mut t = Traversal::new(nodes.len());
+        let everything = t.select(&nodes, &view, Target::Tolerance(0.0), &all).points;
+        for b in [
+            50u64,
+            51,
+            99,
+            100,
+            149,
+            333,
+            1000,
+            2500,
+            4999,
+            everything,
+            everything + 7,
+        ] {
+            let sel = t.select(&nodes, &view, Target::Budget(b), &all);
+            assert!(sel.points <= b, "budget {b}: {}", sel.points);
+            assert_eq!(
+                sel.points,
+                sel.draws.iter().map(|d| d.points as u64).sum::<u64>()
+            );
+            let gap = b - sel.points;
+            assert!(
+                gap < 50 || sel.points == everything,
+                "budget {b}: {} drawn",
+                sel.points
+            );
+            // Every drawn node's parent is drawn too (a valid cut).
+            let drawn: std::collections::HashSet<u32> = sel.draws.iter().map(|d| d.node).collect();
+            for (i, n) in nodes.iter().enumerate() {
+                for c in n.child_ids() {
+                    assert!(!drawn.contains(&c) || drawn.contains(&(i as u32)));
+                }
+            }
+        }
+        // A budget below the root cloud draws nothing rather than exceed it.
+        let sel = t.select(&nodes, &view, Target::Budget(49), &all);
+        assert_eq!(sel.points, 0);
+    }
+}

@@ -1,11 +1,13 @@
 //! CPU kernels shared by the methods: normal encoding, leaf-radius estimation (k nearest
 //! neighbours), scene generation, `full`'s per-frame selection and QSplat's traversal
-//! (throughput = nodes visited). Timing is reported, never asserted.
-//! Run: `cargo bench -p methods --bench kernels` (QSplat only: `... -- qsplat/`).
+//! (throughput = nodes visited), and the chunk store's LZO + checksum on one chunk. Timing is
+//! reported, never asserted.
+//! Run: `cargo bench -p methods --bench kernels` (QSplat only: `... -- qsplat/`; store only:
+//! `... -- store/`).
 #![allow(missing_docs, clippy::unwrap_used)]
 
 use criterion::{Criterion, Throughput, criterion_group, criterion_main};
-use methods::{Feedback, MethodKind, Params, Target};
+use methods::{Feedback, MethodKind, Params, Target, store};
 use scenes::generators::Generator;
 use scenes::paths::PathSpec;
 
@@ -90,5 +92,69 @@ fn kernels(c: &mut Criterion) {
     g.finish();
 }
 
-criterion_group!(benches, kernels);
+/// The chunk store on realistic chunks of about 40 KiB raw, as an LPC cloud might be
+/// encoded: `f32` = 2048 terrain samples as the uploaded columns (positions `f32 × 3`,
+/// octahedral normals and packed colours `u32`; float mantissas leave LZO almost nothing);
+/// `q16` = 2900 samples with positions quantised to `u16 × 3` in the chunk's bounding box,
+/// then the same normals and colours. LZO compression (build), decompression and checksum
+/// (every read), and a whole `Repository::read` (bounds + checksum + decompression + page
+/// release, so pages fault back in each time). Throughput in raw bytes, except the
+/// checksum's (stored bytes).
+fn store(c: &mut Criterion) {
+    let dir = tempfile::tempdir().unwrap();
+    let mut g = c.benchmark_group("store");
+    g.warm_up_time(std::time::Duration::from_secs(1));
+    g.measurement_time(std::time::Duration::from_secs(2));
+    for (name, n, quantise) in [("f32", 2048, false), ("q16", 2900, true)] {
+        let cloud = Generator::Terrain.generate(n, 1).unwrap();
+        let batch = methods::SplatBatch::from_cloud_range(&cloud, 0..cloud.len(), None);
+        let mut raw: Vec<u8> = if quantise {
+            let b = cloud.bounds();
+            let ext = (b.max - b.min).max(glam::Vec3::splat(1e-12));
+            batch
+                .positions
+                .iter()
+                .flat_map(|p| {
+                    let q = (glam::Vec3::from(*p) - b.min) / ext * 65535.0;
+                    [q.x as u16, q.y as u16, q.z as u16]
+                })
+                .flat_map(u16::to_le_bytes)
+                .collect()
+        } else {
+            bytemuck::cast_slice(&batch.positions).to_vec()
+        };
+        raw.extend_from_slice(bytemuck::cast_slice(batch.normals.as_deref().unwrap()));
+        raw.extend_from_slice(bytemuck::cast_slice(batch.colors.as_deref().unwrap()));
+        let stored = store::compress(&raw);
+        eprintln!(
+            "store/{name}: chunk of {} raw bytes compresses to {} ({:.1} %)",
+            raw.len(),
+            stored.len(),
+            100.0 * stored.len() as f64 / raw.len() as f64
+        );
+        let path = dir.path().join(format!("{name}.bin"));
+        let mut w = store::RepoWriter::create(&path).unwrap();
+        let r = w.append(&raw).unwrap();
+        w.finish().unwrap();
+        let repo = store::Repository::open(&path).unwrap();
+
+        g.throughput(Throughput::Bytes(raw.len() as u64));
+        g.bench_function(format!("lzo_compress_{name}"), |b| {
+            b.iter(|| store::compress(&raw))
+        });
+        g.bench_function(format!("lzo_decompress_{name}"), |b| {
+            b.iter(|| store::decompress(&stored, raw.len(), "chunk").unwrap())
+        });
+        g.bench_function(format!("repository_read_{name}"), |b| {
+            b.iter(|| repo.read(&r, "chunk").unwrap())
+        });
+        g.throughput(Throughput::Bytes(stored.len() as u64));
+        g.bench_function(format!("checksum_{name}"), |b| {
+            b.iter(|| store::checksum(&stored))
+        });
+    }
+    g.finish();
+}
+
+criterion_group!(benches, kernels, store);
 criterion_main!(benches);

@@ -7,8 +7,15 @@
 //! - [`ChunkSource`]: verified, decompressed bytes of chunk `id` (blocking). [`LocalSource`]
 //!   reads a [`Repository`]; an HTTP source implements the same trait.
 //! - [`DataAccess`]: decoded chunks in core, filled by a loader thread from a source.
+//!   [`Loader`] is the local implementation; its documentation gives the design, the delay
+//!   semantics, the core budget and the error handling.
 
-use std::sync::Arc;
+use std::collections::{BTreeMap, HashMap};
+use std::panic::AssertUnwindSafe;
+use std::sync::atomic::{AtomicBool, Ordering};
+use std::sync::mpsc::{self, Receiver, Sender};
+use std::sync::{Arc, Mutex, MutexGuard};
+use std::thread::JoinHandle;
 
 use crate::store::{ChunkRef, Repository};
 use crate::{MethodError, SplatBatch};
@@ -90,49 +97,381 @@ pub struct LoaderOptions {
     pub delay_frames: u32,
 }
 
-/// The local data-access layer (placeholder: synchronous until the loader thread lands).
-pub struct Loader {
+/// What the cache knows about one chunk.
+enum Entry {
+    /// Requested and not yet decoded (queued or in flight on the loader thread).
+    Loading {
+        /// First frame in which the chunk may count as available.
+        ready: u64,
+    },
+    /// Decoded and held in core.
+    Core {
+        batch: Decoded,
+        /// [`SplatBatch::byte_size`] of `batch`.
+        bytes: u64,
+        /// First frame in which the chunk may count as available.
+        ready: u64,
+        /// Position in the LRU order (key of [`State::lru`]).
+        tick: u64,
+        /// Frame of the last use, `None` if never used since it was loaded.
+        used: Option<u64>,
+    },
+    /// The loader thread failed to read or decode it (the error's text).
+    Failed(String),
+}
+
+/// Everything behind the loader's mutex.
+struct State {
+    /// Frame counter, advanced by [`DataAccess::begin_frame`].
+    frame: u64,
+    entries: HashMap<u32, Entry>,
+    /// Core entries by last use, oldest first (tick → id).
+    lru: BTreeMap<u64, u32>,
+    /// Next LRU tick.
+    tick: u64,
+    /// Sum of the `bytes` of core entries.
+    resident: u64,
+    /// Ids sent to the loader thread and not yet finished by it.
+    pending: usize,
+    core_bytes: u64,
+}
+
+impl State {
+    /// Marks core entry `id` as used now: newest in the LRU order, protected this frame.
+    fn touch(&mut self, id: u32) {
+        let frame = self.frame;
+        self.tick += 1;
+        let tick = self.tick;
+        if let Some(Entry::Core {
+            tick: t, used: u, ..
+        }) = self.entries.get_mut(&id)
+        {
+            self.lru.remove(t);
+            *t = tick;
+            *u = Some(frame);
+            self.lru.insert(tick, id);
+        }
+    }
+
+    /// Puts `batch` in core as chunk `id` (newest in the LRU order, not yet used), then
+    /// evicts down to the budget, sparing `id` itself.
+    fn install(&mut self, id: u32, batch: Decoded, ready: u64) {
+        self.tick += 1;
+        let bytes = batch.byte_size();
+        let old = self.entries.insert(
+            id,
+            Entry::Core {
+                batch,
+                bytes,
+                ready,
+                tick: self.tick,
+                used: None,
+            },
+        );
+        if let Some(Entry::Core { bytes: b, tick, .. }) = old {
+            self.lru.remove(&tick);
+            self.resident -= b;
+        }
+        self.lru.insert(self.tick, id);
+        self.resident += bytes;
+        self.evict(id);
+    }
+
+    /// Drops least recently used chunks until the resident bytes fit the budget, never a
+    /// chunk used in the current frame nor `keep`.
+    fn evict(&mut self, keep: u32) {
+        if self.resident <= self.core_bytes {
+            return;
+        }
+        let mut excess = self.resident - self.core_bytes;
+        let mut victims = Vec::new();
+        for (&tick, &id) in &self.lru {
+            if excess == 0 {
+                break;
+            }
+            if id == keep {
+                continue;
+            }
+            if let Some(Entry::Core { bytes, used, .. }) = self.entries.get(&id)
+                && *used != Some(self.frame)
+            {
+                victims.push((tick, id));
+                excess = excess.saturating_sub(*bytes);
+            }
+        }
+        for (tick, id) in victims {
+            self.lru.remove(&tick);
+            if let Some(Entry::Core { bytes, .. }) = self.entries.remove(&id) {
+                self.resident -= bytes;
+            }
+        }
+    }
+}
+
+/// State shared by the [`Loader`] handle and its thread.
+struct Shared {
     source: Arc<dyn ChunkSource>,
     decode: Decoder,
-    core: std::sync::Mutex<std::collections::HashMap<u32, Decoded>>,
+    delay_frames: u32,
+    state: Mutex<State>,
+    /// Set by [`Loader`]'s `Drop`: the thread stops before its next request.
+    stop: AtomicBool,
+}
+
+impl Shared {
+    fn state(&self) -> MutexGuard<'_, State> {
+        // The lock is never held across a fetch or a decode, and no code under it panics on
+        // valid state; recover from poisoning rather than propagate a panic.
+        self.state.lock().unwrap_or_else(|e| e.into_inner())
+    }
+
+    /// Fetches and decodes chunk `id` on the calling thread, without touching the state. A
+    /// panic of the source or the decoder becomes an error.
+    fn load(&self, id: u32) -> Result<Decoded, MethodError> {
+        let run = || -> Result<Decoded, MethodError> {
+            let bytes = self.source.fetch(id)?;
+            Ok(Arc::new((self.decode)(id, &bytes)?))
+        };
+        match std::panic::catch_unwind(AssertUnwindSafe(run)) {
+            Ok(r) => r,
+            Err(panic) => {
+                let what = panic
+                    .downcast_ref::<&str>()
+                    .map(|s| s.to_string())
+                    .or_else(|| panic.downcast_ref::<String>().cloned())
+                    .unwrap_or_default();
+                Err(MethodError::Limit(format!(
+                    "chunk {id}: the chunk source or decoder panicked: {what}"
+                )))
+            }
+        }
+    }
+
+    /// Serves one request on the loader thread.
+    fn serve(&self, id: u32) {
+        {
+            let mut st = self.state();
+            if !matches!(st.entries.get(&id), Some(Entry::Loading { .. })) {
+                // Loaded meanwhile by a synchronous `get` (or loaded, evicted and requested
+                // again, then served by an earlier message).
+                st.pending -= 1;
+                return;
+            }
+        }
+        let result = self.load(id);
+        let mut st = self.state();
+        st.pending -= 1;
+        if let Some(&Entry::Loading { ready }) = st.entries.get(&id) {
+            match result {
+                Ok(batch) => st.install(id, batch, ready),
+                Err(e) => {
+                    st.entries.insert(id, Entry::Failed(e.to_string()));
+                }
+            }
+        }
+    }
+
+    /// The loader thread: serves requests in the order they were sent until the sender is
+    /// dropped or `stop` is set.
+    fn run(&self, rx: &Receiver<u32>) {
+        while let Ok(id) = rx.recv() {
+            if self.stop.load(Ordering::Acquire) {
+                break;
+            }
+            self.serve(id);
+        }
+    }
+}
+
+/// The local data-access layer: decoded chunks in core, filled by a dedicated loader thread
+/// ("splatbench-loader") from a [`ChunkSource`].
+///
+/// # Design
+///
+/// A [`Loader`] is a handle on a mutex-protected cache shared with its thread, plus the
+/// sending end of a channel of chunk ids. [`DataAccess::request`] records the chunk as
+/// loading and sends its id; the thread takes ids in the order they were sent (the caller
+/// sends them in priority order), fetches the bytes from the source, decodes them with the
+/// [`Decoder`] and puts the [`Decoded`] chunk in core. The mutex is never held while
+/// fetching or decoding, so [`DataAccess::available`] and the other queries only ever wait
+/// for short bookkeeping.
+///
+/// # Delay
+///
+/// With [`LoaderOptions::delay_frames`] = d, a chunk requested during frame f (the value of
+/// the frame counter, advanced by each [`DataAccess::begin_frame`]; frame 0 before the first
+/// call) is [`available`](DataAccess::available) from frame f + d on, and only once decoded:
+/// the loader simulates a source whose answer takes d frames. With d = 0 it is available as
+/// soon as it is decoded. A chunk read by [`DataAccess::get`] without a pending request is
+/// available at once; one that was pending keeps the frame of its request.
+///
+/// # Core budget
+///
+/// Decoded chunks are kept within [`LoaderOptions::core_bytes`] (sizes by
+/// [`SplatBatch::byte_size`]) by dropping the least recently used first; a use is a
+/// [`DataAccess::get`] or an `available` check that answers true. A chunk used in the
+/// current frame is never dropped, nor is the chunk just loaded, so [`resident_bytes`]
+/// may exceed the budget by one frame's working set plus one chunk; the excess is evicted by
+/// later loads once the frame has passed.
+///
+/// # Errors
+///
+/// A chunk whose fetch or decode fails on the loader thread (or panics there) is remembered
+/// as failed: it is never available, further requests for it are ignored, and
+/// [`DataAccess::get`] reads it again on the caller's thread, returning the error (or the
+/// chunk, if the source has recovered). The thread goes on with the next request.
+///
+/// Dropping the loader stops the thread before its next request and joins it.
+///
+/// [`resident_bytes`]: DataAccess::resident_bytes
+pub struct Loader {
+    shared: Arc<Shared>,
+    /// `None` once dropped, or if the thread could not be started (then requests are
+    /// served on the caller's thread).
+    tx: Option<Sender<u32>>,
+    worker: Option<JoinHandle<()>>,
 }
 
 impl Loader {
-    /// Starts a loader over `source`.
+    /// Starts a loader thread over `source`, decoding with `decode`.
     pub fn spawn(source: Arc<dyn ChunkSource>, decode: Decoder, options: LoaderOptions) -> Self {
-        let _ = options;
-        Self {
+        let shared = Arc::new(Shared {
             source,
             decode,
-            core: Default::default(),
+            delay_frames: options.delay_frames,
+            state: Mutex::new(State {
+                frame: 0,
+                entries: HashMap::new(),
+                lru: BTreeMap::new(),
+                tick: 0,
+                resident: 0,
+                pending: 0,
+                core_bytes: options.core_bytes,
+            }),
+            stop: AtomicBool::new(false),
+        });
+        let (tx, rx) = mpsc::channel::<u32>();
+        let thread_shared = Arc::clone(&shared);
+        let worker = std::thread::Builder::new()
+            .name("splatbench-loader".into())
+            .spawn(move || thread_shared.run(&rx))
+            .ok();
+        Self {
+            shared,
+            tx: worker.as_ref().map(|_| tx),
+            worker,
         }
     }
-    fn core(&self) -> std::sync::MutexGuard<'_, std::collections::HashMap<u32, Decoded>> {
-        self.core.lock().unwrap_or_else(|e| e.into_inner())
+
+    /// The error that made the loader thread give up on chunk `id`, if it did.
+    pub fn error(&self, id: u32) -> Option<String> {
+        match self.shared.state().entries.get(&id) {
+            Some(Entry::Failed(msg)) => Some(msg.clone()),
+            _ => None,
+        }
+    }
+
+    /// The current frame (number of [`DataAccess::begin_frame`] calls so far).
+    pub fn frame(&self) -> u64 {
+        self.shared.state().frame
     }
 }
 
 impl DataAccess for Loader {
     fn request(&self, id: u32) {
-        let _ = self.get(id);
-    }
-    fn available(&self, id: u32) -> bool {
-        self.core().contains_key(&id)
-    }
-    fn get(&self, id: u32) -> Result<Decoded, MethodError> {
-        if let Some(d) = self.core().get(&id) {
-            return Ok(d.clone());
+        {
+            let mut st = self.shared.state();
+            if st.entries.contains_key(&id) {
+                return;
+            }
+            let ready = st.frame + u64::from(self.shared.delay_frames);
+            st.entries.insert(id, Entry::Loading { ready });
+            if let Some(tx) = &self.tx {
+                // Sent under the lock, so the channel order is the order of the requests.
+                if tx.send(id).is_ok() {
+                    st.pending += 1;
+                    return;
+                }
+            }
         }
-        let bytes = self.source.fetch(id)?;
-        let d = Arc::new((self.decode)(id, &bytes)?);
-        self.core().insert(id, d.clone());
-        Ok(d)
+        // No loader thread: serve the request here.
+        let mut st = self.shared.state();
+        st.pending += 1;
+        drop(st);
+        self.shared.serve(id);
     }
-    fn begin_frame(&self) {}
+
+    fn available(&self, id: u32) -> bool {
+        let mut st = self.shared.state();
+        let ready = match st.entries.get(&id) {
+            Some(Entry::Core { ready, .. }) => *ready <= st.frame,
+            _ => false,
+        };
+        if ready {
+            st.touch(id);
+        }
+        ready
+    }
+
+    fn get(&self, id: u32) -> Result<Decoded, MethodError> {
+        {
+            let mut st = self.shared.state();
+            if let Some(Entry::Core { batch, .. }) = st.entries.get(&id) {
+                let batch = Arc::clone(batch);
+                st.touch(id);
+                return Ok(batch);
+            }
+        }
+        // Not in core (or loading on the thread, or failed there): read it here. A chunk in
+        // flight is read twice; the loader thread's copy is then dropped.
+        let result = self.shared.load(id);
+        let mut st = self.shared.state();
+        match result {
+            Ok(batch) => {
+                let ready = match st.entries.get(&id) {
+                    // Installed by the loader thread meanwhile: keep that copy.
+                    Some(Entry::Core { batch, .. }) => {
+                        let batch = Arc::clone(batch);
+                        st.touch(id);
+                        return Ok(batch);
+                    }
+                    Some(Entry::Loading { ready }) => *ready,
+                    _ => st.frame,
+                };
+                st.install(id, Arc::clone(&batch), ready);
+                st.touch(id);
+                Ok(batch)
+            }
+            Err(e) => {
+                if !matches!(st.entries.get(&id), Some(Entry::Loading { .. })) {
+                    st.entries.insert(id, Entry::Failed(e.to_string()));
+                }
+                Err(e)
+            }
+        }
+    }
+
+    fn begin_frame(&self) {
+        self.shared.state().frame += 1;
+    }
+
     fn resident_bytes(&self) -> u64 {
-        self.core().values().map(|b| b.byte_size()).sum()
+        self.shared.state().resident
     }
+
     fn pending(&self) -> usize {
-        0
+        self.shared.state().pending
+    }
+}
+
+impl Drop for Loader {
+    fn drop(&mut self) {
+        self.shared.stop.store(true, Ordering::Release);
+        self.tx = None;
+        if let Some(worker) = self.worker.take() {
+            // The thread catches panics of the source and decoder; an error here would be a
+            // bug in the loader itself, and a destructor must not panic.
+            let _ = worker.join();
+        }
     }
 }

@@ -109,3 +109,92 @@ fn qsplat_refines_progressively_during_a_pause() {
     );
     assert!(t[62] > 1.0, "moving again: coarser");
 }
+
+/// Reads `column` of every row of `dir/frames.csv`.
+fn column(dir: &std::path::Path, column: &str) -> Vec<f64> {
+    let mut r = csv::Reader::from_path(dir.join("frames.csv")).unwrap();
+    let h = r.headers().unwrap().clone();
+    let col = h
+        .iter()
+        .position(|c| c == column)
+        .unwrap_or_else(|| panic!("no column {column}"));
+    r.records()
+        .map(|row| row.unwrap()[col].parse().unwrap())
+        .collect()
+}
+
+/// LPC with a loader that delivers nothing for the first `D` frames (`delay_frames=D`: a
+/// cloud requested in frame f is available from frame f + D) along a zoom: those frames
+/// still render, coarser (the root drawn with its projected spacing), with no more holes
+/// than the fully loaded frames (+0.2 % of the covered pixels); once the data arrive the
+/// frames refine.
+#[test]
+fn lpc_with_a_stalled_loader_renders_coarser_without_extra_holes() {
+    let Some(gpu) =
+        harness::gpu::gpu_for_test("lpc_with_a_stalled_loader_renders_coarser_without_extra_holes")
+    else {
+        return;
+    };
+    const D: usize = 4;
+    let tmp = tempfile::tempdir().unwrap();
+    let run_with = |params: &[&str], name: &str| {
+        let out = tmp.path().join(name);
+        let cfg = RunConfig {
+            method: MethodKind::Lpc,
+            params: Params::parse(params).unwrap(),
+            scene: SceneSpec::parse("statue:60000:4", None, 1).unwrap(),
+            path: PathSpec::parse("zoom").unwrap(),
+            frames: 10,
+            target: Target::tolerance(1.0).unwrap(),
+            render: RenderSettings {
+                width: 192,
+                height: 192,
+                kernel: Kernel::Square,
+                cache_bytes: 64 << 20,
+            },
+            seed: 1,
+            save_images: false,
+            metrics: true,
+            out: out.clone(),
+            cache: tmp.path().join("cache"),
+        };
+        run(&cfg, &gpu, &scenes::NoProgress).unwrap();
+        out
+    };
+    let m = "m=512";
+    let loaded = run_with(&[m], "loaded");
+    let stalled = run_with(&[m, &format!("delay_frames={D}")], "stalled");
+    let (p_loaded, p_stalled) = (
+        column(&loaded, "points_drawn"),
+        column(&stalled, "points_drawn"),
+    );
+    let (h_loaded, h_stalled) = (
+        column(&loaded, "hole_ratio"),
+        column(&stalled, "hole_ratio"),
+    );
+    let coarse = column(&stalled, "clouds_coarse");
+    for i in 0..D {
+        assert_eq!(p_stalled[i], 512.0, "frame {i}: only the root is in core");
+        assert!(coarse[i] >= 1.0, "frame {i}: the root is drawn enlarged");
+    }
+    // Without the stall the clouds requested at the warm-up frame are decoded by the loader
+    // thread (microseconds) long before frame 1 is selected (a rendered frame later).
+    for i in 1..D {
+        assert!(
+            p_loaded[i] > p_stalled[i],
+            "frame {i}: the stalled frame is coarser"
+        );
+    }
+    for i in 0..p_loaded.len() {
+        assert!(
+            h_stalled[i] <= h_loaded[i] + 0.002,
+            "frame {i}: holes {:.4} stalled vs {:.4} loaded",
+            h_stalled[i],
+            h_loaded[i]
+        );
+    }
+    assert!(
+        p_stalled[p_stalled.len() - 1] > 512.0,
+        "the data arrive and the last frame refines"
+    );
+}

@@ -460,7 +460,7 @@ fn feedback_carries_visibility_to_the_next_frame() {
             counters,
             vec![3.0, o.clouds_queried as f64, o.clouds_occluded as f64]
         );
-        last = Some((stats, v.clone()));
+        last = Some((stats, v));
     }
     let all = m.bytes(WALL) + m.bytes(BEHIND) + m.bytes(BESIDE);
     // Frame 0: nothing in phase 1, so nothing occludes: all visible, all drawn in phase 3.

@@ -371,11 +371,8 @@ impl<'g> Renderer<'g> {
             sample_count: 1,
             dimension: wgpu::TextureDimension::D2,
             format: DEPTH_FORMAT,
-            // Bound as a texture by the occlusion queries (with a read-only depth attachment),
-            // or copied for them where read-only attachments are missing (GL).
-            usage: wgpu::TextureUsages::RENDER_ATTACHMENT
-                | wgpu::TextureUsages::TEXTURE_BINDING
-                | wgpu::TextureUsages::COPY_SRC,
+            // Bound as a texture by the occlusion queries (with a read-only depth attachment).
+            usage: wgpu::TextureUsages::RENDER_ATTACHMENT | wgpu::TextureUsages::TEXTURE_BINDING,
             view_formats: &[],
         });
         let stages = wgpu::ShaderStages::VERTEX | wgpu::ShaderStages::COMPUTE;

@@ -48,7 +48,8 @@ frame_row! {
     points_drawn: u64,
     /// Cached chunks drawn.
     chunks_drawn: u64,
-    /// GPU time of the render pass (timestamp queries), ms.
+    /// GPU time of the render pass(es) (timestamp queries), ms; with occlusion culling the sum
+    /// of the three phases' passes.
     gpu_ms: Option<f64>,
     /// Upload + encode + submit + wait, ms.
     wall_ms: f64,

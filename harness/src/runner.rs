@@ -11,12 +11,24 @@
 //! Timing: one untimed warm-up frame (shader compilation) precedes the path. `splats_per_s`
 //! uses GPU time when the adapter has timestamp queries, else wall time; `summary.json` says
 //! which (`splats_per_s_basis`).
+//!
+//! `frames.csv` columns after [`FrameRow::COLUMNS`] ([`frame_columns`]): the method's
+//! [`LodMethod::extra_columns`], then [`INTERVAL_COLUMNS`] for interval-tested methods (SPT),
+//! then [`OCCLUSION_COLUMNS`] for occlusion-culled methods (LPC with `occlusion=true`).
+//!
+//! Occlusion culling: the renderer runs the list's [`methods::OcclusionPass`] (see
+//! [`crate::render`]); [`next_feedback`] hands the candidates it found visible and occluded
+//! to the method's next frame as [`Feedback::visible`] / [`Feedback::occluded`] (frame 0 —
+//! and the warm-up frame — start with both empty, so everything is queried against an empty
+//! phase 1). With occlusion culling `gpu_ms` is the sum of the three phases' GPU intervals,
+//! `points_drawn`/`chunks_drawn` count phase 1 + phase 3, and `upload_bytes` never includes
+//! an occluded cloud.
 
 use std::path::{Path, PathBuf};
 use std::time::Instant;
 
 use anyhow::Context as _;
-use methods::{BuildStats, Feedback, LodMethod, MethodKind, Params, Target};
+use methods::{BuildStats, DrawList, Feedback, LodMethod, MethodKind, Params, Target};
 use scenes::paths::PathSpec;
 use scenes::{Aabb, PointCloud, Progress, SceneSpec, View};
 
@@ -29,6 +41,76 @@ use crate::results::{FrameRow, FramesWriter, median, write_json};
 /// Columns appended for methods whose splats pass a vertex-stage interval test (SPT):
 /// splats sent, splats that passed (GPU counter), and the fraction culled on the GPU.
 pub const INTERVAL_COLUMNS: [&str; 3] = ["prefix_points", "gpu_passed", "gpu_culled_fraction"];
+
+/// Columns appended for occlusion-culled methods ([`LodMethod::occlusion_culled`]): the
+/// occlusion queries issued this frame and the candidates they found occluded (at most the
+/// threshold's fragments passed). Candidates visible without a query (sphere at the near
+/// plane) count in neither.
+pub const OCCLUSION_COLUMNS: [&str; 2] = ["clouds_queried", "clouds_occluded"];
+
+/// The extra `frames.csv` columns for `method`, in order: its own, then the interval columns
+/// (interval-tested methods), then the occlusion columns (occlusion-culled methods).
+pub fn frame_columns(method: &dyn LodMethod) -> Vec<&'static str> {
+    let mut columns: Vec<&'static str> = method.extra_columns().to_vec();
+    if method.interval_tested() {
+        columns.extend(INTERVAL_COLUMNS);
+    }
+    if method.occlusion_culled() {
+        columns.extend(OCCLUSION_COLUMNS);
+    }
+    columns
+}
+
+/// The values of [`frame_columns`] for one frame: the list's counters, then what the
+/// renderer counted.
+pub fn frame_counters(method: &dyn LodMethod, list: &DrawList, stats: &FrameStats) -> Vec<f64> {
+    let mut counters = list.counters.clone();
+    if method.interval_tested() {
+        let passed = stats.gpu_passed.unwrap_or(0);
+        counters.extend([
+            stats.points as f64,
+            passed as f64,
+            if stats.points > 0 {
+                1.0 - passed as f64 / stats.points as f64
+            } else {
+                0.0
+            },
+        ]);
+    }
+    if method.occlusion_culled() {
+        let o = stats.occlusion.as_ref();
+        counters.extend([
+            o.map_or(0, |o| o.clouds_queried) as f64,
+            o.map_or(0, |o| o.clouds_occluded) as f64,
+        ]);
+    }
+    counters
+}
+
+/// The feedback for frame `frame` at `view`: the renderer's cache, and from the previous
+/// frame (`last`: its stats and view) its times, whether the camera moved, and the
+/// candidates its occlusion queries found visible (this frame's phase 1) and occluded.
+pub fn next_feedback(
+    frame: u64,
+    renderer: &Renderer<'_>,
+    last: Option<&(FrameStats, View)>,
+    view: &View,
+) -> Feedback {
+    let occ = last.and_then(|(s, _)| s.occlusion.as_ref());
+    Feedback {
+        frame,
+        cached: renderer.cached(),
+        occluded: occ
+            .map(|o| o.occluded.iter().copied().collect())
+            .unwrap_or_default(),
+        visible: occ
+            .map(|o| o.visible.iter().copied().collect())
+            .unwrap_or_default(),
+        last_gpu_ms: last.and_then(|(s, _)| s.gpu_ms),
+        last_wall_ms: last.map(|(s, _)| s.wall_ms),
+        camera_still: last.is_some_and(|(_, v)| v.camera == view.camera),
+    }
+}
 
 /// Bump when the renderer's output changes, to invalidate cached reference images.
 pub const REFERENCE_VERSION: u32 = 1;
@@ -353,10 +435,7 @@ pub fn run(cfg: &RunConfig, gpu: &Gpu, progress: &dyn Progress) -> anyhow::Resul
     };
     let summary_path = cfg.out.join("summary.json");
     write_json(&summary_path, &summary)?;
-    let mut columns: Vec<&str> = method.extra_columns().to_vec();
-    if method.interval_tested() {
-        columns.extend(INTERVAL_COLUMNS);
-    }
+    let columns = frame_columns(method.as_ref());
     let mut frames = FramesWriter::create(&cfg.out, &columns)?;
     let images = cfg.out.join("images");
     if cfg.save_images {
@@ -376,15 +455,7 @@ pub fn run(cfg: &RunConfig, gpu: &Gpu, progress: &dyn Progress) -> anyhow::Resul
     progress.start(&format!("{} on {label}", cfg.method), cfg.frames as u64);
     for i in 0..cfg.frames {
         let view = frame_view(&cfg.path, i, cfg.frames, &bounds, cfg.render);
-        let feedback = Feedback {
-            frame: i as u64,
-            cached: renderer.cached(),
-            occluded: Default::default(),
-            visible: Default::default(),
-            last_gpu_ms: last.as_ref().and_then(|(s, _)| s.gpu_ms),
-            last_wall_ms: last.as_ref().map(|(s, _)| s.wall_ms),
-            camera_still: last.as_ref().is_some_and(|(_, v)| v.camera == view.camera),
-        };
+        let feedback = next_feedback(i as u64, &renderer, last.as_ref(), &view);
         let t = Instant::now();
         let list = method
             .frame(&view, target, &feedback)
@@ -406,19 +477,7 @@ pub fn run(cfg: &RunConfig, gpu: &Gpu, progress: &dyn Progress) -> anyhow::Resul
         let denom = stats.gpu_ms.unwrap_or(stats.wall_ms);
         // Splats actually drawn: those that passed the GPU's LOD test, if there was one.
         let drawn = stats.gpu_passed.unwrap_or(stats.points);
-        let mut counters = list.counters.clone();
-        if method.interval_tested() {
-            let passed = stats.gpu_passed.unwrap_or(0);
-            counters.extend([
-                stats.points as f64,
-                passed as f64,
-                if stats.points > 0 {
-                    1.0 - passed as f64 / stats.points as f64
-                } else {
-                    0.0
-                },
-            ]);
-        }
+        let counters = frame_counters(method.as_ref(), &list, &stats);
         let row = FrameRow {
             frame: i as u64,
             method: cfg.method.name().into(),

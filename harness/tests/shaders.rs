@@ -4,7 +4,7 @@
 
 use std::path::PathBuf;
 
-use harness::render::{DrawUniform, FrameUniform, SHADER_MODULES, SPLAT_WGSL};
+use harness::render::{DrawUniform, FrameUniform, OCCLUSION_WGSL, SHADER_MODULES, SPLAT_WGSL};
 
 fn shaders() -> Vec<PathBuf> {
     let dir = PathBuf::from(env!("CARGO_MANIFEST_DIR")).join("src");
@@ -121,4 +121,16 @@ fn uniform_structs_match_their_rust_mirrors() {
         let got = members.iter().find(|(n, _)| n == name).map(|(_, o)| *o);
         assert_eq!(got, Some(off as u32), "Draw.{name}");
     }
+}
+
+/// The occlusion-query shader binds the first 64 bytes of the frame uniform buffer as its
+/// `QueryFrame`: that must be `view_proj`, at the same offset.
+#[test]
+fn query_frame_is_the_leading_view_proj_of_the_frame_uniform() {
+    let (m, _) = module("occlusion", OCCLUSION_WGSL);
+    let (size, members) = layout(&m, "QueryFrame");
+    assert_eq!(size, 64);
+    assert_eq!(members, vec![("view_proj".to_string(), 0)]);
+    assert_eq!(std::mem::offset_of!(FrameUniform, view_proj), 0);
+    assert_eq!(std::mem::size_of::<[[f32; 4]; 4]>(), 64);
 }

@@ -7,12 +7,17 @@
 //! the quad's unit coordinates; opaque kernels test depth `Less` with one depth per splat (the
 //! first drawn wins ties). The gaussian mirrors the three passes: pushed-back depth, weighted
 //! accumulation where the splat's depth ≤ that buffer, normalisation.
+//!
+//! Occlusion culling ([`render`]) mirrors the renderer's three phases on one CPU colour and
+//! depth buffer; [`query_samples`] rasterises the same icosahedron triangles as the GPU
+//! query and documents its rasterisation rule.
 
 use glam::Vec3;
 use methods::{DrawItem, DrawList, IntervalTest, LodMethod, SplatBatch, SplatSize};
 
 use scenes::View;
 
+use super::occlusion::{Icosahedron, OcclusionStats, needs_query};
 use super::{AMBIENT, BASE_COLOR, Kernel};
 use crate::image::Image;
 
@@ -139,6 +144,19 @@ fn raster(w: usize, h: usize, z: f32, f: &Footprint, mut visit: impl FnMut(usize
     }
 }
 
+/// What the CPU mirror drew.
+#[derive(Debug, Clone)]
+pub struct CpuFrame {
+    /// The image.
+    pub image: Image,
+    /// Splats sent (phase 1 + phase 3 with occlusion culling), as [`super::FrameStats::points`].
+    pub points: u64,
+    /// Cached chunks drawn, as [`super::FrameStats::chunks`].
+    pub chunks: u64,
+    /// What the occlusion queries found (`query_gpu_ms` always `None`).
+    pub occlusion: Option<OcclusionStats>,
+}
+
 /// Rasterises `list` on the CPU, decoding chunks through `method`.
 pub fn rasterize(
     view: &View,
@@ -146,19 +164,31 @@ pub fn rasterize(
     method: &dyn LodMethod,
     kernel: Kernel,
 ) -> anyhow::Result<Image> {
-    let kernel = list.shape.unwrap_or(kernel);
-    let (w, h) = (view.width as usize, view.height as usize);
+    render(view, list, method, kernel).map(|f| f.image)
+}
+
+/// Footprints of the splats of `items` (those the interval tests pass, in front of the eye),
+/// plus the splats sent and the cached chunks drawn.
+fn footprints<'a>(
+    view: &View,
+    items: impl IntoIterator<Item = &'a DrawItem>,
+    method: &dyn LodMethod,
+    kernel: Kernel,
+) -> anyhow::Result<(Vec<Footprint>, u64, u64)> {
     let vp = view.view_proj();
     let vm = view.view_matrix();
+    let (w, h) = (view.width as usize, view.height as usize);
     let k = view.proj_scale();
     let eye = view.camera.position;
     let mut splats = Vec::new();
-    for item in &list.items {
+    let (mut points, mut chunks) = (0u64, 0u64);
+    for item in items {
         let size = item.size();
         let (batch, count, test) = match (item, item.cached()) {
             (_, Some((id, sent, test))) => {
                 let b = method.chunk(id)?;
                 let c = (sent as usize).min(b.len());
+                chunks += 1;
                 (std::borrow::Cow::Owned(b), c, test)
             }
             (DrawItem::Stream { batch, .. }, None) => {
@@ -166,6 +196,7 @@ pub fn rasterize(
             }
             (item, None) => anyhow::bail!("unexpected draw item {item:?}"),
         };
+        points += count as u64;
         for i in 0..count {
             if let Some(t) = &test
                 && !interval_passes(&batch, i, t, eye)
@@ -205,6 +236,115 @@ pub fn rasterize(
             });
         }
     }
+    Ok((splats, points, chunks))
+}
+
+/// Opaque kernels: depth `Less`, one depth per splat, the first drawn wins ties.
+fn draw_opaque(
+    w: usize,
+    h: usize,
+    splats: &[Footprint],
+    round: bool,
+    rgba: &mut [u8],
+    depth: &mut [f32],
+) {
+    for f in splats {
+        let c = encode_srgb(f.linear);
+        raster(w, h, f.z, f, |o, uv| {
+            if (!round || uv.length_squared() <= 1.0) && f.z < depth[o] {
+                depth[o] = f.z;
+                rgba[o * 4..o * 4 + 4].copy_from_slice(&[c[0], c[1], c[2], 255]);
+            }
+        });
+    }
+}
+
+/// Sub-pixel precision the query rasteriser snaps vertices to (lavapipe reports 8 bits).
+pub const SUBPIXEL_BITS: u32 = 8;
+
+/// Phase 2 of occlusion culling for one candidate: the pixels of the front faces of the
+/// icosahedron `verts` ([`super::occlusion::Icosahedron::vertices`]) whose depth is below
+/// `depth` (the buffer phase 1 left). Rasterisation rule: vertices projected to pixels (y
+/// down) and snapped to 1/2^[`SUBPIXEL_BITS`] px; faces counter-clockwise in NDC (y up) are
+/// front faces, the others culled; a pixel counts when its centre is inside the triangle by
+/// the edge functions, a centre exactly on an edge counting only for top and left edges;
+/// depth is the NDC `z` interpolated linearly in screen space at the centre, tested `Less`
+/// (and `≥ 0`). The caller only queries candidates whose icosahedron lies beyond the near
+/// plane ([`super::occlusion::needs_query`]), so no triangle needs clipping.
+pub fn query_samples(view: &View, verts: &[Vec3; 12], depth: &[f32]) -> u64 {
+    let (w, h) = (view.width as usize, view.height as usize);
+    let vp = view.view_proj();
+    let snap = (1u32 << SUBPIXEL_BITS) as f32;
+    let screen = verts.map(|p| {
+        let c = vp * p.extend(1.0);
+        let x = (c.x / c.w * 0.5 + 0.5) * w as f32;
+        let y = (0.5 - c.y / c.w * 0.5) * h as f32;
+        Vec3::new(
+            (x * snap).round() / snap,
+            (y * snap).round() / snap,
+            c.z / c.w,
+        )
+    });
+    // Edge function: positive on the inside of a triangle wound clockwise on screen (y down).
+    let edge =
+        |a: Vec3, b: Vec3, px: f32, py: f32| (b.x - a.x) * (py - a.y) - (b.y - a.y) * (px - a.x);
+    // For that winding, a top edge runs rightwards horizontally, a left edge upwards.
+    let top_left = |a: Vec3, b: Vec3| (a.y == b.y && b.x > a.x) || b.y < a.y;
+    let mut count = 0u64;
+    for t in Icosahedron::INDICES {
+        let (a, mut b, mut c) = (
+            screen[t[0] as usize],
+            screen[t[1] as usize],
+            screen[t[2] as usize],
+        );
+        // Counter-clockwise in NDC (y up) is clockwise on screen (y down): negative area here.
+        let area = edge(a, b, c.x, c.y);
+        if area >= 0.0 {
+            continue; // back face (or degenerate): culled
+        }
+        std::mem::swap(&mut b, &mut c);
+        let area = -area;
+        let x0 = a.x.min(b.x).min(c.x).floor().max(0.0) as usize;
+        let y0 = a.y.min(b.y).min(c.y).floor().max(0.0) as usize;
+        let x1 = (a.x.max(b.x).max(c.x).ceil().max(0.0) as usize).min(w);
+        let y1 = (a.y.max(b.y).max(c.y).ceil().max(0.0) as usize).min(h);
+        let (tl0, tl1, tl2) = (top_left(b, c), top_left(c, a), top_left(a, b));
+        let inside = |e: f32, tl: bool| e > 0.0 || (e == 0.0 && tl);
+        for y in y0..y1 {
+            let py = y as f32 + 0.5;
+            for x in x0..x1 {
+                let px = x as f32 + 0.5;
+                let (e0, e1, e2) = (edge(b, c, px, py), edge(c, a, px, py), edge(a, b, px, py));
+                if !(inside(e0, tl0) && inside(e1, tl1) && inside(e2, tl2)) {
+                    continue;
+                }
+                let z = (e0 * a.z + e1 * b.z + e2 * c.z) / area;
+                if z >= 0.0 && z < depth[y * w + x] {
+                    count += 1;
+                }
+            }
+        }
+    }
+    count
+}
+
+/// Rasterises `list` on the CPU, decoding chunks through `method`, with the three phases of
+/// occlusion culling when the list has an occlusion pass (as the GPU renderer: phase 1 =
+/// `list.items`; every candidate that [`super::occlusion::needs_query`] counted by
+/// [`query_samples`] against phase 1's depth; phase 3 = the visible candidates' items, drawn
+/// over phase 1's colour and depth). The gaussian kernel refuses occlusion, as on the GPU.
+pub fn render(
+    view: &View,
+    list: &DrawList,
+    method: &dyn LodMethod,
+    kernel: Kernel,
+) -> anyhow::Result<CpuFrame> {
+    let kernel = list.shape.unwrap_or(kernel);
+    if list.occlusion.is_some() && kernel == Kernel::Gaussian {
+        anyhow::bail!("occlusion culling needs an opaque kernel (square, circle or ellipse)");
+    }
+    let (w, h) = (view.width as usize, view.height as usize);
+    let (splats, mut points, mut chunks) = footprints(view, &list.items, method, kernel)?;
     let mut rgba = vec![0u8; w * h * 4];
     let mut depth = vec![1.0f32; w * h];
     if kernel == Kernel::Gaussian {
@@ -232,20 +372,56 @@ pub fn rasterize(
             }
         }
     } else {
-        let round = kernel != Kernel::Square;
-        for f in &splats {
-            let c = encode_srgb(f.linear);
-            raster(w, h, f.z, f, |o, uv| {
-                if (!round || uv.length_squared() <= 1.0) && f.z < depth[o] {
-                    depth[o] = f.z;
-                    rgba[o * 4..o * 4 + 4].copy_from_slice(&[c[0], c[1], c[2], 255]);
-                }
-            });
-        }
+        draw_opaque(
+            w,
+            h,
+            &splats,
+            kernel != Kernel::Square,
+            &mut rgba,
+            &mut depth,
+        );
     }
-    Ok(Image {
-        width: view.width,
-        height: view.height,
-        rgba,
+    let occlusion = match &list.occlusion {
+        None => None,
+        Some(occ) => {
+            let samples = occ
+                .candidates
+                .iter()
+                .map(|c| {
+                    let v = Icosahedron::vertices(c.center, c.radius);
+                    needs_query(view, c, &v).then(|| query_samples(view, &v, &depth))
+                })
+                .collect();
+            let mut stats = OcclusionStats::classify(&occ.candidates, samples, occ.threshold);
+            let items3 = occ
+                .candidates
+                .iter()
+                .enumerate()
+                .filter(|(i, _)| stats.is_visible(*i, occ.threshold))
+                .filter_map(|(_, c)| c.item.as_ref());
+            let (splats3, p3, c3) = footprints(view, items3, method, kernel)?;
+            draw_opaque(
+                w,
+                h,
+                &splats3,
+                kernel != Kernel::Square,
+                &mut rgba,
+                &mut depth,
+            );
+            stats.phase3_points = p3;
+            points += p3;
+            chunks += c3;
+            Some(stats)
+        }
+    };
+    Ok(CpuFrame {
+        image: Image {
+            width: view.width,
+            height: view.height,
+            rgba,
+        },
+        points,
+        chunks,
+        occlusion,
     })
 }

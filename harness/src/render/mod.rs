@@ -17,20 +17,50 @@
 //! uploaded every frame. GPU time comes from timestamp queries around the render pass (when
 //! the adapter has them); wall time spans upload + encode + submit + wait, excluding the
 //! readback that only metrics need.
+//!
+//! ## Occlusion culling (LPC §4)
+//! A draw list with an [`methods::OcclusionPass`] is drawn in three phases, two submissions:
+//! 1. *Phase 1* — `list.items` (the clouds visible last frame) in the ordinary splat pass,
+//!    which then **stores** depth (without occlusion culling depth is discarded).
+//! 2. *Phase 2* — same submission: a depth-only render pass (depth loaded and stored,
+//!    `occlusion_query_set` set) draws, per candidate, the icosahedron circumscribing its
+//!    bounding sphere ([`occlusion::Icosahedron`]) inside `begin_occlusion_query(i)` /
+//!    `end_occlusion_query()`: depth test `Less`, no depth or colour writes, back faces
+//!    culled. More than [`wgpu::QUERY_SET_MAX_QUERIES`] queries take several such passes.
+//!    The counts are resolved and copied to a readback buffer; the submission is waited
+//!    for and the counts read. A candidate is visible when its count is above the pass's
+//!    threshold; one whose icosahedron reaches the near plane (sphere containing the eye
+//!    included) is visible without a query ([`occlusion::needs_query`]).
+//! 3. *Phase 3* — second submission: the visible candidates that carry an item are uploaded
+//!    (only now: an occluded candidate's chunk is never decoded or uploaded) and drawn in a
+//!    splat pass that loads phase 1's colour and depth.
+//!
+//! `FrameStats::points`/`chunks` count phase 1 + phase 3; `FrameStats::occlusion` has the
+//! per-candidate counts and the visible/occluded ids (next frame's [`methods::Feedback`]).
+//! GPU time is the sum of the three passes' timestamp intervals (`phase_gpu_ms`); the CPU
+//! round trip between phases 2 and 3 shows in wall time only. The gaussian kernel refuses
+//! occlusion culling with an error: its depth, accumulation and normalisation passes would
+//! all have to be split around the queries, and LPC draws opaque splats.
 
 pub mod cpu;
+pub mod occlusion;
 
 use std::collections::{HashMap, HashSet};
+use std::ops::Range;
 use std::time::Instant;
 
 use anyhow::{Context as _, bail};
-use methods::{ChunkId, DrawItem, DrawList, IntervalTest, LodMethod, SplatBatch, SplatSize};
+use methods::{
+    ChunkId, DrawItem, DrawList, IntervalTest, LodMethod, OcclusionPass, SplatBatch, SplatSize,
+};
 use scenes::{Attributes, View};
 use wgpu::util::DeviceExt as _;
 
 use crate::cache::LruCache;
 use crate::gpu::Gpu;
 use crate::image::Image;
+use occlusion::Icosahedron;
+pub use occlusion::OcclusionStats;
 
 pub use methods::SplatShape as Kernel;
 
@@ -162,23 +192,65 @@ struct GpuBatch {
 }
 
 /// What one frame cost.
-#[derive(Debug, Clone, Copy, Default, PartialEq, serde::Serialize)]
+#[derive(Debug, Clone, Default, PartialEq, serde::Serialize)]
 pub struct FrameStats {
-    /// Splats sent to the GPU.
+    /// Splats sent to the GPU (with occlusion culling: phase 1 + phase 3, i.e. what was drawn).
     pub points: u64,
     /// Of those, splats that passed a vertex-stage LOD test (SPT), counted on the GPU; `None`
     /// when no draw had a test (then every splat sent is drawn).
     pub gpu_passed: Option<u64>,
-    /// Cached chunks drawn.
+    /// Cached chunks drawn (with occlusion culling: phase 1 + phase 3).
     pub chunks: u64,
-    /// GPU time of the render pass (timestamps), if available.
+    /// GPU time of the frame's passes (timestamps), if available: with occlusion culling the
+    /// sum of the three phases' intervals ([`FrameStats::phase_gpu_ms`]), which leaves out the
+    /// CPU round trip between phase 2 and phase 3 (that is in `wall_ms`).
     pub gpu_ms: Option<f64>,
+    /// GPU time per phase (timestamps), ms: `[phase 1 or the only pass, occlusion queries,
+    /// phase 3]`, `None` for a phase that did not run; empty without timestamps.
+    pub phase_gpu_ms: Vec<Option<f64>>,
     /// Upload + encode + submit + wait.
     pub wall_ms: f64,
     /// Bytes uploaded this frame (missing chunks + streams).
     pub upload_bytes: u64,
     /// Bytes in the chunk cache after the frame.
     pub cache_bytes: u64,
+    /// What the occlusion queries found; `None` when the list had no occlusion pass.
+    pub occlusion: Option<OcclusionStats>,
+}
+
+/// Bytes of the timestamp resolve/readback buffers: queries 0..4 at offset 0, 4..6 at the
+/// second [`wgpu::QUERY_RESOLVE_BUFFER_ALIGNMENT`] slot (phase 3 resolves in its own
+/// submission).
+const TIMESTAMP_READBACK_BYTES: u64 = 2 * wgpu::QUERY_RESOLVE_BUFFER_ALIGNMENT;
+
+/// How one phase of splat draws treats the targets.
+#[derive(Debug, Clone, Copy)]
+struct PhaseTarget {
+    /// Clear colour and depth (else load them).
+    clear: bool,
+    /// Keep the depth for a later pass (else discard it).
+    store_depth: bool,
+    /// Timestamp indices written at the beginning and end of the phase.
+    ts: (u32, u32),
+}
+
+/// Phase 2 recorded, its counts not yet read.
+struct PendingQueries {
+    /// Candidate index of each query, in query order.
+    queried: Vec<usize>,
+    /// Readback of the hardware query results (u64 each) followed, at `counters_at`, by the
+    /// fragment counters (u32 each), and its size; `None` when nothing was queried.
+    readback: Option<(wgpu::Buffer, u64)>,
+    counters_at: u64,
+    _keep: Vec<wgpu::Buffer>,
+}
+
+/// The occlusion-query pipeline (made on first use).
+struct QueryPipeline {
+    pipeline: wgpu::RenderPipeline,
+    bgl: wgpu::BindGroupLayout,
+    indices: wgpu::Buffer,
+    sampler: wgpu::Sampler,
 }
 
 struct Timestamps {
@@ -194,7 +266,11 @@ pub struct Renderer<'g> {
     settings: RenderSettings,
     color: wgpu::Texture,
     color_view: wgpu::TextureView,
+    depth: wgpu::Texture,
     depth_view: wgpu::TextureView,
+    /// Stand-in depth texture bound by the occlusion queries on backends without read-only
+    /// depth attachments (made on first use; never written).
+    depth_copy: Option<wgpu::TextureView>,
     module: wgpu::ShaderModule,
     layout: wgpu::PipelineLayout,
     pipelines: HashMap<PassKind, wgpu::RenderPipeline>,
@@ -212,6 +288,8 @@ pub struct Renderer<'g> {
     cache: LruCache<ChunkId, GpuBatch>,
     timestamps: Option<Timestamps>,
     draw_stride: u64,
+    query: Option<QueryPipeline>,
+    query_sets: Vec<wgpu::QuerySet>,
 }
 
 /// Which pipeline: an opaque kernel, or one of the gaussian passes.
@@ -241,7 +319,11 @@ pub const SPLAT_WGSL: &str = concat!(
 pub const SHADER_MODULES: &[(&str, &str)] = &[
     ("interval.wgsl + splat.wgsl", SPLAT_WGSL),
     ("normalize.wgsl", include_str!("normalize.wgsl")),
+    ("occlusion.wgsl", OCCLUSION_WGSL),
 ];
+
+/// The occlusion-query shader (phase 2 of occlusion culling).
+pub const OCCLUSION_WGSL: &str = include_str!("occlusion.wgsl");
 
 /// Accumulation format of the gaussian kernel's pass 2.
 const ACCUM_FORMAT: wgpu::TextureFormat = wgpu::TextureFormat::Rgba16Float;
@@ -289,7 +371,8 @@ impl<'g> Renderer<'g> {
             sample_count: 1,
             dimension: wgpu::TextureDimension::D2,
             format: DEPTH_FORMAT,
-            usage: wgpu::TextureUsages::RENDER_ATTACHMENT,
+            // Bound as a texture by the occlusion queries (with a read-only depth attachment).
+            usage: wgpu::TextureUsages::RENDER_ATTACHMENT | wgpu::TextureUsages::TEXTURE_BINDING,
             view_formats: &[],
         });
         let stages = wgpu::ShaderStages::VERTEX | wgpu::ShaderStages::COMPUTE;
@@ -377,17 +460,17 @@ impl<'g> Renderer<'g> {
             set: d.create_query_set(&wgpu::QuerySetDescriptor {
                 label: Some("frame timestamps"),
                 ty: wgpu::QueryType::Timestamp,
-                count: 2,
+                count: 6,
             }),
             resolve: d.create_buffer(&wgpu::BufferDescriptor {
                 label: Some("timestamp resolve"),
-                size: 16,
+                size: TIMESTAMP_READBACK_BYTES,
                 usage: wgpu::BufferUsages::QUERY_RESOLVE | wgpu::BufferUsages::COPY_SRC,
                 mapped_at_creation: false,
             }),
             readback: d.create_buffer(&wgpu::BufferDescriptor {
                 label: Some("timestamp readback"),
-                size: 16,
+                size: TIMESTAMP_READBACK_BYTES,
                 usage: wgpu::BufferUsages::MAP_READ | wgpu::BufferUsages::COPY_DST,
                 mapped_at_creation: false,
             }),
@@ -399,6 +482,8 @@ impl<'g> Renderer<'g> {
             color_view: color.create_view(&Default::default()),
             color,
             depth_view: depth.create_view(&Default::default()),
+            depth,
+            depth_copy: None,
             module,
             layout,
             pipelines: HashMap::new(),
@@ -416,6 +501,8 @@ impl<'g> Renderer<'g> {
             cache: LruCache::new(settings.cache_bytes),
             timestamps,
             draw_stride,
+            query: None,
+            query_sets: Vec::new(),
         })
     }
 
@@ -606,6 +693,12 @@ impl<'g> Renderer<'g> {
         })
     }
 
+    /// True when occlusion sample counts are exact on this renderer's adapter
+    /// ([`exact_counts`]).
+    pub fn exact_counts(&self) -> bool {
+        exact_counts(self.gpu)
+    }
+
     /// The settings.
     pub fn settings(&self) -> RenderSettings {
         self.settings
@@ -683,9 +776,11 @@ impl<'g> Renderer<'g> {
             _buffers: buffers,
         })
     }
-
     /// Draws `list` for `view`, decoding missing chunks through `method`. Returns the frame's
     /// costs and, when `readback` is set, the image.
+    ///
+    /// With an [`methods::OcclusionPass`] the frame runs the three phases of occlusion culling
+    /// (module documentation); the gaussian kernel refuses it with an error.
     pub fn draw(
         &mut self,
         view: &View,
@@ -704,11 +799,36 @@ impl<'g> Renderer<'g> {
         }
         let t0 = Instant::now();
         let shape = list.shape.unwrap_or(self.settings.kernel);
+        if let Some(o) = &list.occlusion
+            && o.threshold > 0
+            && !exact_counts(self.gpu)
+        {
+            bail!(
+                "occlusion threshold {} needs exact sample counts, but on adapter '{}' ({}) \
+                 wgpu's occlusion queries only say whether any sample passed: use threshold 0 \
+                 or the Vulkan backend",
+                o.threshold,
+                self.gpu.adapter.name,
+                self.gpu.adapter.backend
+            );
+        }
+        if list.occlusion.is_some() && shape == Kernel::Gaussian {
+            bail!(
+                "occlusion culling needs an opaque kernel (square, circle or ellipse): the \
+                 gaussian kernel's blended passes are not split into occlusion phases; choose \
+                 another --kernel or turn the method's occlusion culling off"
+            );
+        }
         self.ensure_pipelines(shape);
+        let phase3_items = list
+            .occlusion
+            .iter()
+            .flat_map(|o| o.candidates.iter().filter_map(|c| c.item.as_ref()));
         if self.count.is_none()
             && list
                 .items
                 .iter()
+                .chain(phase3_items)
                 .any(|i| matches!(i, DrawItem::Sequential { .. }))
         {
             self.count = Some(self.gpu.device.create_compute_pipeline(
@@ -724,9 +844,177 @@ impl<'g> Renderer<'g> {
         }
         self.cache.begin_frame();
         let mut stats = FrameStats::default();
-        // Upload what is missing; streams get their own buffers this frame.
+        self.gpu
+            .queue
+            .write_buffer(&self.frame_ubo, 0, bytemuck::bytes_of(&frame_uniform(view)));
+        // Timestamp pairs written, by first index: 0 = phase 1 (or the only pass), 2 = the
+        // occlusion queries, 4 = phase 3.
+        let mut ts_pairs: Vec<u32> = vec![0];
+
+        // Phase 1 (or the whole frame without occlusion culling).
+        let items: Vec<&DrawItem> = list.items.iter().collect();
+        let streams = self.upload_items(&items, method, &mut stats)?;
+        self.ensure_draw_capacity(items.len() as u64);
+        let mut enc = self.gpu.device.create_command_encoder(&Default::default());
+        let counters1 = self.encode_splats(
+            shape,
+            &items,
+            &streams,
+            &mut stats,
+            &mut enc,
+            PhaseTarget {
+                clear: true,
+                store_depth: list.occlusion.is_some(),
+                ts: (0, 1),
+            },
+        )?;
+        let mut counters = vec![counters1];
+        let mut keep_alive = vec![streams];
+        let Some(occ) = &list.occlusion else {
+            self.resolve_timestamps(&mut enc, 0..2, 0);
+            self.gpu.queue.submit([enc.finish()]);
+            self.gpu.wait()?;
+            return self.finish_frame(t0, stats, counters, &ts_pairs, readback);
+        };
+
+        // Phase 2: one occlusion query per candidate against phase 1's depth.
+        let pending = self.encode_queries(view, occ, &mut enc, (2, 3))?;
+        let queried_any = pending.readback.is_some();
+        if queried_any {
+            ts_pairs.push(2);
+        }
+        self.resolve_timestamps(&mut enc, 0..if queried_any { 4 } else { 2 }, 0);
+        self.gpu.queue.submit([enc.finish()]);
+        self.gpu.wait()?;
+        let mut samples = vec![None; occ.candidates.len()];
+        let mut query_results = vec![None; occ.candidates.len()];
+        if let Some((buf, bytes)) = &pending.readback {
+            let raw = read_buffer(self.gpu, buf, *bytes)?;
+            let at = pending.counters_at as usize;
+            let hw: Vec<u64> = bytemuck::pod_collect_to_vec(&raw[..at]);
+            let exact: Vec<u32> = bytemuck::pod_collect_to_vec(&raw[at..]);
+            let counted = exact_counts(self.gpu);
+            for ((&i, &h), &n) in pending.queried.iter().zip(&hw).zip(&exact) {
+                samples[i] = Some(if counted { n as u64 } else { h });
+                query_results[i] = Some(h);
+            }
+        }
+        let mut occlusion = OcclusionStats::classify(&occ.candidates, samples, occ.threshold);
+        occlusion.query_results = query_results;
+
+        // Phase 3: upload (only now) and draw the visible candidates not drawn in phase 1.
+        let items3: Vec<&DrawItem> = occ
+            .candidates
+            .iter()
+            .enumerate()
+            .filter(|(i, _)| occlusion.is_visible(*i, occ.threshold))
+            .filter_map(|(_, c)| c.item.as_ref())
+            .collect();
+        if !items3.is_empty() {
+            let points_before = stats.points;
+            let streams3 = self.upload_items(&items3, method, &mut stats)?;
+            self.ensure_draw_capacity(items3.len() as u64);
+            let mut enc = self.gpu.device.create_command_encoder(&Default::default());
+            counters.push(self.encode_splats(
+                shape,
+                &items3,
+                &streams3,
+                &mut stats,
+                &mut enc,
+                PhaseTarget {
+                    clear: false,
+                    store_depth: false,
+                    ts: (4, 5),
+                },
+            )?);
+            ts_pairs.push(4);
+            self.resolve_timestamps(&mut enc, 4..6, wgpu::QUERY_RESOLVE_BUFFER_ALIGNMENT);
+            self.gpu.queue.submit([enc.finish()]);
+            self.gpu.wait()?;
+            occlusion.phase3_points = stats.points - points_before;
+            keep_alive.push(streams3);
+        }
+        drop(keep_alive);
+        drop(pending);
+        let (mut stats, image) = self.finish_frame(t0, stats, counters, &ts_pairs, readback)?;
+        if queried_any {
+            occlusion.query_gpu_ms = stats.phase_gpu_ms.get(1).copied().flatten();
+        }
+        stats.occlusion = Some(occlusion);
+        Ok((stats, image))
+    }
+
+    /// After the last submission: wall time, interval counters, timestamps, the image.
+    fn finish_frame(
+        &self,
+        t0: Instant,
+        mut stats: FrameStats,
+        counters: Vec<Option<(wgpu::Buffer, u64)>>,
+        ts_pairs: &[u32],
+        readback: bool,
+    ) -> anyhow::Result<(FrameStats, Option<Image>)> {
+        stats.wall_ms = t0.elapsed().as_secs_f64() * 1e3;
+        for (buf, bytes) in counters.iter().flatten() {
+            let raw = read_buffer(self.gpu, buf, *bytes)?;
+            let counts: Vec<u32> = bytemuck::pod_collect_to_vec(&raw);
+            *stats.gpu_passed.get_or_insert(0) += counts.iter().map(|&c| c as u64).sum::<u64>();
+        }
+        if let Some(t) = &self.timestamps {
+            let raw = read_buffer(self.gpu, &t.readback, TIMESTAMP_READBACK_BYTES)?;
+            let at = |index: u32| {
+                // Indices 0..4 resolve at offset 0, 4..6 at the second aligned slot.
+                let off = if index < 4 {
+                    index as usize * 8
+                } else {
+                    wgpu::QUERY_RESOLVE_BUFFER_ALIGNMENT as usize + (index as usize - 4) * 8
+                };
+                bytemuck::pod_read_unaligned::<u64>(&raw[off..off + 8])
+            };
+            let mut phases = vec![None; 3];
+            for &b in ts_pairs {
+                let ms = at(b + 1).saturating_sub(at(b)) as f64 * t.period_ns / 1e6;
+                phases[b as usize / 2] = Some(ms);
+            }
+            stats.gpu_ms = Some(phases.iter().flatten().sum());
+            stats.phase_gpu_ms = phases;
+        }
+        stats.cache_bytes = self.cache.bytes();
+        let image = if readback {
+            Some(self.read_color()?)
+        } else {
+            None
+        };
+        Ok((stats, image))
+    }
+
+    /// Resolves timestamp queries `range` into the resolve buffer at `offset` and copies them
+    /// to the same offset of the readback buffer.
+    fn resolve_timestamps(&self, enc: &mut wgpu::CommandEncoder, range: Range<u32>, offset: u64) {
+        if let Some(t) = &self.timestamps {
+            let bytes = range.len() as u64 * 8;
+            enc.resolve_query_set(&t.set, range, &t.resolve, offset);
+            enc.copy_buffer_to_buffer(&t.resolve, offset, &t.readback, offset, bytes);
+        }
+    }
+
+    fn ensure_draw_capacity(&mut self, n: u64) {
+        if n > self.draw_capacity {
+            self.draw_capacity = n.next_power_of_two();
+            self.draw_ubo =
+                Self::draw_buffer(&self.gpu.device, self.draw_stride * self.draw_capacity);
+        }
+    }
+
+    /// Uploads the chunks of `items` missing from the cache (marking the others used) and
+    /// the streams, which get their own buffers this frame (returned, in item order).
+    fn upload_items(
+        &mut self,
+        items: &[&DrawItem],
+        method: &dyn LodMethod,
+        stats: &mut FrameStats,
+    ) -> anyhow::Result<Vec<GpuBatch>> {
         let mut streams = Vec::new();
-        for item in &list.items {
+        for item in items {
             match item {
                 DrawItem::Chunk { id, .. } | DrawItem::Sequential { id, .. } => {
                     if self.cache.get(id).is_none() {
@@ -745,20 +1033,30 @@ impl<'g> Renderer<'g> {
                 }
             }
         }
-        // Per-draw uniforms.
-        let n = list.items.len() as u64;
-        if n > self.draw_capacity {
-            self.draw_capacity = n.next_power_of_two();
-            self.draw_ubo =
-                Self::draw_buffer(&self.gpu.device, self.draw_stride * self.draw_capacity);
-        }
+        Ok(streams)
+    }
+
+    /// Records one phase of splat draws into `enc`: the interval-counting compute pass (if any
+    /// draw has a test) and the render pass(es). Adds the splats sent and chunks drawn to
+    /// `stats`; returns the interval counters' readback buffer, if any. The items' chunks must
+    /// be cached ([`Self::upload_items`]) and the draw buffer large enough.
+    fn encode_splats(
+        &self,
+        shape: Kernel,
+        items: &[&DrawItem],
+        streams: &[GpuBatch],
+        stats: &mut FrameStats,
+        enc: &mut wgpu::CommandEncoder,
+        target: PhaseTarget,
+    ) -> anyhow::Result<Option<(wgpu::Buffer, u64)>> {
+        let n = items.len() as u64;
         let mut draws = vec![0u8; (self.draw_stride * n.max(1)) as usize];
-        let mut resolved: Vec<(&GpuBatch, u32)> = Vec::with_capacity(list.items.len());
+        let mut resolved: Vec<(&GpuBatch, u32)> = Vec::with_capacity(items.len());
         // Draws whose splats pass an interval test: (draw index, splats sent); counter slot
         // = position in this list.
         let mut tested: Vec<(usize, u32)> = Vec::new();
         let mut s = streams.iter();
-        for (i, item) in list.items.iter().enumerate() {
+        for (i, item) in items.iter().enumerate() {
             let cached = |id: &ChunkId| {
                 self.cache
                     .peek(id)
@@ -796,9 +1094,7 @@ impl<'g> Renderer<'g> {
             stats.points += count as u64;
             resolved.push((g, count));
         }
-        let q = &self.gpu.queue;
-        q.write_buffer(&self.frame_ubo, 0, bytemuck::bytes_of(&frame_uniform(view)));
-        q.write_buffer(&self.draw_ubo, 0, &draws);
+        self.gpu.queue.write_buffer(&self.draw_ubo, 0, &draws);
         let bg0 = self
             .gpu
             .device
@@ -820,7 +1116,6 @@ impl<'g> Renderer<'g> {
                     },
                 ],
             });
-        let mut enc = self.gpu.device.create_command_encoder(&Default::default());
         // Interval-tested draws: count the splats that pass, in a compute pass before drawing
         // (the same `splat_passes` as the vertex stage; outside the render-pass timestamps).
         let counters = if tested.is_empty() {
@@ -863,44 +1158,32 @@ impl<'g> Renderer<'g> {
             enc.copy_buffer_to_buffer(&counters, 0, &readback, 0, bytes);
             Some((readback, bytes))
         };
+        let (b, e) = target.ts;
         let ts = |begin: bool, end: bool| {
             self.timestamps.as_ref().filter(|_| begin || end).map(|t| {
                 wgpu::RenderPassTimestampWrites {
                     query_set: &t.set,
-                    beginning_of_pass_write_index: begin.then_some(0),
-                    end_of_pass_write_index: end.then_some(1),
+                    beginning_of_pass_write_index: begin.then_some(b),
+                    end_of_pass_write_index: end.then_some(e),
                 }
             })
         };
-        let color = |view, clear| {
+        let color = |view, clear: bool| {
             Some(wgpu::RenderPassColorAttachment {
                 view,
                 depth_slice: None,
                 resolve_target: None,
                 ops: wgpu::Operations {
-                    load: wgpu::LoadOp::Clear(clear),
+                    load: if clear {
+                        wgpu::LoadOp::Clear(wgpu::Color::TRANSPARENT)
+                    } else {
+                        wgpu::LoadOp::Load
+                    },
                     store: wgpu::StoreOp::Store,
                 },
             })
         };
-        let depth = |clear: bool, store: bool| {
-            Some(wgpu::RenderPassDepthStencilAttachment {
-                view: &self.depth_view,
-                depth_ops: Some(wgpu::Operations {
-                    load: if clear {
-                        wgpu::LoadOp::Clear(1.0)
-                    } else {
-                        wgpu::LoadOp::Load
-                    },
-                    store: if store {
-                        wgpu::StoreOp::Store
-                    } else {
-                        wgpu::StoreOp::Discard
-                    },
-                }),
-                stencil_ops: None,
-            })
-        };
+        let depth = |clear: bool, store: bool| self.depth_attachment(clear, store);
         let splats = Splats {
             bg0: &bg0,
             stride: self.draw_stride,
@@ -917,7 +1200,7 @@ impl<'g> Renderer<'g> {
                 let mut p1 = enc.begin_render_pass(&wgpu::RenderPassDescriptor {
                     label: Some("gaussian depth"),
                     color_attachments: &[],
-                    depth_stencil_attachment: depth(true, true),
+                    depth_stencil_attachment: depth(target.clear, true),
                     timestamp_writes: ts(true, false),
                     occlusion_query_set: None,
                     multiview_mask: None,
@@ -926,8 +1209,8 @@ impl<'g> Renderer<'g> {
                 drop(p1);
                 let mut p2 = enc.begin_render_pass(&wgpu::RenderPassDescriptor {
                     label: Some("gaussian accumulate"),
-                    color_attachments: &[color(&g.accum_view, wgpu::Color::TRANSPARENT)],
-                    depth_stencil_attachment: depth(false, false),
+                    color_attachments: &[color(&g.accum_view, target.clear)],
+                    depth_stencil_attachment: depth(false, target.store_depth),
                     timestamp_writes: None,
                     occlusion_query_set: None,
                     multiview_mask: None,
@@ -936,7 +1219,7 @@ impl<'g> Renderer<'g> {
                 drop(p2);
                 let mut p3 = enc.begin_render_pass(&wgpu::RenderPassDescriptor {
                     label: Some("gaussian normalize"),
-                    color_attachments: &[color(&self.color_view, wgpu::Color::TRANSPARENT)],
+                    color_attachments: &[color(&self.color_view, true)],
                     depth_stencil_attachment: None,
                     timestamp_writes: ts(false, true),
                     occlusion_query_set: None,
@@ -949,8 +1232,8 @@ impl<'g> Renderer<'g> {
             _ => {
                 let mut pass = enc.begin_render_pass(&wgpu::RenderPassDescriptor {
                     label: Some("splats"),
-                    color_attachments: &[color(&self.color_view, wgpu::Color::TRANSPARENT)],
-                    depth_stencil_attachment: depth(true, false),
+                    color_attachments: &[color(&self.color_view, target.clear)],
+                    depth_stencil_attachment: depth(target.clear, target.store_depth),
                     timestamp_writes: ts(true, true),
                     occlusion_query_set: None,
                     multiview_mask: None,
@@ -958,32 +1241,309 @@ impl<'g> Renderer<'g> {
                 splats.record(&mut pass, pipeline(PassKind::Opaque(shape))?);
             }
         }
-        if let Some(t) = &self.timestamps {
-            enc.resolve_query_set(&t.set, 0..2, &t.resolve, 0);
-            enc.copy_buffer_to_buffer(&t.resolve, 0, &t.readback, 0, 16);
+        Ok(counters)
+    }
+
+    fn depth_attachment(
+        &self,
+        clear: bool,
+        store: bool,
+    ) -> Option<wgpu::RenderPassDepthStencilAttachment<'_>> {
+        Some(wgpu::RenderPassDepthStencilAttachment {
+            view: &self.depth_view,
+            depth_ops: Some(wgpu::Operations {
+                load: if clear {
+                    wgpu::LoadOp::Clear(1.0)
+                } else {
+                    wgpu::LoadOp::Load
+                },
+                store: if store {
+                    wgpu::StoreOp::Store
+                } else {
+                    wgpu::StoreOp::Discard
+                },
+            }),
+            stencil_ops: None,
+        })
+    }
+
+    /// Phase 2: records one occlusion query per candidate that needs one (in as many render
+    /// passes as [`wgpu::QUERY_SET_MAX_QUERIES`] requires), timestamps `ts` around them, and
+    /// the resolve + copy of the counts.
+    fn encode_queries(
+        &mut self,
+        view: &View,
+        occ: &OcclusionPass,
+        enc: &mut wgpu::CommandEncoder,
+        ts: (u32, u32),
+    ) -> anyhow::Result<PendingQueries> {
+        let mut queried = Vec::new();
+        let mut verts: Vec<[f32; 3]> = Vec::new();
+        for (i, c) in occ.candidates.iter().enumerate() {
+            let v = Icosahedron::vertices(c.center, c.radius);
+            if occlusion::needs_query(view, c, &v) {
+                queried.push(i);
+                verts.extend(v.map(Into::<[f32; 3]>::into));
+            }
         }
-        q.submit([enc.finish()]);
-        self.gpu.wait()?;
-        stats.wall_ms = t0.elapsed().as_secs_f64() * 1e3;
-        if let Some((readback, bytes)) = &counters {
-            let raw = read_buffer(self.gpu, readback, *bytes)?;
-            let counts: Vec<u32> = bytemuck::pod_collect_to_vec(&raw);
-            stats.gpu_passed = Some(counts.iter().map(|&c| c as u64).sum());
+        if queried.is_empty() {
+            return Ok(PendingQueries {
+                queried,
+                readback: None,
+                counters_at: 0,
+                _keep: Vec::new(),
+            });
         }
-        if let Some(t) = &self.timestamps {
-            let ts: [u64; 2] = read_buffer(self.gpu, &t.readback, 16)
-                .map(|b| bytemuck::pod_read_unaligned(&b[..16]))?;
-            stats.gpu_ms = Some(ts[1].saturating_sub(ts[0]) as f64 * t.period_ns / 1e6);
+        if self.query.is_none() {
+            self.query = Some(self.make_query_pipeline());
         }
-        drop(resolved);
-        drop(streams);
-        stats.cache_bytes = self.cache.bytes();
-        let image = if readback {
-            Some(self.read_color()?)
-        } else {
-            None
+        let per_set = wgpu::QUERY_SET_MAX_QUERIES as usize;
+        let sets = queried.len().div_ceil(per_set);
+        while self.query_sets.len() < sets {
+            let set = self.gpu.device.create_query_set(&wgpu::QuerySetDescriptor {
+                label: Some("occlusion queries"),
+                ty: wgpu::QueryType::Occlusion,
+                count: wgpu::QUERY_SET_MAX_QUERIES,
+            });
+            self.query_sets.push(set);
+        }
+        // The queries' fragment stage reads phase 1's depth to count exactly: the depth buffer
+        // is attached read-only and bound as a texture at once (every backend but GL, which
+        // lacks wgpu's READ_ONLY_DEPTH_STENCIL downlevel flag). On GL an unwritten stand-in
+        // is bound (copying depth textures did not work on llvmpipe's GL), the counters stay
+        // unused and the hardware queries (boolean there) decide.
+        let shared_depth = exact_counts(self.gpu);
+        if !shared_depth && self.depth_copy.is_none() {
+            let t = self.gpu.device.create_texture(&wgpu::TextureDescriptor {
+                label: Some("occlusion depth stand-in"),
+                size: self.depth.size(),
+                mip_level_count: 1,
+                sample_count: 1,
+                dimension: wgpu::TextureDimension::D2,
+                format: DEPTH_FORMAT,
+                usage: wgpu::TextureUsages::TEXTURE_BINDING | wgpu::TextureUsages::COPY_DST,
+                view_formats: &[],
+            });
+            self.depth_copy = Some(t.create_view(&Default::default()));
+        }
+        let sampled_depth = match (&self.depth_copy, shared_depth) {
+            (Some(copy), false) => copy,
+            _ => &self.depth_view,
         };
-        Ok((stats, image))
+        let d = &self.gpu.device;
+        let vertices = d.create_buffer_init(&wgpu::util::BufferInitDescriptor {
+            label: Some("query icosahedra"),
+            contents: bytemuck::cast_slice(&verts),
+            usage: wgpu::BufferUsages::VERTEX,
+        });
+        let bytes = queried.len() as u64 * wgpu::QUERY_SIZE as u64;
+        let resolve = d.create_buffer(&wgpu::BufferDescriptor {
+            label: Some("occlusion resolve"),
+            size: bytes,
+            usage: wgpu::BufferUsages::QUERY_RESOLVE | wgpu::BufferUsages::COPY_SRC,
+            mapped_at_creation: false,
+        });
+        let counter_bytes = queried.len() as u64 * 4;
+        let counters = d.create_buffer_init(&wgpu::util::BufferInitDescriptor {
+            label: Some("occlusion fragment counters"),
+            contents: &vec![0u8; counter_bytes as usize],
+            usage: wgpu::BufferUsages::STORAGE | wgpu::BufferUsages::COPY_SRC,
+        });
+        let readback = d.create_buffer(&wgpu::BufferDescriptor {
+            label: Some("occlusion readback"),
+            size: bytes + counter_bytes,
+            usage: wgpu::BufferUsages::MAP_READ | wgpu::BufferUsages::COPY_DST,
+            mapped_at_creation: false,
+        });
+        let q = self.query.as_ref().context("query pipeline missing")?;
+        let bind_group = d.create_bind_group(&wgpu::BindGroupDescriptor {
+            label: Some("occlusion queries"),
+            layout: &q.bgl,
+            entries: &[
+                // `QueryFrame` is the leading `view_proj` of the frame uniform.
+                wgpu::BindGroupEntry {
+                    binding: 0,
+                    resource: wgpu::BindingResource::Buffer(wgpu::BufferBinding {
+                        buffer: &self.frame_ubo,
+                        offset: 0,
+                        size: wgpu::BufferSize::new(64),
+                    }),
+                },
+                wgpu::BindGroupEntry {
+                    binding: 1,
+                    resource: wgpu::BindingResource::TextureView(sampled_depth),
+                },
+                wgpu::BindGroupEntry {
+                    binding: 2,
+                    resource: counters.as_entire_binding(),
+                },
+                wgpu::BindGroupEntry {
+                    binding: 3,
+                    resource: wgpu::BindingResource::Sampler(&q.sampler),
+                },
+            ],
+        });
+        for (k, chunk) in queried.chunks(per_set).enumerate() {
+            let (first, last) = (k == 0, k + 1 == sets);
+            let timestamp_writes = self.timestamps.as_ref().filter(|_| first || last).map(|t| {
+                wgpu::RenderPassTimestampWrites {
+                    query_set: &t.set,
+                    beginning_of_pass_write_index: first.then_some(ts.0),
+                    end_of_pass_write_index: last.then_some(ts.1),
+                }
+            });
+            let mut pass = enc.begin_render_pass(&wgpu::RenderPassDescriptor {
+                label: Some("occlusion queries"),
+                color_attachments: &[],
+                // Read-only where the same pass binds it as a texture (no writes either way).
+                depth_stencil_attachment: if shared_depth {
+                    Some(wgpu::RenderPassDepthStencilAttachment {
+                        view: &self.depth_view,
+                        depth_ops: None,
+                        stencil_ops: None,
+                    })
+                } else {
+                    self.depth_attachment(false, true)
+                },
+                timestamp_writes,
+                occlusion_query_set: Some(&self.query_sets[k]),
+                multiview_mask: None,
+            });
+            pass.set_pipeline(&q.pipeline);
+            pass.set_bind_group(0, &bind_group, &[]);
+            pass.set_vertex_buffer(0, vertices.slice(..));
+            pass.set_index_buffer(q.indices.slice(..), wgpu::IndexFormat::Uint16);
+            for j in 0..chunk.len() {
+                let n = (k * per_set + j) as u32;
+                pass.begin_occlusion_query(j as u32);
+                pass.draw_indexed(0..60, (n * 12) as i32, n..n + 1);
+                pass.end_occlusion_query();
+            }
+            drop(pass);
+            enc.resolve_query_set(
+                &self.query_sets[k],
+                0..chunk.len() as u32,
+                &resolve,
+                (k * per_set) as u64 * wgpu::QUERY_SIZE as u64,
+            );
+        }
+        enc.copy_buffer_to_buffer(&resolve, 0, &readback, 0, bytes);
+        enc.copy_buffer_to_buffer(&counters, 0, &readback, bytes, counter_bytes);
+        Ok(PendingQueries {
+            queried,
+            readback: Some((readback, bytes + counter_bytes)),
+            counters_at: bytes,
+            _keep: vec![vertices, counters, resolve],
+        })
+    }
+
+    fn make_query_pipeline(&self) -> QueryPipeline {
+        let d = &self.gpu.device;
+        let module = d.create_shader_module(wgpu::ShaderModuleDescriptor {
+            label: Some("occlusion.wgsl"),
+            source: wgpu::ShaderSource::Wgsl(OCCLUSION_WGSL.into()),
+        });
+        let bgl = d.create_bind_group_layout(&wgpu::BindGroupLayoutDescriptor {
+            label: Some("occlusion queries"),
+            entries: &[
+                wgpu::BindGroupLayoutEntry {
+                    binding: 0,
+                    visibility: wgpu::ShaderStages::VERTEX,
+                    ty: wgpu::BindingType::Buffer {
+                        ty: wgpu::BufferBindingType::Uniform,
+                        has_dynamic_offset: false,
+                        min_binding_size: wgpu::BufferSize::new(64),
+                    },
+                    count: None,
+                },
+                wgpu::BindGroupLayoutEntry {
+                    binding: 1,
+                    visibility: wgpu::ShaderStages::FRAGMENT,
+                    ty: wgpu::BindingType::Texture {
+                        sample_type: wgpu::TextureSampleType::Depth,
+                        view_dimension: wgpu::TextureViewDimension::D2,
+                        multisampled: false,
+                    },
+                    count: None,
+                },
+                wgpu::BindGroupLayoutEntry {
+                    binding: 2,
+                    visibility: wgpu::ShaderStages::FRAGMENT,
+                    ty: wgpu::BindingType::Buffer {
+                        ty: wgpu::BufferBindingType::Storage { read_only: false },
+                        has_dynamic_offset: false,
+                        min_binding_size: None,
+                    },
+                    count: None,
+                },
+                wgpu::BindGroupLayoutEntry {
+                    binding: 3,
+                    visibility: wgpu::ShaderStages::FRAGMENT,
+                    ty: wgpu::BindingType::Sampler(wgpu::SamplerBindingType::Comparison),
+                    count: None,
+                },
+            ],
+        });
+        let layout = d.create_pipeline_layout(&wgpu::PipelineLayoutDescriptor {
+            label: Some("occlusion queries"),
+            bind_group_layouts: &[Some(&bgl)],
+            immediate_size: 0,
+        });
+        let pipeline = d.create_render_pipeline(&wgpu::RenderPipelineDescriptor {
+            label: Some("occlusion queries"),
+            layout: Some(&layout),
+            vertex: wgpu::VertexState {
+                module: &module,
+                entry_point: Some("vs_query"),
+                compilation_options: Default::default(),
+                buffers: &[Some(wgpu::VertexBufferLayout {
+                    array_stride: 12,
+                    step_mode: wgpu::VertexStepMode::Vertex,
+                    attributes: &wgpu::vertex_attr_array![0 => Float32x3],
+                })],
+            },
+            primitive: wgpu::PrimitiveState {
+                topology: wgpu::PrimitiveTopology::TriangleList,
+                front_face: wgpu::FrontFace::Ccw,
+                cull_mode: Some(wgpu::Face::Back),
+                ..Default::default()
+            },
+            depth_stencil: Some(wgpu::DepthStencilState {
+                format: DEPTH_FORMAT,
+                depth_write_enabled: Some(false),
+                depth_compare: Some(wgpu::CompareFunction::Less),
+                stencil: Default::default(),
+                bias: Default::default(),
+            }),
+            multisample: Default::default(),
+            fragment: Some(wgpu::FragmentState {
+                module: &module,
+                entry_point: Some("fs_query"),
+                compilation_options: Default::default(),
+                targets: &[],
+            }),
+            multiview_mask: None,
+            cache: None,
+        });
+        let flat: Vec<u16> = Icosahedron::INDICES.iter().flatten().copied().collect();
+        let indices = d.create_buffer_init(&wgpu::util::BufferInitDescriptor {
+            label: Some("icosahedron indices"),
+            contents: bytemuck::cast_slice(&flat),
+            usage: wgpu::BufferUsages::INDEX,
+        });
+        let sampler = d.create_sampler(&wgpu::SamplerDescriptor {
+            label: Some("phase 1 depth, compare Less"),
+            mag_filter: wgpu::FilterMode::Nearest,
+            min_filter: wgpu::FilterMode::Nearest,
+            compare: Some(wgpu::CompareFunction::Less),
+            ..Default::default()
+        });
+        QueryPipeline {
+            pipeline,
+            bgl,
+            indices,
+            sampler,
+        }
     }
 
     /// Reads the colour target back.
@@ -1034,6 +1594,13 @@ impl<'g> Renderer<'g> {
             rgba,
         })
     }
+}
+
+/// True when the renderer counts occlusion samples exactly (in the queries' fragment stage):
+/// every backend but GL. On GL, `OcclusionStats::samples` are the hardware query results,
+/// which wgpu's GL backend makes boolean (`ANY_SAMPLES_PASSED_CONSERVATIVE`).
+pub fn exact_counts(gpu: &Gpu) -> bool {
+    gpu.device.adapter_info().backend != wgpu::Backend::Gl
 }
 
 /// The `Frame` uniform for a view.

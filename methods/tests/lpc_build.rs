@@ -159,7 +159,7 @@ fn quantisation_error_below_half_the_input_spacing() {
     check_bounds(&nodes, &coarse);
     let mut worst = 0f32;
     for (a, b) in exact.iter().zip(&coarse) {
-        assert_eq!(a.colors.is_some(), true);
+        assert!(a.colors.is_some());
         let mut used = vec![false; a.len()];
         for (k, p) in b.positions.iter().enumerate() {
             // Nearest unused exact sample with the same colour (L∞).

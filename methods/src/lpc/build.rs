@@ -881,6 +881,14 @@ fn read_samples(path: &Path, out: &mut [Sample]) -> Result<(), MethodError> {
         .map_err(|e| MethodError::io(path, e))
 }
 
+/// Bits of the probe-cell filter of [`probe_knn`].
+const FILTER_BITS: usize = 1 << 20;
+
+#[inline]
+fn filter_bit(key: u64) -> usize {
+    (key.wrapping_mul(0xD6E8_FEB8_6659_FD93) >> 44) as usize
+}
+
 #[derive(Default)]
 struct KeyHasher(u64);
 
@@ -905,7 +913,8 @@ impl Hasher for KeyHasher {
 /// Linear in `s.len()`: the probes are hashed into a grid of cell size `h` (each into the
 /// 27 cells around it); one scan of `s` collects, for each probe, the samples within `h`.
 /// A probe with fewer than `k` of them is measured again with `2h`. The first `h` is
-/// `2·sqrt(A/n)` with `A` the surface area of the box (≈ the spacing of `n` samples on it).
+/// `sqrt(A/n)` with `A` the surface area of the box. A 128 KiB bit filter of the cells that
+/// hold probe entries spares most samples the (cache-missing) hash lookup.
 pub fn probe_knn(s: &[Sample], bbox: Aabb, k: usize) -> (f64, u64) {
     let probes: Vec<[f32; 3]> = s
         .iter()
@@ -923,13 +932,14 @@ pub fn probe_knn(s: &[Sample], bbox: Aabb, k: usize) -> (f64, u64) {
         return (0.0, probes.len() as u64);
     }
     let area = 2.0 * (size.x * size.y + size.y * size.z + size.z * size.x);
-    let mut h = (2.0 * (area / s.len() as f32).sqrt()).max(ext / (1u32 << 19) as f32);
+    let mut h = (1.0 * (area / s.len() as f32).sqrt()).max(ext / (1u32 << 19) as f32);
     let mut pending: Vec<u32> = (0..probes.len() as u32).collect();
     let (mut sum, mut count) = (0f64, 0u64);
     let min = bbox.min;
     while !pending.is_empty() {
+        let inv = 1.0 / h;
         let cell = |p: [f32; 3]| {
-            let c = (Vec3::from(p) - min) / h;
+            let c = (Vec3::from(p) - min) * inv;
             [c.x.floor() as i64, c.y.floor() as i64, c.z.floor() as i64]
         };
         let key = |c: [i64; 3]| {
@@ -947,6 +957,7 @@ pub fn probe_knn(s: &[Sample], bbox: Aabb, k: usize) -> (f64, u64) {
             }
         }
         entries.sort_unstable();
+        let mut filter = vec![0u64; FILTER_BITS / 64];
         let mut map: HashMap<u64, (u32, u32), BuildHasherDefault<KeyHasher>> =
             HashMap::with_capacity_and_hasher(entries.len(), Default::default());
         let mut a = 0;
@@ -956,13 +967,20 @@ pub fn probe_knn(s: &[Sample], bbox: Aabb, k: usize) -> (f64, u64) {
                 b += 1;
             }
             map.insert(entries[a].0, (a as u32, b as u32));
+            let f = filter_bit(entries[a].0);
+            filter[f >> 6] |= 1 << (f & 63);
             a = b;
         }
         let mut best = vec![[f32::INFINITY; LEAF_K]; pending.len()];
         let mut seen_self = vec![false; pending.len()];
         let h2 = h * h;
         for x in s {
-            let Some(&(a, b)) = map.get(&key(cell(x.p))) else {
+            let kx = key(cell(x.p));
+            let f = filter_bit(kx);
+            if filter[f >> 6] & (1 << (f & 63)) == 0 {
+                continue;
+            }
+            let Some(&(a, b)) = map.get(&kx) else {
                 continue;
             };
             for &(_, j) in &entries[a as usize..b as usize] {

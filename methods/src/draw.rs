@@ -270,7 +270,8 @@ pub struct DrawList {
     pub shape: Option<SplatShape>,
     /// What to draw.
     pub items: Vec<DrawItem>,
-    /// Chunks the method would like loaded for later frames (the renderer may ignore them).
+    /// Chunks the method wanted this frame but could not use yet (out-of-core methods: data
+    /// still loading). The method issues its own requests; the renderer ignores this list.
     pub fetch: Vec<ChunkId>,
     /// Values of the method's extra CSV columns ([`crate::LodMethod::extra_columns`]), same order.
     pub counters: Vec<f64>,

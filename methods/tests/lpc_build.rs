@@ -113,10 +113,10 @@ fn sort_pts(mut v: Vec<[f32; 3]>) -> Vec<[f32; 3]> {
 fn repository_holds_exactly_the_input_samples() {
     let dir = tempfile::tempdir().unwrap();
     let c = statue(20_000);
-    // A spacing below the f32 resolution makes quantisation exact (31 bits per axis): the
+    // A quantisation spacing below the f32 resolution makes quantisation exact (31 bits per axis): the
     // decoded multiset equals the input's.
     let ext = c.bounds().size().max_element();
-    let sp = format!("spacing={}", ext * 1e-9);
+    let sp = format!("nn_spacing={}", ext * 1e-9);
     let (nodes, clouds, _) = build_read(&c, &["m=256", &sp], dir.path(), None);
     check_tree(&nodes, &clouds, 20_000, 256);
     let got = sort_pts(clouds.iter().flat_map(|b| b.positions.clone()).collect());
@@ -149,11 +149,16 @@ fn quantisation_error_below_half_the_input_spacing() {
     let ext = c.bounds().size().max_element();
     let d1 = tempfile::tempdir().unwrap();
     let d2 = tempfile::tempdir().unwrap();
-    let sp = format!("spacing={}", ext * 1e-9);
+    let sp = format!("nn_spacing={}", ext * 1e-9);
     let (exact_nodes, exact, _) = build_read(&c, &["m=256", &sp], d1.path(), None);
     let (nodes, coarse, info) = build_read(&c, &["m=256"], d2.path(), None);
-    let r = info.input_spacing;
+    let r = info.nn_spacing;
     assert!(r > 0.0 && r < ext * 0.05, "r = {r}");
+    assert!(
+        info.input_spacing > 2.0 * r,
+        "splat spacing {} vs nn {r}",
+        info.input_spacing
+    );
     assert_eq!(exact_nodes.len(), nodes.len());
     check_tree(&nodes, &coarse, 20_000, 256);
     check_bounds(&nodes, &coarse);
@@ -321,7 +326,7 @@ fn out_of_core_equals_in_core() {
     let c = statue(30_000);
     let d1 = tempfile::tempdir().unwrap();
     let d2 = tempfile::tempdir().unwrap();
-    let p = ["m=256", "spacing=0.004", "seed=9"];
+    let p = ["m=256", "spacing=0.004", "nn_spacing=0.001", "seed=9"];
     build_read(&c, &p, d1.path(), Some(1 << 30));
     // 2 000 samples per in-core subtree: the root and a few levels are streamed.
     let (nodes, clouds, _) = build_read(&c, &p, d2.path(), Some(2_000 * 40));

@@ -114,15 +114,14 @@ pub fn build_with_budget(
         seed: params.seed,
         budget: mem_bytes,
         normals: attrs.normals,
-        estimate: params.spacing.is_none(),
+        estimate: params.spacing.is_none() || params.nn_spacing.is_none(),
         dir: dir.to_owned(),
         nodes: Vec::new(),
         clouds: BufWriter::with_capacity(IO_BUF, clouds_file),
         clouds_path: clouds_path.clone(),
         clouds_len: 0,
         spare: (Vec::new(), Vec::new()),
-        probe_sum: 0.0,
-        probe_count: 0,
+        probes: Vec::new(),
         peak: 0,
         temp_bytes: 0,
         files: 0,
@@ -134,8 +133,7 @@ pub fn build_with_budget(
     let Phase1 {
         nodes,
         clouds,
-        probe_sum,
-        probe_count,
+        mut probes,
         mut peak,
         mut temp_bytes,
         ..
@@ -147,21 +145,26 @@ pub fn build_with_budget(
 
     let n = cloud.len() as u64;
     let bounds = cloud.bounds();
+    let probe_count = probes.len() as u64;
+    let (r_est, nn_est) = spacing_estimates(&mut probes);
     let r = match params.spacing {
         Some(r) => r,
         None => {
-            let est = if probe_count > 0 {
-                (2.0 * probe_sum / probe_count as f64) as f32
-            } else {
-                0.0
-            };
-            if est.is_finite() && est > 0.0 {
-                est
+            if r_est.is_finite() && r_est > 0.0 {
+                r_est
             } else {
                 let d = bounds.size().length() / (n as f32).sqrt();
                 if d.is_finite() && d > 0.0 { d } else { 1.0 }
             }
         }
+    };
+    // Quantisation spacing: the mean nearest-neighbour distance (the paper's "average
+    // sample spacing"); without an estimate, a quarter of the splat spacing (the ratio
+    // measured on uniformly sampled surfaces is 3.5–4).
+    let nn = match params.nn_spacing {
+        Some(v) => v,
+        None if nn_est.is_finite() && nn_est > 0.0 => nn_est,
+        None => r / 4.0,
     };
 
     // Phase 2: repository order, spacing, clouds.
@@ -253,7 +256,7 @@ pub fn build_with_budget(
         let enc: Vec<(Vec<u8>, usize, [u8; 3])> = raw
             .par_iter()
             .map(|c| {
-                let (bytes, bits) = cloud::encode(c, attrs, r);
+                let (bytes, bits) = cloud::encode(c, attrs, nn);
                 (store::compress(&bytes), bytes.len(), bits)
             })
             .collect();
@@ -276,6 +279,7 @@ pub fn build_with_budget(
     let levels = out.iter().map(|n| n.level).max().unwrap_or(0) + 1;
     let info = Info {
         input_spacing: r,
+        nn_spacing: nn,
         m: params.m,
         nodes: out.len() as u64,
         levels,
@@ -293,6 +297,7 @@ pub fn build_with_budget(
     put("m", params.m.into());
     put("k", (params.k as f64).into());
     put("input_spacing", (r as f64).into());
+    put("nn_spacing", (nn as f64).into());
     put("input_spacing_probes", probe_count.into());
     put("position_bits_min", bits_min.min(bits_max).into());
     put("position_bits_max", bits_max.into());
@@ -506,8 +511,8 @@ struct Phase1<'a> {
     clouds_path: PathBuf,
     clouds_len: u64,
     spare: (Vec<Sample>, Vec<Sample>),
-    probe_sum: f64,
-    probe_count: u64,
+    /// `[nearest, LEAF_K-th nearest]` distances of the measured probes.
+    probes: Vec<[f32; 2]>,
     peak: u64,
     temp_bytes: u64,
     files: u64,
@@ -824,9 +829,8 @@ impl<'a> Phase1<'a> {
             .peak
             .max((bufs[0].capacity() + bufs[1].capacity()) as u64 * RECORD_BYTES);
         if self.estimate {
-            let (sum, count) = probe_knn(&bufs[0][..n], root.bbox, LEAF_K);
-            self.probe_sum += sum;
-            self.probe_count += count;
+            self.probes
+                .extend(probe_knn(&bufs[0][..n], root.bbox, LEAF_K));
         }
         // (task, samples in buffer 1?, range)
         let mut stack = vec![(root, false, 0usize, n)];
@@ -915,26 +919,26 @@ impl Hasher for KeyHasher {
 /// A probe with fewer than `k` of them is measured again with `2h`. The first `h` is
 /// `sqrt(A/n)` with `A` the surface area of the box. A 128 KiB bit filter of the cells that
 /// hold probe entries spares most samples the (cache-missing) hash lookup.
-pub fn probe_knn(s: &[Sample], bbox: Aabb, k: usize) -> (f64, u64) {
+pub fn probe_knn(s: &[Sample], bbox: Aabb, k: usize) -> Vec<[f32; 2]> {
     let probes: Vec<[f32; 3]> = s
         .iter()
         .filter(|x| x.flags & PROBE != 0)
         .map(|x| x.p)
         .collect();
     if probes.is_empty() || s.len() < 2 {
-        return (0.0, 0);
+        return Vec::new();
     }
     let k = k.clamp(1, s.len() - 1);
     let size = bbox.size();
     let ext = size.max_element();
     if ext <= 0.0 || !ext.is_finite() {
         // Every sample coincides: every distance is 0.
-        return (0.0, probes.len() as u64);
+        return vec![[0.0; 2]; probes.len()];
     }
     let area = 2.0 * (size.x * size.y + size.y * size.z + size.z * size.x);
     let mut h = (1.0 * (area / s.len() as f32).sqrt()).max(ext / (1u32 << 19) as f32);
     let mut pending: Vec<u32> = (0..probes.len() as u32).collect();
-    let (mut sum, mut count) = (0f64, 0u64);
+    let mut out = Vec::with_capacity(probes.len());
     let min = bbox.min;
     while !pending.is_empty() {
         let inv = 1.0 / h;
@@ -1006,8 +1010,7 @@ pub fn probe_knn(s: &[Sample], bbox: Aabb, k: usize) -> (f64, u64) {
         for (j, &pi) in pending.iter().enumerate() {
             let d = best[j][k - 1];
             if d <= h2 {
-                sum += (d as f64).sqrt();
-                count += 1;
+                out.push([best[j][0].sqrt(), d.sqrt()]);
             } else {
                 next.push(pi);
             }
@@ -1015,7 +1018,24 @@ pub fn probe_knn(s: &[Sample], bbox: Aabb, k: usize) -> (f64, u64) {
         pending = next;
         h *= 2.0;
     }
-    (sum, count)
+    out
+}
+
+/// Quantile of the `LEAF_K`-th-neighbour distance that sets the splat spacing.
+pub const SPACING_QUANTILE: f64 = 0.9;
+
+/// `(r, r_nn)` from the probes' `[nearest, LEAF_K-th]` distances: `r = 2 ×` the
+/// [`SPACING_QUANTILE`] of the `LEAF_K`-th-neighbour distance (the splat diameter that covers
+/// 90 % of the samples' own reference disks), `r_nn` = the mean nearest-neighbour distance.
+/// NaN when there are no probes.
+pub fn spacing_estimates(probes: &mut [[f32; 2]]) -> (f32, f32) {
+    if probes.is_empty() {
+        return (f32::NAN, f32::NAN);
+    }
+    let nn = probes.iter().map(|p| p[0] as f64).sum::<f64>() / probes.len() as f64;
+    probes.sort_unstable_by(|a, b| a[1].total_cmp(&b[1]));
+    let at = ((probes.len() - 1) as f64 * SPACING_QUANTILE).round() as usize;
+    (2.0 * probes[at][1], nn as f32)
 }
 
 #[cfg(test)]
@@ -1033,8 +1053,12 @@ mod tests {
             })
             .collect();
         let bbox = Aabb::from_points(&s.iter().map(|x| x.p).collect::<Vec<_>>());
-        let (sum, count) = probe_knn(&s, bbox, LEAF_K);
-        let mut want = 0f64;
+        let got = probe_knn(&s, bbox, LEAF_K);
+        let (sum, sum1) = got
+            .iter()
+            .fold((0f64, 0f64), |(a, b), d| (a + d[1] as f64, b + d[0] as f64));
+        let count = got.len();
+        let (mut want, mut want1) = (0f64, 0f64);
         let mut wc = 0;
         for (i, q) in s.iter().enumerate().filter(|(_, x)| x.flags & PROBE != 0) {
             let mut d: Vec<f32> = s
@@ -1045,10 +1069,12 @@ mod tests {
                 .collect();
             d.sort_by(f32::total_cmp);
             want += d[LEAF_K - 1] as f64;
+            want1 += d[0] as f64;
             wc += 1;
         }
         assert_eq!(count, wc);
         assert!((sum - want).abs() < 1e-4 * want, "{sum} vs {want}");
+        assert!((sum1 - want1).abs() < 1e-4 * want1, "{sum1} vs {want1}");
     }
 
     #[test]

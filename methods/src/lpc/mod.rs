@@ -70,8 +70,12 @@ pub struct LpcParams {
     /// Working memory of the build, MiB: subtrees larger than this are partitioned through
     /// temporary files, smaller ones in memory.
     pub mem_mb: u64,
-    /// Input spacing `r` (object units); estimated from the samples when absent.
+    /// Splat spacing `r` of eqs. (1)–(2) (object units): the diameter that covers the
+    /// surface at full density; estimated from the samples when absent.
     pub spacing: Option<f32>,
+    /// Average sample spacing (mean nearest-neighbour distance) that bounds the position
+    /// quantisation error (< half of it); estimated when absent.
+    pub nn_spacing: Option<f32>,
     /// Fetch requests issued per frame (the paper's "estimated bandwidth").
     pub fetch_per_frame: u32,
     /// Decoded clouds kept in core, MiB.
@@ -93,6 +97,7 @@ impl Default for LpcParams {
             seed: 1,
             mem_mb: 256,
             spacing: None,
+            nn_spacing: None,
             fetch_per_frame: 32,
             core_mb: 64,
             delay_frames: 0,
@@ -116,10 +121,12 @@ impl LpcParams {
         if p.mem_mb < 16 {
             return bad(format!("mem_mb must be ≥ 16, got {}", p.mem_mb));
         }
-        if let Some(r) = p.spacing
-            && !(r.is_finite() && r > 0.0)
-        {
-            return bad(format!("spacing must be a finite number > 0, got {r}"));
+        for (name, v) in [("spacing", p.spacing), ("nn_spacing", p.nn_spacing)] {
+            if let Some(r) = v
+                && !(r.is_finite() && r > 0.0)
+            {
+                return bad(format!("{name} must be a finite number > 0, got {r}"));
+            }
         }
         if p.fetch_per_frame < 1 {
             return bad("fetch_per_frame must be ≥ 1".into());
@@ -135,8 +142,10 @@ impl LpcParams {
 #[derive(Debug, Clone, PartialEq, serde::Serialize, serde::Deserialize)]
 #[serde(deny_unknown_fields)]
 pub struct Info {
-    /// Input spacing `r` (object units).
+    /// Splat spacing `r` of eqs. (1)–(2) (object units).
     pub input_spacing: f32,
+    /// Mean nearest-neighbour distance: quantisation errors stay below half of it.
+    pub nn_spacing: f32,
     /// `M`.
     pub m: u32,
     /// Nodes (= clouds).
@@ -271,7 +280,6 @@ pub const COLUMNS: &[&str] = &[
     "fetch_issued",
     "fetch_dropped",
     "loader_pending",
-    "core_bytes",
 ];
 
 impl LodMethod for Lpc {
@@ -318,8 +326,11 @@ impl LodMethod for Lpc {
                 issue as f64,
                 (sel.fetch.len() - issue) as f64,
                 self.access.pending() as f64,
-                self.access.resident_bytes() as f64,
             ],
+            // Everything this selection would refine into but could not: empty once the
+            // data it needs are all available (tests settle a view by repeating frames
+            // until it is).
+            fetch: sel.fetch.iter().map(|&id| id as ChunkId).collect(),
             ..Default::default()
         };
         if self.params.occlusion {

@@ -434,3 +434,22 @@ fn representatives_are_deterministic() {
     let c = pool.install(|| representatives(&s, 777, &cfg));
     assert_eq!(a, c);
 }
+
+#[test]
+fn lod_1m_statue_leaves_within_one_inner_nodes_hold_s() {
+    let cloud = Generator::Statue.generate(1_000_000, 7).unwrap();
+    let t = std::time::Instant::now();
+    let p = params(&["fanout=8", "vbo=16384"]);
+    let lod = check_lod(&cloud, &p);
+    let leaves = &lod.tree.nodes[lod.tree.leaves()];
+    let lo = leaves.iter().map(|l| l.len).min().unwrap();
+    let hi = leaves.iter().map(|l| l.len).max().unwrap();
+    assert!(hi - lo <= 1, "leaves {lo}–{hi}");
+    assert!(lod.inner.iter().all(|r| r.len() == 16384));
+    eprintln!(
+        "1 M statue, N=8 s=16384: {} nodes, leaves {lo}–{hi}, inner nodes {} × 16384, build {:.1} s",
+        lod.tree.nodes.len(),
+        lod.inner.len(),
+        t.elapsed().as_secs_f64()
+    );
+}

@@ -57,6 +57,9 @@ enum Command {
         #[arg(long)]
         out: Option<PathBuf>,
     },
+    /// A method's tree shape for a number of points, without data (levels, nodes, leaves,
+    /// samples per node). Answered by `mwkd`; data-dependent methods say they cannot.
+    Plan(PlanArgs),
     /// Every registered method on the embedded scene along a short orbit: CSV + plots.
     Demo {
         /// Output directory.
@@ -148,6 +151,22 @@ struct RunArgs {
     cache: PathBuf,
 }
 
+#[derive(Args, Clone)]
+struct PlanArgs {
+    /// Method (`mwkd`, or a registered one).
+    #[arg(long)]
+    method: Option<String>,
+    /// Number of input points (digits, `_` separators, k/M/G suffix).
+    #[arg(long)]
+    points: Option<String>,
+    /// Method parameter, `key=value` (repeatable), e.g. fanout=6, vbo=4009.
+    #[arg(long = "param", value_name = "KEY=VALUE")]
+    params: Vec<String>,
+    /// Print JSON instead of the table.
+    #[arg(long)]
+    json: bool,
+}
+
 fn main() {
     if let Err(e) = real_main() {
         eprintln!("Error: {e:#}");
@@ -194,8 +213,44 @@ fn real_main() -> anyhow::Result<()> {
             }
             Ok(())
         }
+        Command::Plan(args) => plan(&args),
         Command::Demo { out, frames } => demo(&out, frames),
     }
+}
+
+fn plan(a: &PlanArgs) -> anyhow::Result<()> {
+    use methods::mwkd;
+    let Some(name) = a.method.as_deref() else {
+        bail!("--method is required (e.g. --method {})", mwkd::NAME);
+    };
+    let params = Params::parse(&a.params)?;
+    if name != mwkd::NAME {
+        match MethodKind::from_name(name) {
+            Ok(kind) => bail!(
+                "method '{kind}' cannot plan without data: its structure depends on the sample \
+                 positions (build it with `splatbench build --method {kind}`); `plan` answers \
+                 for: {}",
+                mwkd::NAME
+            ),
+            Err(_) => {
+                let mut known: Vec<&str> = MethodKind::ALL.iter().map(|k| k.name()).collect();
+                known.push(mwkd::NAME);
+                bail!("unknown method '{name}' (known: {})", known.join(", "))
+            }
+        }
+    }
+    let Some(points) = a.points.as_deref() else {
+        bail!("--points is required (the number of input samples, e.g. --points 186850683)");
+    };
+    let n = scenes::spec::parse_count(points).map_err(|e| anyhow::anyhow!("--points: {e}"))?;
+    let p = mwkd::MwkdParams::from_params(&params)?;
+    let plan = mwkd::tree::Plan::new(n as u64, u64::from(p.fanout), p.vbo)?;
+    if a.json {
+        println!("{}", serde_json::to_string_pretty(&plan.to_json())?);
+    } else {
+        print!("{}", plan.table());
+    }
+    Ok(())
 }
 
 fn list() -> anyhow::Result<()> {

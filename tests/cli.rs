@@ -367,3 +367,116 @@ fn bad_files_are_clear_errors() {
         "no half-written output"
     );
 }
+
+/// Table II of the multi-way kd-tree paper (St. Matthew, n = 186,850,683):
+/// (fan-out, VBO size, levels, nodes).
+const TABLE_II: [(u32, u32, u64, u64); 5] = [
+    (6, 4009, 7, 55_987),
+    (6, 24029, 6, 9_331),
+    (7, 77822, 5, 2_801),
+    (3, 85437, 8, 3_280),
+    (8, 364943, 4, 585),
+];
+
+#[test]
+fn plan_reproduces_table_ii_rows() {
+    for (fanout, vbo, levels, nodes) in TABLE_II {
+        let out = bin()
+            .args([
+                "plan",
+                "--method",
+                "mwkd",
+                "--points",
+                "186850683",
+                "--json",
+            ])
+            .arg(format!("--param=fanout={fanout}"))
+            .arg(format!("--param=vbo={vbo}"))
+            .output()
+            .unwrap();
+        assert!(
+            out.status.success(),
+            "{}",
+            String::from_utf8_lossy(&out.stderr)
+        );
+        let v: serde_json::Value = serde_json::from_slice(&out.stdout).unwrap();
+        assert_eq!(v["levels"], levels, "N={fanout} s={vbo}: {v}");
+        assert_eq!(v["nodes"], nodes, "N={fanout} s={vbo}");
+        let leaves = u64::from(fanout).pow(levels as u32 - 1);
+        assert_eq!(v["leaves"], leaves);
+        let (lo, hi) = (
+            v["leaf_points_min"].as_u64().unwrap(),
+            v["leaf_points_max"].as_u64().unwrap(),
+        );
+        assert!(hi - lo <= 1 && hi <= u64::from(vbo) + 1);
+        assert_eq!(v["inner_held_min"], vbo);
+        assert_eq!(v["inner_held_max"], vbo);
+    }
+    // The human table: two rows, totals line.
+    bin()
+        .args(["plan", "--method", "mwkd", "--points", "186_850_683"])
+        .args(["--param", "fanout=6", "--param", "vbo=24029"])
+        .assert()
+        .success()
+        .stdout(predicate::str::contains(
+            "levels 6, nodes 9331, leaves 7776, samples per leaf 24029–24030",
+        ));
+    bin()
+        .args(["plan", "--method", "mwkd", "--points", "186850683"])
+        .args(["--param", "fanout=3", "--param", "vbo=85437"])
+        .assert()
+        .success()
+        .stdout(predicate::str::contains(
+            "levels 8, nodes 3280, leaves 2187",
+        ));
+}
+
+#[test]
+fn plan_errors_are_clear() {
+    fails_with(
+        &["plan", "--method", "spt", "--points", "1000"],
+        "'spt' cannot plan without data",
+    );
+    for m in ["full", "qsplat", "lpc"] {
+        fails_with(
+            &["plan", "--method", m, "--points", "1000"],
+            "cannot plan without data",
+        );
+    }
+    fails_with(
+        &["plan", "--method", "nope", "--points", "10"],
+        "unknown method 'nope'",
+    );
+    fails_with(&["plan", "--method", "nope", "--points", "10"], "mwkd");
+    fails_with(&["plan", "--points", "10"], "--method");
+    fails_with(&["plan", "--method", "mwkd"], "--points");
+    fails_with(
+        &["plan", "--method", "mwkd", "--points", "lots"],
+        "--points",
+    );
+    fails_with(&["plan", "--method", "mwkd", "--points", "0"], "--points");
+    fails_with(
+        &[
+            "plan", "--method", "mwkd", "--points", "100", "--param", "fanout=1",
+        ],
+        "fanout",
+    );
+    fails_with(
+        &[
+            "plan", "--method", "mwkd", "--points", "100", "--param", "vbo=0",
+        ],
+        "vbo",
+    );
+    fails_with(
+        &[
+            "plan", "--method", "mwkd", "--points", "100", "--param", "leaves=3",
+        ],
+        "unknown field `leaves`",
+    );
+    fails_with(
+        &[
+            "plan", "--method", "mwkd", "--points", "100", "--param", "fanout",
+        ],
+        "key=value",
+    );
+}

@@ -11,7 +11,8 @@
 //! - [`registry`]: [`MethodKind`], the one explicit list of methods.
 //! - [`store`]: the LZO chunk store with per-chunk checksums and the data-access layer
 //!   (loader thread) shared by the out-of-core methods.
-//! - one module per method: [`full`] (no LOD, the reference), then the four papers' methods.
+//! - one module per method: [`full`] (no LOD, the reference), then the four papers' methods
+//!   ([`mwkd`]: the multi-way kd-tree plan, split and representatives so far, not registered).
 
 pub mod draw;
 pub mod error;
@@ -19,6 +20,7 @@ pub mod full;
 pub mod leaf;
 pub mod lpc;
 pub mod method;
+pub mod mwkd;
 pub mod octnormal;
 pub mod params;
 pub mod qsplat;

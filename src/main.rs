@@ -57,6 +57,18 @@ enum Command {
         #[arg(long)]
         out: Option<PathBuf>,
     },
+    /// Write a scene to a file: `.las`/`.laz` (LAS 1.4), `.ply` (binary little-endian) or
+    /// `.sbc` (splatbench column file), by the extension of `--out`.
+    Export {
+        #[command(flatten)]
+        scene: SceneArgs,
+        /// Output file.
+        #[arg(long)]
+        out: PathBuf,
+        /// Cache directory for large generated scenes.
+        #[arg(long, default_value = "results/cache")]
+        cache: PathBuf,
+    },
     /// A method's tree shape for a number of points, without data (levels, nodes, leaves,
     /// samples per node). Answered by `mwkd`; data-dependent methods say they cannot.
     Plan(PlanArgs),
@@ -213,6 +225,7 @@ fn real_main() -> anyhow::Result<()> {
             }
             Ok(())
         }
+        Command::Export { scene, out, cache } => export(&scene, &out, &cache),
         Command::Plan(args) => plan(&args),
         Command::Demo { out, frames } => demo(&out, frames),
     }
@@ -288,6 +301,36 @@ fn build(
         .with_context(|| format!("loading scene '{}'", s.scene))?;
     let stats = m.method.build(&cloud, &params, &spec.label(), out, &bar)?;
     println!("{}", serde_json::to_string_pretty(&stats)?);
+    Ok(())
+}
+
+fn export(s: &SceneArgs, out: &std::path::Path, cache: &std::path::Path) -> anyhow::Result<()> {
+    let ext = out
+        .extension()
+        .and_then(|e| e.to_str())
+        .map(str::to_ascii_lowercase)
+        .unwrap_or_default();
+    if !matches!(ext.as_str(), "las" | "laz" | "ply" | "sbc") {
+        bail!(
+            "--out {}: the extension must be .las, .laz, .ply or .sbc",
+            out.display()
+        );
+    }
+    let spec = SceneSpec::parse(&s.scene, s.sample, s.seed)?;
+    let cloud = spec
+        .load(Some(cache), &harness::progress::Bar::new())
+        .with_context(|| format!("loading scene '{}'", s.scene))?;
+    let bytes = match ext.as_str() {
+        "las" | "laz" => scenes::las::write(out, &cloud)?,
+        "ply" => scenes::ply::write(out, &cloud, scenes::ply::PlyFormat::BinaryLittleEndian)?,
+        _ => scenes::colfile::write(out, &cloud)?,
+    };
+    println!(
+        "wrote {} ({} points, {}, {bytes} bytes)",
+        out.display(),
+        cloud.len(),
+        cloud.attributes()
+    );
     Ok(())
 }
 

@@ -480,3 +480,47 @@ fn plan_errors_are_clear() {
         "key=value",
     );
 }
+
+/// `export` writes a scene as LAS that reads back with the same count, and `build --method
+/// lpc` takes that LAS file; a wrong extension is an error and writes nothing.
+#[test]
+fn export_las_then_build_lpc_from_it() {
+    let tmp = tempfile::tempdir().unwrap();
+    let las = tmp.path().join("terrain.las");
+    let cache = tmp.path().join("cache");
+    bin()
+        .args(["export", "--scene", "terrain:30000:2", "--out"])
+        .arg(&las)
+        .arg("--cache")
+        .arg(&cache)
+        .assert()
+        .success()
+        .stdout(predicate::str::contains("30000 points"));
+    let cloud = scenes::las::read(&las).unwrap();
+    assert_eq!(cloud.len(), 30_000);
+    let out = tmp.path().join("lpc");
+    bin()
+        .args(["build", "--method", "lpc", "--param", "m=1024", "--scene"])
+        .arg(&las)
+        .arg("--out")
+        .arg(&out)
+        .arg("--cache")
+        .arg(&cache)
+        .assert()
+        .success();
+    let stats = methods::BuildStats::read(&out).unwrap();
+    assert_eq!(stats.points_in, 30_000);
+    assert!(out.join("index.bin").exists() && out.join("repo.bin").exists());
+    let bad = tmp.path().join("terrain.xyz");
+    fails_with(
+        &[
+            "export",
+            "--scene",
+            "terrain:100",
+            "--out",
+            bad.to_str().unwrap(),
+        ],
+        "must be .las",
+    );
+    assert!(!bad.exists());
+}

@@ -931,7 +931,7 @@ impl<'a> Phase1<'a> {
         &mut self,
         task: &Task,
         temps: &mut Temps,
-        next: &mut dyn FnMut(&mut Vec<Sample>) -> Result<bool, MethodError>,
+        next: &mut (dyn FnMut(&mut Vec<Sample>) -> Result<bool, MethodError> + Send),
     ) -> Result<[Option<FileTask>; 2], MethodError> {
         let mut scan = self.cfg.scan_for(task, &mut self.spare);
         let mut paths = Vec::with_capacity(2);
@@ -945,20 +945,32 @@ impl<'a> Phase1<'a> {
             paths.push(path);
         }
         let mut block = Vec::with_capacity(BLOCK);
+        let mut ahead = Vec::with_capacity(BLOCK);
         self.peak = self
             .peak
-            .max((BLOCK as u64) * RECORD_BYTES + 4 * IO_BUF as u64);
+            .max(2 * (BLOCK as u64) * RECORD_BYTES + 4 * IO_BUF as u64);
         let mut write = |side: usize, s: &Sample| -> Result<(), MethodError> {
             writers[side]
                 .write_all(bytemuck::bytes_of(s))
                 .map_err(|e| MethodError::io(&paths[side], e))
         };
-        while next(&mut block)? {
-            for s in &block {
-                if let Some(side) = scan.step(*s) {
-                    write(side, s)?;
-                }
-            }
+        // The next block is fetched (converted / read) while this one is scanned.
+        let mut more = next(&mut block)?;
+        while more {
+            let (scanned, fetched) = rayon::join(
+                || -> Result<(), MethodError> {
+                    for s in &block {
+                        if let Some(side) = scan.step(*s) {
+                            write(side, s)?;
+                        }
+                    }
+                    Ok(())
+                },
+                || next(&mut ahead),
+            );
+            scanned?;
+            more = fetched?;
+            std::mem::swap(&mut block, &mut ahead);
         }
         let mc = scan.select();
         scan.give_back(mc, &mut write)?;

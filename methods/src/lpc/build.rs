@@ -29,14 +29,29 @@
 //! root reads the scene's columns sequentially in blocks and releases their pages behind
 //! the cursor. Clouds are appended to a temporary cloud file in processing order.
 //!
+//! **Parallelism** (the current rayon pool; the output is byte-identical for any number of
+//! threads). Streamed subtrees are taken one at a time, so at most one in-core subtree is
+//! loaded and the `2 × 20` bytes per sample bound holds for the whole build. Inside an in-core
+//! subtree (`part`), a node whose two children both hold ≥ [`PAR_MIN`] samples and
+//! ≥ 1/16 of the node's runs the two child subtrees in [`rayon::join`] on their disjoint
+//! ranges of the two buffers (no extra sample memory; each worker has its own scan buffers
+//! of ≈ `K·M + M` samples, counted per pool thread in `peak_bytes_held`). Each node's cloud is
+//! left in its destination buffer, in the gap between its children's ranges; the workers
+//! return their nodes in depth-first order (child 0 first), and the subtree's nodes are then
+//! given their ids and their clouds appended in that order, exactly as the single-threaded
+//! order. A streamed scan fetches (converts or reads) its next block while scanning the
+//! current one; the scene's columns are converted (normal encoding) in parallel per block,
+//! and the probe k-NN ([`probe_knn`]) scans its subtree in parallel chunks. Sums of `f64`
+//! (normal sums) are always accumulated in scan order.
+//!
 //! **Phase 2, structure construction.** Nodes are sorted by level, then by the Morton code
 //! of their sphere centre quantised in the root box (ties: processing order); node index =
 //! cloud id. The spacings of eqs. (1)–(2) are computed top-down ([`hierarchical_spacing`]);
 //! clouds are read back in repository order in batches, encoded ([`cloud::encode`]) and
 //! LZO-compressed in parallel, then appended in order.
 //!
-//! **Input spacing** `r` (when not given): `2 ×` the mean distance to the
-//! [`crate::leaf::LEAF_K`]-th nearest neighbour over a seeded probe (each sample with
+//! **Input spacing** `r` (when not given): `2 ×` the [`SPACING_QUANTILE`] of the distance to
+//! the [`crate::leaf::LEAF_K`]-th nearest neighbour over a seeded probe (each sample with
 //! probability `min(1, 16 384 / N)`), each probe measured against the full-density samples of
 //! the in-core subtree that contains it when that subtree is loaded ([`probe_knn`]). Probes
 //! that end up in the cloud of an out-of-core node are not measured.
@@ -498,7 +513,7 @@ struct Entry {
 }
 
 /// Subtrees smaller than this are never split between workers.
-const PAR_MIN: u64 = 1 << 15;
+pub const PAR_MIN: u64 = 1 << 15;
 
 /// Partitions, in memory, the subtree of `root` whose samples are in `bufs[buf]` (`a` is
 /// buffer 0 and `b` buffer 1, both restricted to the subtree's range, which starts at
@@ -869,13 +884,38 @@ impl<'a> Phase1<'a> {
             self.in_core(root(nsum), &mut bufs)?;
         } else {
             // The root streams the scene: a first pass for the normal sum (the cone axis).
+            // Blocks are encoded in parallel while the previous one is summed (in order).
             let mut nsum = DVec3::ZERO;
-            if cloud.normals().is_some() {
-                let mut block = Vec::with_capacity(BLOCK);
+            if let Some(nv) = cloud.normals() {
+                let table = cloud::normal_table();
+                let (mut codes, mut prev) = (vec![0u16; BLOCK], vec![0u16; BLOCK]);
+                let mut prev_len = 0;
+                let sum = |codes: &[u16], nsum: &mut DVec3| {
+                    for &c in codes {
+                        let d = table[c as usize].1;
+                        *nsum += DVec3::new(d[0] as f64, d[1] as f64, d[2] as f64);
+                    }
+                };
                 for lo in (0..n).step_by(BLOCK) {
-                    block.clear();
-                    convert(lo..(lo + BLOCK).min(n), &mut block, &mut nsum);
+                    let hi = (lo + BLOCK).min(n);
+                    rayon::join(
+                        || sum(&prev[..prev_len], &mut nsum),
+                        || {
+                            codes[..hi - lo]
+                                .par_chunks_mut(CONVERT_CHUNK)
+                                .zip(nv[lo..hi].par_chunks(CONVERT_CHUNK))
+                                .for_each(|(c, v)| {
+                                    for (c, v) in c.iter_mut().zip(v) {
+                                        *c = cloud::oct16_encode(Vec3::from(*v));
+                                    }
+                                });
+                            cloud.release_pages(lo..hi);
+                        },
+                    );
+                    std::mem::swap(&mut codes, &mut prev);
+                    prev_len = hi - lo;
                 }
+                sum(&prev[..prev_len], &mut nsum);
             }
             let task = root(nsum);
             let mut lo = 0;
@@ -1044,7 +1084,7 @@ fn read_samples(path: &Path, out: &mut [Sample]) -> Result<(), MethodError> {
 }
 
 /// Samples per parallel chunk of [`probe_knn`]'s scan.
-const KNN_CHUNK: usize = 1 << 16;
+pub const KNN_CHUNK: usize = 1 << 16;
 
 /// Sorted squared distances of a probe's nearest samples (itself included).
 type Best = [f32; LEAF_K + 1];
@@ -1092,11 +1132,13 @@ impl Hasher for KeyHasher {
     }
 }
 
-/// Sum and count of the `k`-th nearest-neighbour distances of the probe samples of `s`
+/// `[nearest, k-th nearest]` neighbour distances of each probe sample of `s`
 /// (flagged at load), measured exactly against all of `s` (the probe itself excluded once).
 ///
 /// Linear in `s.len()`: the probes are hashed into a grid of cell size `h` (each into the
-/// 27 cells around it); one scan of `s` collects, for each probe, the samples within `h`.
+/// 27 cells around it); one scan of `s` (in parallel chunks of [`KNN_CHUNK`], whose nearest
+/// lists are then merged: the same result for any split) collects, for each probe, the
+/// samples within `h`.
 /// A probe with fewer than `k` of them is measured again with `2h`. The first `h` is
 /// `sqrt(A/n)` with `A` the surface area of the box. A 128 KiB bit filter of the cells that
 /// hold probe entries spares most samples the (cache-missing) hash lookup.

@@ -38,10 +38,11 @@
 //! of ≈ `K·M + M` samples, counted per pool thread in `peak_bytes_held`). Each node's cloud is
 //! left in its destination buffer, in the gap between its children's ranges; the workers
 //! return their nodes in depth-first order (child 0 first), and the subtree's nodes are then
-//! given their ids and their clouds appended in that order, exactly as the single-threaded
-//! order. A streamed scan fetches (converts or reads) its next block while scanning the
+//! given their ids and their clouds appended in that order, which is the single-threaded
+//! processing order. A streamed scan fetches (converts or reads) its next block while scanning the
 //! current one; the scene's columns are converted (normal encoding) in parallel per block,
-//! and the probe k-NN ([`probe_knn`]) scans its subtree in parallel chunks. Sums of `f64`
+//! and the probe k-NN ([`probe_knn`]) scans its subtree in parallel chunks, alongside the
+//! partition of the subtree's root (which only reads the source buffer too). Sums of `f64`
 //! (normal sums) are always accumulated in scan order.
 //!
 //! **Phase 2, structure construction.** Nodes are sorted by level, then by the Morton code
@@ -515,6 +516,66 @@ struct Entry {
 /// Subtrees smaller than this are never split between workers.
 pub const PAR_MIN: u64 = 1 << 15;
 
+/// One node partitioned in memory by [`split_node`].
+#[derive(Debug, Clone, Copy)]
+struct Split {
+    closed: Closed,
+    /// Child 0 is `dst[..f]`, the cloud `dst[f..bk]`, child 1 `dst[bk..]`.
+    f: usize,
+    bk: usize,
+    mc: usize,
+    /// Scan-buffer capacity used (samples).
+    cap: usize,
+}
+
+/// Scans the node `task` whose samples are `src` and partitions them into `dst`: child 0
+/// first, then the cloud, then child 1 (both children in scan order).
+fn split_node(
+    cfg: &Cfg,
+    task: &Task,
+    src: &[Sample],
+    dst: &mut [Sample],
+    spare: &mut (Vec<Sample>, Vec<Sample>),
+) -> Result<Split, MethodError> {
+    let mut scan = cfg.scan_for(task, spare);
+    let (mut f, mut bk) = (0usize, dst.len());
+    for s in src {
+        if let Some(side) = scan.step(*s) {
+            if side == 0 {
+                dst[f] = *s;
+                f += 1;
+            } else {
+                bk -= 1;
+                dst[bk] = *s;
+            }
+        }
+    }
+    let mc = scan.select();
+    scan.give_back(mc, &mut |side, s| {
+        if side == 0 {
+            dst[f] = *s;
+            f += 1;
+        } else {
+            bk -= 1;
+            dst[bk] = *s;
+        }
+        Ok(())
+    })?;
+    dst[bk..].reverse();
+    // The children took all but the cloud: it fills the gap `f..bk`.
+    dst[f..bk].copy_from_slice(&scan.res[..mc]);
+    let cap = scan.res.capacity() + scan.hold.capacity();
+    let closed = scan.closed(task.key);
+    *spare = (scan.res, scan.hold);
+    Ok(Split {
+        closed,
+        f,
+        bk,
+        mc,
+        cap,
+    })
+}
+
 /// Partitions, in memory, the subtree of `root` whose samples are in `bufs[buf]` (`a` is
 /// buffer 0 and `b` buffer 1, both restricted to the subtree's range, which starts at
 /// `base` in the full buffers). Each node's cloud is left in the gap between its
@@ -532,6 +593,7 @@ fn part(
     base: usize,
     buf: usize,
     log: &mut Vec<Entry>,
+    mut first: Option<Split>,
 ) -> Result<usize, MethodError> {
     let mut spare = (Vec::new(), Vec::new());
     let mut cap = 0usize;
@@ -543,36 +605,17 @@ fn part(
         } else {
             (&a[lo..hi], &mut b[lo..hi])
         };
-        let mut scan = cfg.scan_for(&task, &mut spare);
-        let (mut f, mut bk) = (0usize, dst.len());
-        for s in src {
-            if let Some(side) = scan.step(*s) {
-                if side == 0 {
-                    dst[f] = *s;
-                    f += 1;
-                } else {
-                    bk -= 1;
-                    dst[bk] = *s;
-                }
-            }
-        }
-        let mc = scan.select();
-        scan.give_back(mc, &mut |side, s| {
-            if side == 0 {
-                dst[f] = *s;
-                f += 1;
-            } else {
-                bk -= 1;
-                dst[bk] = *s;
-            }
-            Ok(())
-        })?;
-        dst[bk..].reverse();
-        // The children took all but the cloud: it fills the gap `f..bk`.
-        dst[f..bk].copy_from_slice(&scan.res[..mc]);
-        cap = cap.max(scan.res.capacity() + scan.hold.capacity());
-        let closed = scan.closed(task.key);
-        spare = (scan.res, scan.hold);
+        let Split {
+            closed,
+            f,
+            bk,
+            mc,
+            cap: c,
+        } = match first.take() {
+            Some(sp) => sp,
+            None => split_node(cfg, &task, src, dst, &mut spare)?,
+        };
+        cap = cap.max(c);
         log.push(Entry {
             closed,
             buf: 1 - buf,
@@ -587,8 +630,8 @@ fn part(
                 let (a0, b0) = (&mut a0[..f], &mut b0[..f]);
                 let (mut l0, mut l1) = (Vec::new(), Vec::new());
                 let (c0, c1) = rayon::join(
-                    || part(cfg, t0, a0, b0, base + lo, 1 - buf, &mut l0),
-                    || part(cfg, t1, a1, b1, base + lo + bk, 1 - buf, &mut l1),
+                    || part(cfg, t0, a0, b0, base + lo, 1 - buf, &mut l0, None),
+                    || part(cfg, t1, a1, b1, base + lo + bk, 1 - buf, &mut l1, None),
                 );
                 cap = cap.max(c0?).max(c1?);
                 log.append(&mut l0);
@@ -1043,21 +1086,22 @@ impl<'a> Phase1<'a> {
         let n = root.n as usize;
         bufs[1].clear();
         bufs[1].resize(n, Sample::default());
-        if self.estimate {
-            self.probes
-                .extend(probe_knn(&bufs[0][..n], root.bbox, LEAF_K));
-        }
         let mut log = Vec::new();
         let (a, b) = bufs.split_at_mut(1);
-        let cap = part(
-            &self.cfg,
-            root,
-            &mut a[0][..n],
-            &mut b[0][..n],
-            0,
-            0,
-            &mut log,
-        )?;
+        let (a, b) = (&mut a[0][..n], &mut b[0][..n]);
+        // The probe k-NN reads buffer 0 while the root is partitioned into buffer 1.
+        let (probes, first) = rayon::join(
+            || {
+                if self.estimate {
+                    probe_knn(a, root.bbox, LEAF_K)
+                } else {
+                    Vec::new()
+                }
+            },
+            || split_node(&self.cfg, &root, a, b, &mut (Vec::new(), Vec::new())),
+        );
+        self.probes.extend(probes);
+        let cap = part(&self.cfg, root, a, b, 0, 0, &mut log, Some(first?))?;
         // Each worker holds its own scan buffers.
         let workers = rayon::current_num_threads() as u64;
         self.peak = self.peak.max(

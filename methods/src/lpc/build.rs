@@ -39,8 +39,9 @@
 //! left in its destination buffer, in the gap between its children's ranges; the workers
 //! return their nodes in depth-first order (child 0 first), and the subtree's nodes are then
 //! given their ids and their clouds appended in that order, which is the single-threaded
-//! processing order. A streamed scan fetches (converts or reads) its next block while scanning the
-//! current one; the scene's columns are converted (normal encoding) in parallel per block,
+//! processing order. A streamed scan fetches (converts or reads) its next block while
+//! scanning the current one; the scene's columns are converted (normal encoding) in parallel
+//! per block,
 //! and the probe k-NN ([`probe_knn`]) scans its subtree in parallel chunks, alongside the
 //! partition of the subtree's root (which only reads the source buffer too). Sums of `f64`
 //! (normal sums) are always accumulated in scan order.

@@ -439,3 +439,36 @@ fn bad_params_name_the_parameter() {
         assert!(e.contains(name), "{p}: {e}");
     }
 }
+
+#[test]
+fn output_is_identical_for_any_thread_count() {
+    // Large enough for subtrees to be split between workers; once in core only, once with
+    // streamed top levels.
+    let c = statue(300_000);
+    for budget in [1u64 << 30, 100_000 * 40] {
+        let mut out: Vec<Vec<Vec<u8>>> = Vec::new();
+        for threads in [1, 2, 3] {
+            let pool = rayon::ThreadPoolBuilder::new()
+                .num_threads(threads)
+                .build()
+                .unwrap();
+            let dir = tempfile::tempdir().unwrap();
+            pool.install(|| build_read(&c, &["m=512", "seed=5"], dir.path(), Some(budget)));
+            out.push(
+                [lpc::INDEX_FILE, lpc::REPO_FILE, lpc::INFO_FILE]
+                    .iter()
+                    .map(|f| std::fs::read(dir.path().join(f)).unwrap())
+                    .collect(),
+            );
+        }
+        for (t, o) in out.iter().enumerate().skip(1) {
+            for (f, (a, b)) in o.iter().zip(&out[0]).enumerate() {
+                assert!(
+                    a == b,
+                    "budget {budget}: file {f} differs with {} threads",
+                    t + 1
+                );
+            }
+        }
+    }
+}

@@ -29,14 +29,31 @@
 //! root reads the scene's columns sequentially in blocks and releases their pages behind
 //! the cursor. Clouds are appended to a temporary cloud file in processing order.
 //!
+//! **Parallelism** (the current rayon pool; the output is byte-identical for any number of
+//! threads). Streamed subtrees are taken one at a time, so at most one in-core subtree is
+//! loaded and the `2 × 20` bytes per sample bound holds for the whole build. Inside an in-core
+//! subtree (`part`), a node whose two children both hold ≥ [`PAR_MIN`] samples and
+//! ≥ 1/16 of the node's runs the two child subtrees in [`rayon::join`] on their disjoint
+//! ranges of the two buffers (no extra sample memory; each worker has its own scan buffers
+//! of ≈ `K·M + M` samples, counted per pool thread in `peak_bytes_held`). Each node's cloud is
+//! left in its destination buffer, in the gap between its children's ranges; the workers
+//! return their nodes in depth-first order (child 0 first), and the subtree's nodes are then
+//! given their ids and their clouds appended in that order, which is the single-threaded
+//! processing order. A streamed scan fetches (converts or reads) its next block while
+//! scanning the current one; the scene's columns are converted (normal encoding) in parallel
+//! per block,
+//! and the probe k-NN ([`probe_knn`]) scans its subtree in parallel chunks, alongside the
+//! partition of the subtree's root (which only reads the source buffer too). Sums of `f64`
+//! (normal sums) are always accumulated in scan order.
+//!
 //! **Phase 2, structure construction.** Nodes are sorted by level, then by the Morton code
 //! of their sphere centre quantised in the root box (ties: processing order); node index =
 //! cloud id. The spacings of eqs. (1)–(2) are computed top-down ([`hierarchical_spacing`]);
 //! clouds are read back in repository order in batches, encoded ([`cloud::encode`]) and
 //! LZO-compressed in parallel, then appended in order.
 //!
-//! **Input spacing** `r` (when not given): `2 ×` the mean distance to the
-//! [`crate::leaf::LEAF_K`]-th nearest neighbour over a seeded probe (each sample with
+//! **Input spacing** `r` (when not given): `2 ×` the [`SPACING_QUANTILE`] of the distance to
+//! the [`crate::leaf::LEAF_K`]-th nearest neighbour over a seeded probe (each sample with
 //! probability `min(1, 16 384 / N)`), each probe measured against the full-density samples of
 //! the in-core subtree that contains it when that subtree is loaded ([`probe_knn`]). Probes
 //! that end up in the cloud of an out-of-core node are not measured.
@@ -70,6 +87,8 @@ pub const RECORD_BYTES: u64 = std::mem::size_of::<Sample>() as u64;
 pub const IN_CORE_BYTES_PER_SAMPLE: u64 = 2 * RECORD_BYTES;
 /// Samples per block when reading the scene or a temporary file.
 const BLOCK: usize = 1 << 16;
+/// Samples per parallel chunk when converting the scene's columns.
+const CONVERT_CHUNK: usize = 1 << 13;
 /// Capacity of each buffered reader / writer.
 const IO_BUF: usize = 1 << 20;
 /// Added to every cone half-angle (radians): covers `f32` rounding of the dot products.
@@ -109,11 +128,13 @@ pub fn build_with_budget(
     temps.0.push(clouds_path.clone());
     let clouds_file = File::create(&clouds_path).map_err(|e| MethodError::io(&clouds_path, e))?;
     let mut p1 = Phase1 {
-        m: params.m as usize,
-        k: params.k,
-        seed: params.seed,
+        cfg: Cfg {
+            m: params.m as usize,
+            k: params.k,
+            seed: params.seed,
+            normals: attrs.normals,
+        },
         budget: mem_bytes,
-        normals: attrs.normals,
         estimate: params.spacing.is_none() || params.nn_spacing.is_none(),
         dir: dir.to_owned(),
         nodes: Vec::new(),
@@ -398,15 +419,236 @@ impl Acc {
         bbox: Aabb::EMPTY,
         nsum: DVec3::ZERO,
     };
+    /// Adds `s`, whose decoded normal is `d` (ignored without normals).
     #[inline]
-    fn add(&mut self, s: &Sample, normals: bool) {
+    fn add(&mut self, s: &Sample, d: [f32; 3], normals: bool) {
         self.n += 1;
         self.bbox = self.bbox.grow(Vec3::from(s.p));
         if normals {
-            let d = cloud::normal_table()[s.normal as usize].1;
             self.nsum += DVec3::new(d[0] as f64, d[1] as f64, d[2] as f64);
         }
     }
+}
+
+/// The constants of phase 1's scans, shared by the workers.
+#[derive(Debug, Clone, Copy)]
+struct Cfg {
+    m: usize,
+    k: f32,
+    seed: u64,
+    normals: bool,
+}
+
+impl Cfg {
+    fn scan_for(&self, task: &Task, spare: &mut (Vec<Sample>, Vec<Sample>)) -> Scan {
+        let m = self.m;
+        let p = self.k as f64 * m as f64 / task.n as f64;
+        let axis = task.bbox.longest_axis();
+        let naxis = if self.normals {
+            let l = task.nsum.length();
+            if l > 0.0 {
+                (task.nsum / l).as_vec3()
+            } else {
+                Vec3::Z
+            }
+        } else {
+            Vec3::ZERO
+        };
+        let (mut res, mut hold) = std::mem::take(spare);
+        res.clear();
+        hold.clear();
+        Scan {
+            m,
+            leaf: task.n < m as u64,
+            keep_all: p >= 1.0,
+            p: p as f32,
+            axis,
+            mid: task.bbox.center()[axis],
+            center: task.bbox.center(),
+            naxis,
+            normals: self.normals,
+            max_d2: 0.0,
+            min_dot: 1.0,
+            rng: Pcg32::stream(self.seed, task.key),
+            table: cloud::normal_table(),
+            res,
+            hold,
+            kids: [Acc::EMPTY; 2],
+        }
+    }
+}
+
+/// A scanned node, before it gets its id and its place in the cloud file.
+#[derive(Debug, Clone, Copy)]
+struct Closed {
+    key: u64,
+    center: Vec3,
+    radius: f32,
+    axis: Vec3,
+    half: f32,
+    acc: [Acc; 2],
+}
+
+impl Closed {
+    /// The child tasks (`None`: empty child), with id `id`.
+    fn kids(&self, id: u32) -> [Option<Task>; 2] {
+        std::array::from_fn(|side| {
+            let acc = self.acc[side];
+            (acc.n > 0).then(|| Task {
+                id,
+                key: child_key(self.key, side),
+                n: acc.n,
+                bbox: acc.bbox,
+                nsum: acc.nsum,
+            })
+        })
+    }
+}
+
+/// A node closed by [`part`]: its cloud lies in `bufs[buf][start..start + mc]`.
+#[derive(Debug, Clone, Copy)]
+struct Entry {
+    closed: Closed,
+    buf: usize,
+    start: usize,
+    mc: usize,
+}
+
+/// Subtrees smaller than this are never split between workers.
+pub const PAR_MIN: u64 = 1 << 15;
+
+/// One node partitioned in memory by [`split_node`].
+#[derive(Debug, Clone, Copy)]
+struct Split {
+    closed: Closed,
+    /// Child 0 is `dst[..f]`, the cloud `dst[f..bk]`, child 1 `dst[bk..]`.
+    f: usize,
+    bk: usize,
+    mc: usize,
+    /// Scan-buffer capacity used (samples).
+    cap: usize,
+}
+
+/// Scans the node `task` whose samples are `src` and partitions them into `dst`: child 0
+/// first, then the cloud, then child 1 (both children in scan order).
+fn split_node(
+    cfg: &Cfg,
+    task: &Task,
+    src: &[Sample],
+    dst: &mut [Sample],
+    spare: &mut (Vec<Sample>, Vec<Sample>),
+) -> Result<Split, MethodError> {
+    let mut scan = cfg.scan_for(task, spare);
+    let (mut f, mut bk) = (0usize, dst.len());
+    for s in src {
+        if let Some(side) = scan.step(*s) {
+            if side == 0 {
+                dst[f] = *s;
+                f += 1;
+            } else {
+                bk -= 1;
+                dst[bk] = *s;
+            }
+        }
+    }
+    let mc = scan.select();
+    scan.give_back(mc, &mut |side, s| {
+        if side == 0 {
+            dst[f] = *s;
+            f += 1;
+        } else {
+            bk -= 1;
+            dst[bk] = *s;
+        }
+        Ok(())
+    })?;
+    dst[bk..].reverse();
+    // The children took all but the cloud: it fills the gap `f..bk`.
+    dst[f..bk].copy_from_slice(&scan.res[..mc]);
+    let cap = scan.res.capacity() + scan.hold.capacity();
+    let closed = scan.closed(task.key);
+    *spare = (scan.res, scan.hold);
+    Ok(Split {
+        closed,
+        f,
+        bk,
+        mc,
+        cap,
+    })
+}
+
+/// Partitions, in memory, the subtree of `root` whose samples are in `bufs[buf]` (`a` is
+/// buffer 0 and `b` buffer 1, both restricted to the subtree's range, which starts at
+/// `base` in the full buffers). Each node's cloud is left in the gap between its
+/// children's ranges in the buffer it was partitioned into; the nodes are appended to `log`
+/// depth-first, child 0 first (the order of the single-threaded build). When both children
+/// of a node are large (≥ [`PAR_MIN`] and ≥ 1/16 of the node: the nesting depth stays
+/// logarithmic), their subtrees run in [`rayon::join`] on disjoint ranges. Returns the
+/// largest scan-buffer capacity (samples) used.
+#[allow(clippy::too_many_arguments)]
+fn part(
+    cfg: &Cfg,
+    root: Task,
+    a: &mut [Sample],
+    b: &mut [Sample],
+    base: usize,
+    buf: usize,
+    log: &mut Vec<Entry>,
+    mut first: Option<Split>,
+) -> Result<usize, MethodError> {
+    let mut spare = (Vec::new(), Vec::new());
+    let mut cap = 0usize;
+    // (task, buffer holding the samples, range)
+    let mut stack = vec![(root, buf, 0usize, a.len())];
+    while let Some((task, buf, lo, hi)) = stack.pop() {
+        let (src, dst) = if buf == 1 {
+            (&b[lo..hi], &mut a[lo..hi])
+        } else {
+            (&a[lo..hi], &mut b[lo..hi])
+        };
+        let Split {
+            closed,
+            f,
+            bk,
+            mc,
+            cap: c,
+        } = match first.take() {
+            Some(sp) => sp,
+            None => split_node(cfg, &task, src, dst, &mut spare)?,
+        };
+        cap = cap.max(c);
+        log.push(Entry {
+            closed,
+            buf: 1 - buf,
+            start: base + lo + f,
+            mc,
+        });
+        let kids = closed.kids(NONE);
+        match kids {
+            [Some(t0), Some(t1)] if t0.n.min(t1.n) >= PAR_MIN.max(task.n / 16) => {
+                let (a0, a1) = a[lo..hi].split_at_mut(bk);
+                let (b0, b1) = b[lo..hi].split_at_mut(bk);
+                let (a0, b0) = (&mut a0[..f], &mut b0[..f]);
+                let (mut l0, mut l1) = (Vec::new(), Vec::new());
+                let (c0, c1) = rayon::join(
+                    || part(cfg, t0, a0, b0, base + lo, 1 - buf, &mut l0, None),
+                    || part(cfg, t1, a1, b1, base + lo + bk, 1 - buf, &mut l1, None),
+                );
+                cap = cap.max(c0?).max(c1?);
+                log.append(&mut l0);
+                log.append(&mut l1);
+            }
+            _ => {
+                if let Some(t) = kids[1] {
+                    stack.push((t, 1 - buf, lo + bk, hi));
+                }
+                if let Some(t) = kids[0] {
+                    stack.push((t, 1 - buf, lo, lo + f));
+                }
+            }
+        }
+    }
+    Ok(cap)
 }
 
 /// The state of one node's scan.
@@ -423,6 +665,7 @@ struct Scan {
     max_d2: f32,
     min_dot: f32,
     rng: Pcg32,
+    table: &'static [(u32, [f32; 3])],
     res: Vec<Sample>,
     hold: Vec<Sample>,
     kids: [Acc; 2],
@@ -433,9 +676,10 @@ impl Scan {
     fn step(&mut self, s: Sample) -> Option<usize> {
         let d2 = (Vec3::from(s.p) - self.center).length_squared();
         self.max_d2 = self.max_d2.max(d2);
+        let mut d = [0.0; 3];
         if self.normals {
-            let d = Vec3::from(cloud::normal_table()[s.normal as usize].1);
-            self.min_dot = self.min_dot.min(d.dot(self.naxis));
+            d = self.table[s.normal as usize].1;
+            self.min_dot = self.min_dot.min(Vec3::from(d).dot(self.naxis));
         }
         if self.leaf || self.keep_all || self.rng.f32() < self.p {
             self.res.push(s);
@@ -445,12 +689,13 @@ impl Scan {
             self.hold.push(s);
             return None;
         }
-        Some(self.route(&s))
+        Some(self.route(&s, d))
     }
+    /// Adds `s` (decoded normal `d`) to its child; returns the side.
     #[inline]
-    fn route(&mut self, s: &Sample) -> usize {
+    fn route(&mut self, s: &Sample, d: [f32; 3]) -> usize {
         let side = (s.p[self.axis] >= self.mid) as usize;
-        self.kids[side].add(s, self.normals);
+        self.kids[side].add(s, d, self.normals);
         side
     }
     /// Arranges `res` so that `res[..returned]` is the cloud; the give-back samples are
@@ -481,12 +726,23 @@ impl Scan {
         let res = std::mem::take(&mut self.res);
         let hold = std::mem::take(&mut self.hold);
         for s in res[mc..].iter().chain(&hold) {
-            let side = self.route(s);
+            let side = self.route(s, self.table[s.normal as usize].1);
             out(side, s)?;
         }
         self.res = res;
         self.hold = hold;
         Ok(())
+    }
+    /// The node's sphere, cone and children once its scan is complete.
+    fn closed(&self, key: u64) -> Closed {
+        Closed {
+            key,
+            center: self.center,
+            radius: self.max_d2.sqrt() * (1.0 + 1e-6),
+            axis: self.naxis,
+            half: self.half_angle(),
+            acc: self.kids,
+        }
     }
     fn half_angle(&self) -> f32 {
         if self.normals {
@@ -499,11 +755,8 @@ impl Scan {
 
 /// Phase 1 state.
 struct Phase1<'a> {
-    m: usize,
-    k: f32,
-    seed: u64,
+    cfg: Cfg,
     budget: u64,
-    normals: bool,
     estimate: bool,
     dir: PathBuf,
     nodes: Vec<PNode>,
@@ -537,72 +790,51 @@ impl<'a> Phase1<'a> {
         n.saturating_mul(IN_CORE_BYTES_PER_SAMPLE) <= self.budget
     }
 
-    fn scan_for(&mut self, task: &Task) -> Scan {
-        let m = self.m;
-        let p = self.k as f64 * m as f64 / task.n as f64;
-        let axis = task.bbox.longest_axis();
-        let naxis = if self.normals {
-            let l = task.nsum.length();
-            if l > 0.0 {
-                (task.nsum / l).as_vec3()
-            } else {
-                Vec3::Z
-            }
-        } else {
-            Vec3::ZERO
-        };
-        let (mut res, mut hold) = std::mem::take(&mut self.spare);
-        res.clear();
-        hold.clear();
-        Scan {
-            m,
-            leaf: task.n < m as u64,
-            keep_all: p >= 1.0,
-            p: p as f32,
-            axis,
-            mid: task.bbox.center()[axis],
-            center: task.bbox.center(),
-            naxis,
-            normals: self.normals,
-            max_d2: 0.0,
-            min_dot: 1.0,
-            rng: Pcg32::stream(self.seed, task.key),
-            res,
-            hold,
-            kids: [Acc::EMPTY; 2],
-        }
-    }
-
-    /// Writes the cloud, fills the node and creates its children; returns the child tasks.
+    /// Writes the cloud of a node scanned by [`Phase1::stream`], fills the node and creates
+    /// its children; returns the child tasks.
     fn close(
         &mut self,
         task: &Task,
         mut scan: Scan,
         mc: usize,
     ) -> Result<[Option<Task>; 2], MethodError> {
-        let off = self.clouds_len;
-        self.clouds
-            .write_all(bytemuck::cast_slice(&scan.res[..mc]))
-            .map_err(|e| MethodError::io(&self.clouds_path, e))?;
-        self.clouds_len += mc as u64;
         self.peak = self
             .peak
             .max((scan.res.capacity() + scan.hold.capacity()) as u64 * RECORD_BYTES);
-        self.progress.inc(mc as u64);
-        let level = self.nodes[task.id as usize].level;
+        let closed = scan.closed(task.key);
+        let kids = self.commit(task.id, &closed, &scan.res[..mc])?;
+        self.spare = (
+            std::mem::take(&mut scan.res),
+            std::mem::take(&mut scan.hold),
+        );
+        Ok(kids)
+    }
+
+    /// Appends the node `id`'s cloud to the cloud file, fills the node and creates its
+    /// children (the next ids, child 0 first); returns the child tasks.
+    fn commit(
+        &mut self,
+        id: u32,
+        c: &Closed,
+        cloud: &[Sample],
+    ) -> Result<[Option<Task>; 2], MethodError> {
+        let off = self.clouds_len;
+        self.clouds
+            .write_all(bytemuck::cast_slice(cloud))
+            .map_err(|e| MethodError::io(&self.clouds_path, e))?;
+        self.clouds_len += cloud.len() as u64;
+        self.progress.inc(cloud.len() as u64);
+        let level = self.nodes[id as usize].level;
         let mut kids = [None, None];
         let mut ids = [NONE; 2];
-        for side in 0..2 {
-            let acc = scan.kids[side];
-            if acc.n == 0 {
-                continue;
-            }
-            let id = self.nodes.len() as u32;
+        for (side, t) in c.kids(NONE).into_iter().enumerate() {
+            let Some(mut t) = t else { continue };
+            t.id = self.nodes.len() as u32;
             self.nodes.push(PNode {
-                parent: task.id,
+                parent: id,
                 children: [NONE; 2],
                 level: level + 1,
-                n: acc.n,
+                n: t.n,
                 m: 0,
                 cloud_off: 0,
                 center: Vec3::ZERO,
@@ -610,28 +842,17 @@ impl<'a> Phase1<'a> {
                 axis: Vec3::ZERO,
                 half: 0.0,
             });
-            ids[side] = id;
-            kids[side] = Some(Task {
-                id,
-                key: child_key(task.key, side),
-                n: acc.n,
-                bbox: acc.bbox,
-                nsum: acc.nsum,
-            });
+            ids[side] = t.id;
+            kids[side] = Some(t);
         }
-        let half = scan.half_angle();
-        let nd = &mut self.nodes[task.id as usize];
+        let nd = &mut self.nodes[id as usize];
         nd.children = ids;
-        nd.m = mc as u32;
+        nd.m = cloud.len() as u32;
         nd.cloud_off = off;
-        nd.center = scan.center;
-        nd.radius = scan.max_d2.sqrt() * (1.0 + 1e-6);
-        nd.axis = scan.naxis;
-        nd.half = half;
-        self.spare = (
-            std::mem::take(&mut scan.res),
-            std::mem::take(&mut scan.hold),
-        );
+        nd.center = c.center;
+        nd.radius = c.radius;
+        nd.axis = c.axis;
+        nd.half = c.half;
         Ok(kids)
     }
 
@@ -654,31 +875,38 @@ impl<'a> Phase1<'a> {
         } else {
             (PROBES as f64 / n as f64 * u64::MAX as f64) as u64
         };
-        let seed = self.seed;
+        let seed = self.cfg.seed;
+        // Appends the samples of `range` to `out` (converted in parallel) and adds their
+        // quantised normals to `nsum` (in order: the same sum for any thread count).
         let convert = |range: std::ops::Range<usize>, out: &mut Vec<Sample>, nsum: &mut DVec3| {
             let pos = &cloud.positions()[range.clone()];
             let nrm = cloud.normals().map(|v| &v[range.clone()]);
             let col = cloud.colors().map(|v| &v[range.clone()]);
-            let table = cloud::normal_table();
-            for (j, p) in pos.iter().enumerate() {
-                let i = range.start + j;
-                let mut h = seed ^ (i as u64).wrapping_mul(0xA24B_AED4_963E_E407);
-                let probe = splitmix64(&mut h) <= threshold;
-                let mut s = Sample {
-                    p: *p,
-                    normal: 0,
-                    flags: if probe { PROBE } else { 0 },
-                    color: [0; 4],
-                };
-                if let Some(nv) = nrm {
-                    s.normal = cloud::oct16_encode(Vec3::from(nv[j]));
+            let start = out.len();
+            out.resize(start + range.len(), Sample::default());
+            out[start..]
+                .par_chunks_mut(CONVERT_CHUNK)
+                .enumerate()
+                .for_each(|(c, chunk)| {
+                    for (jj, s) in chunk.iter_mut().enumerate() {
+                        let j = c * CONVERT_CHUNK + jj;
+                        let i = range.start + j;
+                        let mut h = seed ^ (i as u64).wrapping_mul(0xA24B_AED4_963E_E407);
+                        let probe = splitmix64(&mut h) <= threshold;
+                        *s = Sample {
+                            p: pos[j],
+                            normal: nrm.map_or(0, |nv| cloud::oct16_encode(Vec3::from(nv[j]))),
+                            flags: if probe { PROBE } else { 0 },
+                            color: col.map_or([0; 4], |c| [c[j][0], c[j][1], c[j][2], 0]),
+                        };
+                    }
+                });
+            if nrm.is_some() {
+                let table = cloud::normal_table();
+                for s in &out[start..] {
                     let d = table[s.normal as usize].1;
                     *nsum += DVec3::new(d[0] as f64, d[1] as f64, d[2] as f64);
                 }
-                if let Some(c) = col {
-                    s.color = [c[j][0], c[j][1], c[j][2], 0];
-                }
-                out.push(s);
             }
             cloud.release_pages(range);
         };
@@ -700,17 +928,38 @@ impl<'a> Phase1<'a> {
             self.in_core(root(nsum), &mut bufs)?;
         } else {
             // The root streams the scene: a first pass for the normal sum (the cone axis).
+            // Blocks are encoded in parallel while the previous one is summed (in order).
             let mut nsum = DVec3::ZERO;
             if let Some(nv) = cloud.normals() {
                 let table = cloud::normal_table();
+                let (mut codes, mut prev) = (vec![0u16; BLOCK], vec![0u16; BLOCK]);
+                let mut prev_len = 0;
+                let sum = |codes: &[u16], nsum: &mut DVec3| {
+                    for &c in codes {
+                        let d = table[c as usize].1;
+                        *nsum += DVec3::new(d[0] as f64, d[1] as f64, d[2] as f64);
+                    }
+                };
                 for lo in (0..n).step_by(BLOCK) {
                     let hi = (lo + BLOCK).min(n);
-                    for v in &nv[lo..hi] {
-                        let d = table[cloud::oct16_encode(Vec3::from(*v)) as usize].1;
-                        nsum += DVec3::new(d[0] as f64, d[1] as f64, d[2] as f64);
-                    }
-                    cloud.release_pages(lo..hi);
+                    rayon::join(
+                        || sum(&prev[..prev_len], &mut nsum),
+                        || {
+                            codes[..hi - lo]
+                                .par_chunks_mut(CONVERT_CHUNK)
+                                .zip(nv[lo..hi].par_chunks(CONVERT_CHUNK))
+                                .for_each(|(c, v)| {
+                                    for (c, v) in c.iter_mut().zip(v) {
+                                        *c = cloud::oct16_encode(Vec3::from(*v));
+                                    }
+                                });
+                            cloud.release_pages(lo..hi);
+                        },
+                    );
+                    std::mem::swap(&mut codes, &mut prev);
+                    prev_len = hi - lo;
                 }
+                sum(&prev[..prev_len], &mut nsum);
             }
             let task = root(nsum);
             let mut lo = 0;
@@ -766,9 +1015,9 @@ impl<'a> Phase1<'a> {
         &mut self,
         task: &Task,
         temps: &mut Temps,
-        next: &mut dyn FnMut(&mut Vec<Sample>) -> Result<bool, MethodError>,
+        next: &mut (dyn FnMut(&mut Vec<Sample>) -> Result<bool, MethodError> + Send),
     ) -> Result<[Option<FileTask>; 2], MethodError> {
-        let mut scan = self.scan_for(task);
+        let mut scan = self.cfg.scan_for(task, &mut self.spare);
         let mut paths = Vec::with_capacity(2);
         let mut writers = Vec::with_capacity(2);
         for _ in 0..2 {
@@ -780,20 +1029,32 @@ impl<'a> Phase1<'a> {
             paths.push(path);
         }
         let mut block = Vec::with_capacity(BLOCK);
+        let mut ahead = Vec::with_capacity(BLOCK);
         self.peak = self
             .peak
-            .max((BLOCK as u64) * RECORD_BYTES + 4 * IO_BUF as u64);
+            .max(2 * (BLOCK as u64) * RECORD_BYTES + 4 * IO_BUF as u64);
         let mut write = |side: usize, s: &Sample| -> Result<(), MethodError> {
             writers[side]
                 .write_all(bytemuck::bytes_of(s))
                 .map_err(|e| MethodError::io(&paths[side], e))
         };
-        while next(&mut block)? {
-            for s in &block {
-                if let Some(side) = scan.step(*s) {
-                    write(side, s)?;
-                }
-            }
+        // The next block is fetched (converted / read) while this one is scanned.
+        let mut more = next(&mut block)?;
+        while more {
+            let (scanned, fetched) = rayon::join(
+                || -> Result<(), MethodError> {
+                    for s in &block {
+                        if let Some(side) = scan.step(*s) {
+                            write(side, s)?;
+                        }
+                    }
+                    Ok(())
+                },
+                || next(&mut ahead),
+            );
+            scanned?;
+            more = fetched?;
+            std::mem::swap(&mut block, &mut ahead);
         }
         let mc = scan.select();
         scan.give_back(mc, &mut write)?;
@@ -820,60 +1081,42 @@ impl<'a> Phase1<'a> {
         Ok(out)
     }
 
-    /// Partitions the subtree of `root`, whose samples are `bufs[0][..root.n]`, in memory.
+    /// Partitions the subtree of `root`, whose samples are `bufs[0][..root.n]`, in memory
+    /// ([`part`], on the current rayon pool), then commits its nodes in depth-first order.
     fn in_core(&mut self, root: Task, bufs: &mut [Vec<Sample>; 2]) -> Result<(), MethodError> {
         let n = root.n as usize;
         bufs[1].clear();
         bufs[1].resize(n, Sample::default());
-        self.peak = self
-            .peak
-            .max((bufs[0].capacity() + bufs[1].capacity()) as u64 * RECORD_BYTES);
-        if self.estimate {
-            self.probes
-                .extend(probe_knn(&bufs[0][..n], root.bbox, LEAF_K));
-        }
-        // (task, samples in buffer 1?, range)
-        let mut stack = vec![(root, false, 0usize, n)];
-        while let Some((task, in_b, lo, hi)) = stack.pop() {
-            let (a, b) = bufs.split_at_mut(1);
-            let (src, dst) = if in_b {
-                (&b[0][lo..hi], &mut a[0][lo..hi])
-            } else {
-                (&a[0][lo..hi], &mut b[0][lo..hi])
-            };
-            let mut scan = self.scan_for(&task);
-            let (mut f, mut bk) = (0usize, dst.len());
-            for s in src {
-                if let Some(side) = scan.step(*s) {
-                    if side == 0 {
-                        dst[f] = *s;
-                        f += 1;
-                    } else {
-                        bk -= 1;
-                        dst[bk] = *s;
-                    }
-                }
-            }
-            let mc = scan.select();
-            scan.give_back(mc, &mut |side, s| {
-                if side == 0 {
-                    dst[f] = *s;
-                    f += 1;
+        let mut log = Vec::new();
+        let (a, b) = bufs.split_at_mut(1);
+        let (a, b) = (&mut a[0][..n], &mut b[0][..n]);
+        // The probe k-NN reads buffer 0 while the root is partitioned into buffer 1.
+        let (probes, first) = rayon::join(
+            || {
+                if self.estimate {
+                    probe_knn(a, root.bbox, LEAF_K)
                 } else {
-                    bk -= 1;
-                    dst[bk] = *s;
+                    Vec::new()
                 }
-                Ok(())
-            })?;
-            dst[bk..].reverse();
-            let kids = self.close(&task, scan, mc)?;
-            if let Some(t) = kids[1] {
-                stack.push((t, !in_b, lo + bk, hi));
-            }
-            if let Some(t) = kids[0] {
-                stack.push((t, !in_b, lo, lo + f));
-            }
+            },
+            || split_node(&self.cfg, &root, a, b, &mut (Vec::new(), Vec::new())),
+        );
+        self.probes.extend(probes);
+        let cap = part(&self.cfg, root, a, b, 0, 0, &mut log, Some(first?))?;
+        // Each worker holds its own scan buffers.
+        let workers = rayon::current_num_threads() as u64;
+        self.peak = self.peak.max(
+            (bufs[0].capacity() + bufs[1].capacity()) as u64 * RECORD_BYTES
+                + workers * cap as u64 * RECORD_BYTES,
+        );
+        let mut ids = vec![root.id];
+        for e in &log {
+            let Some(id) = ids.pop() else { break };
+            let cloud = &bufs[e.buf][e.start..e.start + e.mc];
+            let kids = self.commit(id, &e.closed, cloud)?;
+            ids.extend(kids.iter().rev().flatten().map(|t| t.id));
         }
+        debug_assert!(ids.is_empty());
         Ok(())
     }
 }
@@ -883,6 +1126,29 @@ fn read_samples(path: &Path, out: &mut [Sample]) -> Result<(), MethodError> {
     let mut r = BufReader::with_capacity(IO_BUF, file);
     r.read_exact(bytemuck::cast_slice_mut(out))
         .map_err(|e| MethodError::io(path, e))
+}
+
+/// Samples per parallel chunk of [`probe_knn`]'s scan.
+pub const KNN_CHUNK: usize = 1 << 16;
+
+/// Sorted squared distances of a probe's nearest samples (itself included).
+type Best = [f32; LEAF_K + 1];
+
+/// Merges the sorted `b[..k]` into the sorted `a[..k]`, keeping the `k` smallest.
+fn merge_best(a: &mut Best, b: &Best, k: usize) {
+    let mut out = [f32::INFINITY; LEAF_K + 1];
+    let (mut i, mut j) = (0, 0);
+    for o in &mut out[..k] {
+        // `i + j < k`: both indices stay in range.
+        if a[i] <= b[j] {
+            *o = a[i];
+            i += 1;
+        } else {
+            *o = b[j];
+            j += 1;
+        }
+    }
+    *a = out;
 }
 
 /// Bits of the probe-cell filter of [`probe_knn`].
@@ -911,11 +1177,13 @@ impl Hasher for KeyHasher {
     }
 }
 
-/// Sum and count of the `k`-th nearest-neighbour distances of the probe samples of `s`
+/// `[nearest, k-th nearest]` neighbour distances of each probe sample of `s`
 /// (flagged at load), measured exactly against all of `s` (the probe itself excluded once).
 ///
 /// Linear in `s.len()`: the probes are hashed into a grid of cell size `h` (each into the
-/// 27 cells around it); one scan of `s` collects, for each probe, the samples within `h`.
+/// 27 cells around it); one scan of `s` (in parallel chunks of [`KNN_CHUNK`], whose nearest
+/// lists are then merged: the same result for any split) collects, for each probe, the
+/// samples within `h`.
 /// A probe with fewer than `k` of them is measured again with `2h`. The first `h` is
 /// `sqrt(A/n)` with `A` the surface area of the box. A 128 KiB bit filter of the cells that
 /// hold probe entries spares most samples the (cache-missing) hash lookup.
@@ -975,42 +1243,54 @@ pub fn probe_knn(s: &[Sample], bbox: Aabb, k: usize) -> Vec<[f32; 2]> {
             filter[f >> 6] |= 1 << (f & 63);
             a = b;
         }
-        let mut best = vec![[f32::INFINITY; LEAF_K]; pending.len()];
-        let mut seen_self = vec![false; pending.len()];
+        // The `k + 1` nearest of every probe, itself included (at distance 0): per chunk of
+        // `s`, in parallel, then merged (the same values for any split).
+        let kk = k + 1;
         let h2 = h * h;
-        for x in s {
-            let kx = key(cell(x.p));
-            let f = filter_bit(kx);
-            if filter[f >> 6] & (1 << (f & 63)) == 0 {
-                continue;
-            }
-            let Some(&(a, b)) = map.get(&kx) else {
-                continue;
-            };
-            for &(_, j) in &entries[a as usize..b as usize] {
-                let j = j as usize;
-                let q = probes[pending[j] as usize];
-                if x.flags & PROBE != 0 && x.p == q && !seen_self[j] {
-                    seen_self[j] = true;
+        let fresh = || vec![[f32::INFINITY; LEAF_K + 1]; pending.len()];
+        let scan = |mut best: Vec<Best>, chunk: &[Sample]| {
+            for x in chunk {
+                let kx = key(cell(x.p));
+                let f = filter_bit(kx);
+                if filter[f >> 6] & (1 << (f & 63)) == 0 {
                     continue;
                 }
-                let d2 = (Vec3::from(x.p) - Vec3::from(q)).length_squared();
-                let bj = &mut best[j][..k];
-                if d2 <= h2 && d2 < bj[k - 1] {
-                    let mut i = k - 1;
-                    while i > 0 && bj[i - 1] > d2 {
-                        bj[i] = bj[i - 1];
-                        i -= 1;
+                let Some(&(a, b)) = map.get(&kx) else {
+                    continue;
+                };
+                for &(_, j) in &entries[a as usize..b as usize] {
+                    let j = j as usize;
+                    let q = probes[pending[j] as usize];
+                    let d2 = (Vec3::from(x.p) - Vec3::from(q)).length_squared();
+                    let bj = &mut best[j][..kk];
+                    if d2 <= h2 && d2 < bj[kk - 1] {
+                        let mut i = kk - 1;
+                        while i > 0 && bj[i - 1] > d2 {
+                            bj[i] = bj[i - 1];
+                            i -= 1;
+                        }
+                        bj[i] = d2;
                     }
-                    bj[i] = d2;
                 }
             }
-        }
+            best
+        };
+        let best = s
+            .par_chunks(KNN_CHUNK)
+            .fold(fresh, scan)
+            .reduce_with(|mut x, y| {
+                for (u, v) in x.iter_mut().zip(&y) {
+                    merge_best(u, v, kk);
+                }
+                x
+            })
+            .unwrap_or_else(fresh);
         let mut next = Vec::new();
         for (j, &pi) in pending.iter().enumerate() {
-            let d = best[j][k - 1];
+            // `best[j][0]` is the probe itself.
+            let d = best[j][k];
             if d <= h2 {
-                out.push([best[j][0].sqrt(), d.sqrt()]);
+                out.push([best[j][1].sqrt(), d.sqrt()]);
             } else {
                 next.push(pi);
             }

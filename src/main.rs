@@ -161,6 +161,10 @@ struct RunArgs {
     /// Cache directory (large scenes, reference builds and images).
     #[arg(long, default_value = "results/cache")]
     cache: PathBuf,
+    /// Run an existing build (a `splatbench build --out` directory of the same method and
+    /// scene) instead of building: the run's memory is then the method's alone.
+    #[arg(long)]
+    build_dir: Option<PathBuf>,
 }
 
 #[derive(Args, Clone)]
@@ -362,6 +366,7 @@ fn run_config(a: &RunArgs) -> anyhow::Result<RunConfig> {
         metrics: !a.no_metrics,
         out: a.out.clone(),
         cache: a.cache.clone(),
+        build_dir: a.build_dir.clone(),
     })
 }
 
@@ -420,6 +425,7 @@ fn demo(out: &std::path::Path, frames: usize) -> anyhow::Result<()> {
             metrics: true,
             out: dir.clone(),
             cache: out.join("cache"),
+            build_dir: None,
         };
         let s = harness::runner::run(&cfg, &gpu, &bar)?;
         harness::plot::plot_run(&dir)?;

@@ -524,3 +524,60 @@ fn export_las_then_build_lpc_from_it() {
     );
     assert!(!bad.exists());
 }
+
+/// `run --build-dir` opens an existing build instead of building; a build of another
+/// method or scene, or a `--param` that would change it, is refused naming the flag.
+#[test]
+fn run_reuses_an_existing_build() {
+    if !have_gpu("run_reuses_an_existing_build") {
+        return;
+    }
+    let tmp = tempfile::tempdir().unwrap();
+    let cache = tmp.path().join("cache");
+    let build = tmp.path().join("b");
+    let scene = "statue:20000:3";
+    bin()
+        .args([
+            "build", "--method", "lpc", "--param", "m=512", "--scene", scene, "--out",
+        ])
+        .arg(&build)
+        .arg("--cache")
+        .arg(&cache)
+        .assert()
+        .success();
+    let out = tmp.path().join("r");
+    let common = |m: &str, s: &str, out: &Path| {
+        let mut v: Vec<String> = ["run", "--method", m, "--scene", s, "--frames", "2"]
+            .iter()
+            .map(|x| x.to_string())
+            .collect();
+        v.extend(["--width", "64", "--height", "64", "--no-metrics"].map(String::from));
+        v.extend(["--build-dir".into(), build.display().to_string()]);
+        v.extend(["--cache".into(), cache.display().to_string()]);
+        v.extend(["--out".into(), out.display().to_string()]);
+        v
+    };
+    let args = common("lpc", scene, &out);
+    bin().args(&args).assert().success();
+    assert!(!out.join("build").exists(), "nothing built");
+    let summary: serde_json::Value =
+        serde_json::from_str(&std::fs::read_to_string(out.join("summary.json")).unwrap()).unwrap();
+    assert_eq!(summary["complete"], true);
+    assert_eq!(summary["params"]["m"], "512");
+    let args = common("qsplat", scene, &tmp.path().join("x"));
+    fails_with(
+        &args.iter().map(String::as_str).collect::<Vec<_>>(),
+        "--build-dir",
+    );
+    let args = common("lpc", "statue:20000:4", &tmp.path().join("y"));
+    fails_with(
+        &args.iter().map(String::as_str).collect::<Vec<_>>(),
+        "--build-dir",
+    );
+    let mut args = common("lpc", scene, &tmp.path().join("z"));
+    args.extend(["--param".into(), "m=256".into()]);
+    fails_with(
+        &args.iter().map(String::as_str).collect::<Vec<_>>(),
+        "--param cannot change",
+    );
+}

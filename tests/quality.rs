@@ -38,6 +38,7 @@ fn every_method_leaves_at_most_one_percent_holes_at_1px() {
             metrics: true,
             out: out.clone(),
             cache: tmp.path().join("cache"),
+            build_dir: None,
         };
         run(&cfg, &gpu, &scenes::NoProgress).unwrap_or_else(|e| panic!("{method}: {e:#}"));
         let mut r = csv::Reader::from_path(out.join("frames.csv")).unwrap();
@@ -83,6 +84,7 @@ fn qsplat_refines_progressively_during_a_pause() {
         metrics: false,
         out: tmp.path().join("run"),
         cache: tmp.path().join("cache"),
+        build_dir: None,
     };
     run(&cfg, &gpu, &scenes::NoProgress).unwrap();
     let mut r = csv::Reader::from_path(tmp.path().join("run/frames.csv")).unwrap();
@@ -157,6 +159,7 @@ fn lpc_with_a_stalled_loader_renders_coarser_without_extra_holes() {
             metrics: true,
             out: out.clone(),
             cache: tmp.path().join("cache"),
+            build_dir: None,
         };
         run(&cfg, &gpu, &scenes::NoProgress).unwrap();
         out

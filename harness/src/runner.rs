@@ -145,6 +145,10 @@ pub struct RunConfig {
     pub out: PathBuf,
     /// Cache directory (scenes, reference builds and images).
     pub cache: PathBuf,
+    /// Open this existing build directory instead of building into `out/build` (its
+    /// `method.json` must name the same method, scene and sample count; its parameters are
+    /// the run's). Lets a run measure the method alone, without the build's memory.
+    pub build_dir: Option<PathBuf>,
 }
 
 /// `summary.json`.
@@ -375,11 +379,40 @@ pub fn run(cfg: &RunConfig, gpu: &Gpu, progress: &dyn Progress) -> anyhow::Resul
         .with_context(|| format!("loading scene '{}'", cfg.scene.text))?;
     let scene_hash = cfg.scene.content_hash()?;
     let label = cfg.scene.label();
-    let build_dir = cfg.out.join("build");
-    let build = cfg
-        .method
-        .build(&cloud, &cfg.params, &label, &build_dir, progress)
-        .with_context(|| format!("building {} on {label}", cfg.method))?;
+    let (build_dir, build, params) = match &cfg.build_dir {
+        None => {
+            let dir = cfg.out.join("build");
+            let build = cfg
+                .method
+                .build(&cloud, &cfg.params, &label, &dir, progress)
+                .with_context(|| format!("building {} on {label}", cfg.method))?;
+            (dir, build, cfg.params.clone())
+        }
+        Some(dir) => {
+            let m = methods::Manifest::read(dir)
+                .with_context(|| format!("--build-dir {}", dir.display()))?;
+            anyhow::ensure!(
+                m.method == cfg.method.name() && m.scene == label && m.points == cloud.len() as u64,
+                "--build-dir {}: holds {} on '{}' ({} points), not {} on '{label}' ({} points)",
+                dir.display(),
+                m.method,
+                m.scene,
+                m.points,
+                cfg.method,
+                cloud.len()
+            );
+            anyhow::ensure!(
+                cfg.params.is_empty() || cfg.params == m.params,
+                "--build-dir {}: --param cannot change a finished build (it was built with {:?}); \
+                 rebuild, or omit --param",
+                dir.display(),
+                m.params
+            );
+            let build =
+                BuildStats::read(dir).with_context(|| format!("--build-dir {}", dir.display()))?;
+            (dir.clone(), build, m.params)
+        }
+    };
     let mut method = MethodKind::open(&build_dir)?;
     if let Some(need) = method.gpu_resident_bytes()
         && need > cfg.render.cache_bytes
@@ -412,7 +445,7 @@ pub fn run(cfg: &RunConfig, gpu: &Gpu, progress: &dyn Progress) -> anyhow::Resul
         width: cfg.render.width,
         height: cfg.render.height,
         method: cfg.method.name().into(),
-        params: cfg.params.clone(),
+        params,
         target,
         kernel: cfg.render.kernel,
         path: cfg.path.name(),

@@ -1,0 +1,101 @@
+//! LPC through `LodMethod` on real builds: budget mode, fetch limits, the stalled loader.
+#![allow(clippy::unwrap_used)]
+
+use glam::Vec3;
+use methods::{DrawList, Feedback, LodMethod, MethodKind, Params, Target};
+use scenes::generators::Generator;
+use scenes::{Camera, PointCloud, View};
+
+fn open(cloud: &PointCloud, params: &[&str], dir: &std::path::Path) -> Box<dyn LodMethod> {
+    let p = Params::parse(params).unwrap();
+    MethodKind::Lpc
+        .build(cloud, &p, "test", dir, &scenes::NoProgress)
+        .unwrap();
+    MethodKind::open(dir).unwrap()
+}
+
+fn view(cloud: &PointCloud, dist: f32) -> View {
+    let b = cloud.bounds();
+    let c = b.center();
+    View {
+        camera: Camera {
+            position: c + Vec3::new(0.3, -1.0, 0.4).normalize() * b.radius() * dist,
+            target: c,
+            up: Vec3::Z,
+            fov_y: 0.8,
+            near: b.radius() * 0.01,
+            far: b.radius() * 100.0,
+        },
+        width: 320,
+        height: 240,
+    }
+}
+
+/// Repeats the frame until nothing is missing (as a still camera would).
+fn settled(m: &mut dyn LodMethod, v: &View, t: Target) -> DrawList {
+    for _ in 0..5000 {
+        let l = m.frame(v, t, &Feedback::default()).unwrap();
+        if l.fetch.is_empty() {
+            return l;
+        }
+        std::thread::sleep(std::time::Duration::from_millis(1));
+    }
+    panic!("never settled");
+}
+
+#[test]
+fn budget_is_never_exceeded_and_within_one_cloud() {
+    let cloud = Generator::Statue.generate(60_000, 5).unwrap();
+    let tmp = tempfile::tempdir().unwrap();
+    let m_cloud = 1024u64;
+    let mut m = open(&cloud, &["m=1024"], tmp.path());
+    for dist in [1.2f32, 2.5, 6.0] {
+        let v = view(&cloud, dist);
+        let all = settled(m.as_mut(), &v, Target::Tolerance(0.0)).points();
+        for b in [1_500u64, 4_000, 9_999, 20_000, 33_333, all] {
+            let l = settled(m.as_mut(), &v, Target::Budget(b));
+            let p = l.points();
+            assert!(p <= b, "view {dist}: budget {b} exceeded: {p}");
+            assert!(
+                b - p < m_cloud || p == all,
+                "view {dist}: budget {b} drew {p}: more than one cloud short (all = {all})"
+            );
+        }
+    }
+}
+
+#[test]
+fn at_most_fetch_per_frame_requests_and_progressive_refinement() {
+    let cloud = Generator::Statue.generate(40_000, 6).unwrap();
+    let tmp = tempfile::tempdir().unwrap();
+    let mut m = open(&cloud, &["m=256", "fetch_per_frame=3"], tmp.path());
+    let cols = m.extra_columns().to_vec();
+    let issued = cols.iter().position(|c| *c == "fetch_issued").unwrap();
+    let dropped = cols.iter().position(|c| *c == "fetch_dropped").unwrap();
+    let v = view(&cloud, 1.5);
+    let mut last = 0;
+    let mut frames = 0;
+    loop {
+        let l = m
+            .frame(&v, Target::Tolerance(1.0), &Feedback::default())
+            .unwrap();
+        assert!(l.counters[issued] <= 3.0);
+        assert_eq!(
+            l.counters[issued] + l.counters[dropped],
+            l.fetch.len() as f64,
+            "every wanted cloud is issued or forgotten"
+        );
+        assert!(l.points() >= last, "a still camera never gets coarser");
+        last = l.points();
+        frames += 1;
+        if l.fetch.is_empty() {
+            break;
+        }
+        assert!(frames < 2000);
+        std::thread::sleep(std::time::Duration::from_millis(1));
+    }
+    assert!(
+        frames > 3,
+        "refinement took {frames} frames with 3 requests per frame"
+    );
+}

@@ -162,7 +162,9 @@ struct RunArgs {
     #[arg(long, default_value = "results/cache")]
     cache: PathBuf,
     /// Run an existing build (a `splatbench build --out` directory of the same method and
-    /// scene) instead of building: the run's memory is then the method's alone.
+    /// scene) instead of building: the run's memory is then the method's alone. `--param`
+    /// may change only runtime parameters (LPC: fetch_per_frame, core_mb, delay_frames,
+    /// occlusion, occlusion_threshold).
     #[arg(long)]
     build_dir: Option<PathBuf>,
 }

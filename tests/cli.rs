@@ -526,7 +526,8 @@ fn export_las_then_build_lpc_from_it() {
 }
 
 /// `run --build-dir` opens an existing build instead of building; a build of another
-/// method or scene, or a `--param` that would change it, is refused naming the flag.
+/// method or scene, or a `--param` that would change the build, is refused naming the flag
+/// or key; runtime parameters (`occlusion=true`) may change.
 #[test]
 fn run_reuses_an_existing_build() {
     if !have_gpu("run_reuses_an_existing_build") {
@@ -578,6 +579,22 @@ fn run_reuses_an_existing_build() {
     args.extend(["--param".into(), "m=256".into()]);
     fails_with(
         &args.iter().map(String::as_str).collect::<Vec<_>>(),
-        "--param cannot change",
+        "'m' changes how lpc builds",
+    );
+    // A runtime parameter may change: the summary records the merged parameters.
+    let out = tmp.path().join("occ");
+    let mut args = common("lpc", scene, &out);
+    args.extend(["--param".into(), "occlusion=true".into()]);
+    bin().args(&args).assert().success();
+    let summary: serde_json::Value =
+        serde_json::from_str(&std::fs::read_to_string(out.join("summary.json")).unwrap()).unwrap();
+    assert_eq!(summary["params"]["m"], "512");
+    assert_eq!(summary["params"]["occlusion"], "true");
+    let csv = std::fs::read_to_string(out.join("frames.csv")).unwrap();
+    assert!(
+        csv.lines()
+            .next()
+            .unwrap()
+            .ends_with("clouds_queried,clouds_occluded")
     );
 }

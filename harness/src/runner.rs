@@ -146,8 +146,10 @@ pub struct RunConfig {
     /// Cache directory (scenes, reference builds and images).
     pub cache: PathBuf,
     /// Open this existing build directory instead of building into `out/build` (its
-    /// `method.json` must name the same method, scene and sample count; its parameters are
-    /// the run's). Lets a run measure the method alone, without the build's memory.
+    /// `method.json` must name the same method, scene and sample count; `params` may only
+    /// change the method's runtime parameters, [`MethodKind::runtime_params`]). Lets a run
+    /// measure the method alone, without the build's memory, and compare runtime settings
+    /// (e.g. LPC's `occlusion`, `core_mb`) on one build.
     pub build_dir: Option<PathBuf>,
 }
 
@@ -401,19 +403,19 @@ pub fn run(cfg: &RunConfig, gpu: &Gpu, progress: &dyn Progress) -> anyhow::Resul
                 cfg.method,
                 cloud.len()
             );
-            anyhow::ensure!(
-                cfg.params.is_empty() || cfg.params == m.params,
-                "--build-dir {}: --param cannot change a finished build (it was built with {:?}); \
-                 rebuild, or omit --param",
-                dir.display(),
-                m.params
-            );
+            // `--param` may only change runtime parameters (checked by `open_with` below).
+            let mut params = m.params.clone();
+            params.0.extend(cfg.params.0.clone());
             let build =
                 BuildStats::read(dir).with_context(|| format!("--build-dir {}", dir.display()))?;
-            (dir.clone(), build, m.params)
+            (dir.clone(), build, params)
         }
     };
-    let mut method = MethodKind::open(&build_dir)?;
+    let mut method = match &cfg.build_dir {
+        None => MethodKind::open(&build_dir)?,
+        Some(dir) => MethodKind::open_with(dir, &cfg.params)
+            .with_context(|| format!("--build-dir {} with --param", dir.display()))?,
+    };
     if let Some(need) = method.gpu_resident_bytes()
         && need > cfg.render.cache_bytes
     {

@@ -103,9 +103,40 @@ impl MethodKind {
         Ok(stats)
     }
 
+    /// Parameters that only steer rendering (read at `open`, not used by `build`): a run of
+    /// an existing build may change these and no others.
+    pub fn runtime_params(self) -> &'static [&'static str] {
+        match self {
+            MethodKind::Full | MethodKind::Qsplat | MethodKind::Spt => &[],
+            MethodKind::Lpc => lpc::RUNTIME_PARAMS,
+        }
+    }
+
     /// Opens a build directory written by [`MethodKind::build`] (of any method).
     pub fn open(dir: &Path) -> Result<Box<dyn LodMethod>, MethodError> {
-        let manifest = Manifest::read(dir)?;
+        Self::open_with(dir, &Params::default())
+    }
+
+    /// Opens a build directory with some of its runtime parameters replaced
+    /// ([`MethodKind::runtime_params`]); any other key is an error naming it.
+    pub fn open_with(dir: &Path, runtime: &Params) -> Result<Box<dyn LodMethod>, MethodError> {
+        let mut manifest = Manifest::read(dir)?;
+        let kind = Self::from_name(&manifest.method)?;
+        for (k, v) in &runtime.0 {
+            if !kind.runtime_params().contains(&k.as_str()) {
+                return Err(MethodError::Param(format!(
+                    "'{k}' changes how {kind} builds, not how it renders: rebuild instead \
+                     (runtime parameters of {kind}: {})",
+                    if kind.runtime_params().is_empty() {
+                        "none".to_string()
+                    } else {
+                        kind.runtime_params().join(", ")
+                    }
+                )));
+            }
+            manifest.params.0.insert(k.clone(), v.clone());
+        }
+        kind.check_params(&manifest.params)?;
         match Self::from_name(&manifest.method)? {
             MethodKind::Full => Ok(Box::new(full::Full::open(dir, manifest)?)),
             MethodKind::Qsplat => Ok(Box::new(qsplat::Qsplat::open(dir, manifest)?)),

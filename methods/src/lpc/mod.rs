@@ -56,6 +56,16 @@ pub const REPO_FILE: &str = "repo.bin";
 /// Build figures read at `open`.
 pub const INFO_FILE: &str = "lpc.json";
 
+/// Parameters read at `open` only (rendering, data access): a run of an existing build may
+/// change them ([`crate::MethodKind::open_with`]).
+pub const RUNTIME_PARAMS: &[&str] = &[
+    "fetch_per_frame",
+    "core_mb",
+    "delay_frames",
+    "occlusion",
+    "occlusion_threshold",
+];
+
 /// Parameters of `lpc` (`--param key=value`).
 #[derive(Debug, Clone, serde::Deserialize)]
 #[serde(deny_unknown_fields, default)]

@@ -12,10 +12,13 @@
 //!   bottom-up LOD build with representatives ([`tree::Lod`]);
 //! - [`reps`]: the `Representatives` procedure — a pure function from a set of splats to
 //!   exactly the requested number of representatives (K³ grid, normal/colour clustering with
-//!   a relaxed θ driven by a priority queue of per-cell cluster lists).
+//!   a relaxed θ driven by a priority queue of per-cell cluster lists);
+//! - [`codec`]: the per-node data codec (16-bit positions in the node box, 8-bit radii rounded
+//!   up, 16-bit 6×104×104 cube-map normals, optional colours; strict decoding).
 //!
 //! See `README.md` next to this file for the rules and what is faithful or deviating.
 
+pub mod codec;
 pub mod reps;
 pub mod tree;
 

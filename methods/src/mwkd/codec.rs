@@ -278,7 +278,7 @@ pub fn decode_normal(code: u16) -> Option<Vec3> {
     let centre = |i: u32| (i as f32 + 0.5) / NORMAL_GRID as f32 * 2.0 - 1.0;
     let a = (face / 2) as usize;
     let mut v = [0f32; 3];
-    v[a] = if face % 2 == 0 { 1.0 } else { -1.0 };
+    v[a] = if face.is_multiple_of(2) { 1.0 } else { -1.0 };
     v[(a + 1) % 3] = centre(cell / NORMAL_GRID);
     v[(a + 2) % 3] = centre(cell % NORMAL_GRID);
     Some(Vec3::from(v).normalize())
@@ -641,7 +641,7 @@ mod tests {
             let a = (face / 2) as usize;
             for (dr, dc) in [(0, 0), (1, 0), (0, 1), (1, 1)] {
                 let mut v = [0f32; 3];
-                v[a] = if face % 2 == 0 { 1.0 } else { -1.0 };
+                v[a] = if face.is_multiple_of(2) { 1.0 } else { -1.0 };
                 v[(a + 1) % 3] = corner(row + dr);
                 v[(a + 2) % 3] = corner(col + dc);
                 worst = worst.max(angle(Vec3::from(v), c));
@@ -790,8 +790,8 @@ mod tests {
                         batch.validate().unwrap();
                         assert_eq!(batch.len(), h.count as usize);
                         for p in &batch.positions {
-                            for a in 0..3 {
-                                assert!(h.min[a] <= p[a] && p[a] <= h.max[a], "byte {i}");
+                            for (a, &x) in p.iter().enumerate() {
+                                assert!(h.min[a] <= x && x <= h.max[a], "byte {i}");
                             }
                         }
                         for r in batch.radii.as_ref().unwrap() {

@@ -20,6 +20,7 @@ pub mod full;
 pub mod leaf;
 pub mod lpc;
 pub mod method;
+pub mod morton;
 pub mod mwkd;
 pub mod octnormal;
 pub mod params;

@@ -68,7 +68,7 @@ use std::time::Instant;
 use glam::{DVec3, Vec3};
 use rayon::prelude::*;
 use scenes::rng::{Pcg32, splitmix64};
-use scenes::{Aabb, Attributes, PointCloud, Progress};
+use scenes::{Aabb, PointCloud, Progress};
 
 use super::cloud::{self, Sample};
 use super::index::{self, NONE, Node};
@@ -120,10 +120,7 @@ pub fn build_with_budget(
     let _ = scene;
     let t0 = Instant::now();
     let mut temps = Temps(Vec::new());
-    let attrs = Attributes {
-        radii: false,
-        ..cloud.attributes()
-    };
+    let attrs = super::lpc_attributes(cloud.attributes());
     let clouds_path = dir.join("lpc-clouds.tmp");
     temps.0.push(clouds_path.clone());
     let clouds_file = File::create(&clouds_path).map_err(|e| MethodError::io(&clouds_path, e))?;
@@ -193,7 +190,7 @@ pub fn build_with_budget(
     let cells = (1u32 << 21) as f32;
     let code = |c: Vec3| {
         let q = |v: f32, lo: f32| (((v - lo) / size * cells).max(0.0) as u32).min((1 << 21) - 1);
-        cloud::morton96([
+        crate::morton::morton96([
             q(c.x, bounds.min.x),
             q(c.y, bounds.min.y),
             q(c.z, bounds.min.z),
@@ -540,19 +537,8 @@ fn split_node(
 ) -> Result<Split, MethodError> {
     let mut scan = cfg.scan_for(task, spare);
     let (mut f, mut bk) = (0usize, dst.len());
-    for s in src {
-        if let Some(side) = scan.step(*s) {
-            if side == 0 {
-                dst[f] = *s;
-                f += 1;
-            } else {
-                bk -= 1;
-                dst[bk] = *s;
-            }
-        }
-    }
-    let mc = scan.select();
-    scan.give_back(mc, &mut |side, s| {
+    // Child 0 fills `dst` from the front, child 1 from the back (reversed below).
+    let mut place = |side: usize, s: &Sample| {
         if side == 0 {
             dst[f] = *s;
             f += 1;
@@ -560,6 +546,15 @@ fn split_node(
             bk -= 1;
             dst[bk] = *s;
         }
+    };
+    for s in src {
+        if let Some(side) = scan.step(*s) {
+            place(side, s);
+        }
+    }
+    let mc = scan.select();
+    scan.give_back(mc, &mut |side, s| {
+        place(side, s);
         Ok(())
     })?;
     dst[bk..].reverse();

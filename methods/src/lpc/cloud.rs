@@ -115,50 +115,7 @@ pub fn normal_table() -> &'static [(u32, [f32; 3])] {
     })
 }
 
-#[inline]
-fn spread21(v: u32) -> u64 {
-    let mut x = v as u64 & 0x1f_ffff;
-    x = (x | x << 32) & 0x1f_0000_0000_ffff;
-    x = (x | x << 16) & 0x1f_0000_ff00_00ff;
-    x = (x | x << 8) & 0x100f_00f0_0f00_f00f;
-    x = (x | x << 4) & 0x10c3_0c30_c30c_30c3;
-    x = (x | x << 2) & 0x1249_2492_4924_9249;
-    x
-}
-
-#[inline]
-fn compact21(v: u64) -> u32 {
-    let mut x = v & 0x1249_2492_4924_9249;
-    x = (x | x >> 2) & 0x10c3_0c30_c30c_30c3;
-    x = (x | x >> 4) & 0x100f_00f0_0f00_f00f;
-    x = (x | x >> 8) & 0x1f_0000_ff00_00ff;
-    x = (x | x >> 16) & 0x1f_0000_0000_ffff;
-    x = (x | x >> 32) & 0x1f_ffff;
-    x as u32
-}
-
-/// Spreads a 32-bit value so that bit `i` lands on bit `3i` of a `u128`.
-#[inline]
-fn spread32(v: u32) -> u128 {
-    spread21(v & 0x1f_ffff) as u128 | (spread21(v >> 21) as u128) << 63
-}
-
-#[inline]
-fn compact32(v: u128) -> u64 {
-    compact21(v as u64 & ((1 << 63) - 1)) as u64 | (compact21((v >> 63) as u64) as u64) << 21
-}
-
-/// Morton code of three (up to) 32-bit coordinates.
-#[inline]
-pub fn morton96(q: [u32; 3]) -> u128 {
-    spread32(q[0]) | spread32(q[1]) << 1 | spread32(q[2]) << 2
-}
-
-/// Inverse of [`morton96`] (values above 32 bits come back as such, for validation).
-#[inline]
-fn demorton96(code: u128) -> [u64; 3] {
-    [compact32(code), compact32(code >> 1), compact32(code >> 2)]
-}
+use crate::morton::{demorton96, morton96};
 
 /// Per-axis quantisation of a box for input spacing `spacing`: `(bits, step)`.
 pub fn quantisation(min: [f32; 3], max: [f32; 3], spacing: f32) -> ([u8; 3], [f32; 3]) {

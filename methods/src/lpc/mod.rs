@@ -175,10 +175,9 @@ pub fn build(
     progress: &dyn Progress,
 ) -> Result<BuildStats, MethodError> {
     let p = LpcParams::from_params(params)?;
-    build::build(cloud, &p, scene, dir, progress)?;
-    // `build::build` writes index, repository and info; the manifest goes last, so a
-    // directory with a manifest is complete.
-    let stats = BuildStats::read(dir)?;
+    // `build::build` writes index, repository, info and build.json; the manifest goes
+    // last, so a directory with a manifest is complete.
+    let stats = build::build(cloud, &p, scene, dir, progress)?;
     Manifest {
         method: NAME.into(),
         format_version: FORMAT_VERSION,
@@ -227,7 +226,8 @@ impl Lpc {
         Self::with_access(dir, manifest, nodes, Box::new(access))
     }
 
-    /// Opens with a given data-access layer (tests use a stalled one).
+    /// Opens with a given data-access layer (the local loader from [`Lpc::open`], or another
+    /// [`DataAccess`] such as a future remote source).
     pub fn with_access(
         dir: &Path,
         manifest: Manifest,

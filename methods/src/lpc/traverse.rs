@@ -393,7 +393,7 @@ mod tests {
         view.camera.target = Vec3::new(40.0, 0.0, 0.0);
         let sel = Traversal::new(nodes.len()).select(&nodes, &view, Target::Tolerance(1.0), &all);
         assert!(sel.draws.is_empty());
-        // Back-facing cone: normals all +z, eye at z = -40 (below the plane y… z = 0).
+        // Back-facing cone: normals all +z, the eye at z = -40 (behind the z = 0 segment).
         let mut nodes = tree(3, 10);
         for n in &mut nodes {
             n.cone_axis = [0.0, 0.0, 1.0];

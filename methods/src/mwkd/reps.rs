@@ -284,18 +284,13 @@ fn morton_codes(pos: &[Vec3], lo: Vec3, size: Vec3) -> Vec<u32> {
             0
         }
     };
-    let spread = |mut x: u32| {
-        x &= 0x3ff;
-        x = (x | (x << 16)) & 0x030000ff;
-        x = (x | (x << 8)) & 0x0300f00f;
-        x = (x | (x << 4)) & 0x030c30c3;
-        (x | (x << 2)) & 0x09249249
-    };
     pos.iter()
         .map(|p| {
-            spread(q(p.x, lo.x, size.x))
-                | (spread(q(p.y, lo.y, size.y)) << 1)
-                | (spread(q(p.z, lo.z, size.z)) << 2)
+            crate::morton::morton63([
+                q(p.x, lo.x, size.x),
+                q(p.y, lo.y, size.y),
+                q(p.z, lo.z, size.z),
+            ]) as u32
         })
         .collect()
 }

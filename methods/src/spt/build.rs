@@ -83,16 +83,6 @@ impl PointTree {
     }
 }
 
-fn spread(v: u32) -> u64 {
-    let mut x = v as u64 & 0x1f_ffff;
-    x = (x | x << 32) & 0x1f_0000_0000_ffff;
-    x = (x | x << 16) & 0x1f_0000_ff00_00ff;
-    x = (x | x << 8) & 0x100f_00f0_0f00_f00f;
-    x = (x | x << 4) & 0x10c3_0c30_c30c_30c3;
-    x = (x | x << 2) & 0x1249_2492_4924_9249;
-    x
-}
-
 struct Builder<'a> {
     cloud: &'a PointCloud,
     radii: &'a [f32],
@@ -114,9 +104,8 @@ pub fn build_tree(cloud: &PointCloud, radii: &[f32], color_threshold: f32) -> Po
         .par_iter()
         .enumerate()
         .map(|(i, p)| {
-            let code = spread(q(p[0], b.min.x))
-                | spread(q(p[1], b.min.y)) << 1
-                | spread(q(p[2], b.min.z)) << 2;
+            let code =
+                crate::morton::morton63([q(p[0], b.min.x), q(p[1], b.min.y), q(p[2], b.min.z)]);
             (code, i as u32)
         })
         .collect();

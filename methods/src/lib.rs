@@ -9,11 +9,13 @@
 //! - [`draw`]: draw lists, splat batches (what a chunk decodes to), targets, feedback.
 //! - [`params`]: `--param key=value` pairs into a method's typed, `deny_unknown_fields` params.
 //! - [`registry`]: [`MethodKind`], the one explicit list of methods.
+//! - [`cull`]: normal cones and back-face tests shared by the methods.
 //! - [`store`]: the LZO chunk store with per-chunk checksums and the data-access layer
 //!   (loader thread) shared by the out-of-core methods.
 //! - one module per method: [`full`] (no LOD, the reference), then the four papers' methods
 //!   ([`mwkd`]: the multi-way kd-tree plan, split and representatives so far, not registered).
 
+pub mod cull;
 pub mod draw;
 pub mod error;
 pub mod full;

@@ -7,7 +7,7 @@ use scenes::camera::{Containment, Frustum};
 
 use super::index::Node;
 use crate::Target;
-use crate::spt::select::cone_backfacing;
+use crate::cull::cone_backfacing;
 
 /// Smallest splat drawn, pixels: a tolerance below one pixel still draws one-pixel splats
 /// (the selection gets denser, the splats cannot get smaller).

@@ -677,7 +677,7 @@ impl Spt {
             .iter()
             .map(|c| {
                 self.params.normal_clusters
-                    && select::cone_backfacing(
+                    && crate::cull::cone_backfacing(
                         Vec3::from(c.axis),
                         c.half_angle,
                         Vec3::from(c.center),

@@ -162,21 +162,6 @@ pub fn cluster_of(n: Vec3) -> usize {
     face * 16 + row_start + within
 }
 
-/// A normal cone with a bounding sphere: the cluster is back-facing for `eye` if every node
-/// normal `m` (angle to `axis` ≤ `half_angle`) and centre `p` (within the sphere) have
-/// `m·(eye − p) < 0`. Conservative: `m·(eye − p) ≤ L·cos(max(θ − β, 0)) + R` with `L = |eye − c|`
-/// and θ the angle between `axis` and `eye − c`.
-pub fn cone_backfacing(axis: Vec3, half_angle: f32, center: Vec3, radius: f32, eye: Vec3) -> bool {
-    let v = eye - center;
-    let l = v.length();
-    if l <= radius || half_angle >= std::f32::consts::PI {
-        return false;
-    }
-    let theta = (axis.dot(v) / l).clamp(-1.0, 1.0).acos();
-    let gap = theta - half_angle;
-    gap > std::f32::consts::FRAC_PI_2 && l * gap.cos() + radius < 0.0
-}
-
 /// Number of leading entries of a cluster that can pass: `e_par[i] + s·o·d_suffix[i] > s·r_lo`
 /// (both sides slackened by 1e-5 relative); `e_par` non-increasing, `d_suffix` non-increasing.
 pub fn prefix_len(e_par: &[f32], d_suffix: &[f32], s: f32, overlap: f32, r_lo: f64) -> usize {

@@ -251,11 +251,7 @@ fn plan(a: &PlanArgs) -> anyhow::Result<()> {
                  for: {}",
                 mwkd::NAME
             ),
-            Err(_) => {
-                let mut known: Vec<&str> = MethodKind::ALL.iter().map(|k| k.name()).collect();
-                known.push(mwkd::NAME);
-                bail!("unknown method '{name}' (known: {})", known.join(", "))
-            }
+            Err(e) => bail!("{e}"),
         }
     }
     let Some(points) = a.points.as_deref() else {
@@ -263,7 +259,12 @@ fn plan(a: &PlanArgs) -> anyhow::Result<()> {
     };
     let n = scenes::spec::parse_count(points).map_err(|e| anyhow::anyhow!("--points: {e}"))?;
     let p = mwkd::MwkdParams::from_params(&params)?;
-    let plan = mwkd::tree::Plan::new(n as u64, u64::from(p.fanout), p.vbo)?;
+    if p.tree == mwkd::TreeKind::Octree {
+        bail!(
+            "--param tree=octree: an octree's shape depends on the data; only tree=mwkd and tree=kd can be planned"
+        );
+    }
+    let plan = mwkd::tree::Plan::new(n as u64, u64::from(p.effective_fanout()), p.vbo)?;
     if a.json {
         println!("{}", serde_json::to_string_pretty(&plan.to_json())?);
     } else {

@@ -204,3 +204,63 @@ fn lpc_with_a_stalled_loader_renders_coarser_without_extra_holes() {
         "the data arrive and the last frame refines"
     );
 }
+
+/// MWKD with a loader delayed by `D` frames along a zoom: front nodes not in core are stood
+/// in for by what the previous frame drew (or their sibling group's parent), so no frame
+/// has more holes than the fully loaded frame at the same pose (`load=sync`: every front
+/// node read before drawing) by more than 0.1 % of the covered pixels.
+#[test]
+fn mwkd_with_a_delayed_loader_has_no_more_holes_than_fully_loaded() {
+    let Some(gpu) = harness::gpu::gpu_for_test(
+        "mwkd_with_a_delayed_loader_has_no_more_holes_than_fully_loaded",
+    ) else {
+        return;
+    };
+    let tmp = tempfile::tempdir().unwrap();
+    let run_with = |params: &[&str], name: &str| {
+        let out = tmp.path().join(name);
+        let cfg = RunConfig {
+            method: MethodKind::Mwkd,
+            params: Params::parse(params).unwrap(),
+            scene: SceneSpec::parse("statue:60000:4", None, 1).unwrap(),
+            path: PathSpec::parse("zoom").unwrap(),
+            frames: 12,
+            target: Target::tolerance(1.0).unwrap(),
+            render: RenderSettings {
+                width: 192,
+                height: 192,
+                kernel: Kernel::Square,
+                cache_bytes: 64 << 20,
+            },
+            seed: 1,
+            save_images: false,
+            metrics: true,
+            out: out.clone(),
+            cache: tmp.path().join("cache"),
+            build_dir: None,
+        };
+        run(&cfg, &gpu, &scenes::NoProgress).unwrap();
+        out
+    };
+    let loaded = run_with(&["vbo=1500", "load=sync"], "loaded");
+    let delayed = run_with(&["vbo=1500", "delay_frames=3"], "delayed");
+    let (h_loaded, h_delayed) = (
+        column(&loaded, "hole_ratio"),
+        column(&delayed, "hole_ratio"),
+    );
+    assert!(column(&loaded, "nodes_waiting").iter().all(|&w| w == 0.0));
+    let waiting = column(&delayed, "nodes_waiting");
+    let stand_ins = column(&delayed, "stand_ins");
+    assert!(
+        waiting.iter().any(|&w| w > 0.0) && stand_ins.iter().any(|&s| s > 0.0),
+        "the delayed run must wait and stand in: waiting {waiting:?}, stand-ins {stand_ins:?}"
+    );
+    for i in 0..h_loaded.len() {
+        assert!(
+            h_delayed[i] <= h_loaded[i] + 0.001,
+            "frame {i}: holes {:.4} delayed vs {:.4} fully loaded",
+            h_delayed[i],
+            h_loaded[i]
+        );
+    }
+}

@@ -13,7 +13,7 @@
 //! - [`store`]: the LZO chunk store with per-chunk checksums and the data-access layer
 //!   (loader thread) shared by the out-of-core methods.
 //! - one module per method: [`full`] (no LOD, the reference), then the four papers' methods
-//!   ([`mwkd`]: the multi-way kd-tree plan, split and representatives so far, not registered).
+//!   ([`qsplat`], [`spt`], [`lpc`], [`mwkd`]).
 
 pub mod cull;
 pub mod draw;

@@ -5,7 +5,7 @@ use std::path::Path;
 
 use scenes::{PointCloud, Progress};
 
-use crate::{BuildStats, LodMethod, Manifest, MethodError, Params, full, lpc, qsplat, spt};
+use crate::{BuildStats, LodMethod, Manifest, MethodError, Params, full, lpc, mwkd, qsplat, spt};
 
 /// Every registered method.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Hash, clap::ValueEnum, serde::Serialize)]
@@ -19,6 +19,8 @@ pub enum MethodKind {
     Spt,
     /// Layered Point Clouds (Gobbetti & Marton 2004).
     Lpc,
+    /// Multi-way kd-tree (Goswami, Erol, Mukhi, Pajarola, Gobbetti ~2010).
+    Mwkd,
 }
 
 impl MethodKind {
@@ -28,6 +30,7 @@ impl MethodKind {
         MethodKind::Qsplat,
         MethodKind::Spt,
         MethodKind::Lpc,
+        MethodKind::Mwkd,
     ];
 
     /// The registry name (`--method` value, `method.json`).
@@ -37,6 +40,7 @@ impl MethodKind {
             MethodKind::Qsplat => qsplat::NAME,
             MethodKind::Spt => spt::NAME,
             MethodKind::Lpc => lpc::NAME,
+            MethodKind::Mwkd => mwkd::NAME,
         }
     }
 
@@ -54,6 +58,9 @@ impl MethodKind {
             }
             MethodKind::Lpc => {
                 "Layered Point Clouds: out-of-core binary tree of ~M-sample clouds, LZO repository, loader thread"
+            }
+            MethodKind::Mwkd => {
+                "multi-way kd-tree: balanced N-ary tree of s-splat nodes, budget priority queue, async loading"
             }
         }
     }
@@ -80,6 +87,7 @@ impl MethodKind {
             MethodKind::Qsplat => qsplat::QsplatParams::from_params(params).map(drop),
             MethodKind::Spt => params.to_typed::<spt::SptParams>(self.name()).map(drop),
             MethodKind::Lpc => lpc::LpcParams::from_params(params).map(drop),
+            MethodKind::Mwkd => mwkd::MwkdParams::from_params(params).map(drop),
         }
     }
 
@@ -98,6 +106,7 @@ impl MethodKind {
             MethodKind::Qsplat => qsplat::build(cloud, params, scene, dir, progress),
             MethodKind::Spt => spt::build(cloud, params, scene, dir, progress),
             MethodKind::Lpc => lpc::build(cloud, params, scene, dir, progress),
+            MethodKind::Mwkd => mwkd::build(cloud, params, scene, dir, progress),
         }?;
         stats.write(dir)?;
         Ok(stats)
@@ -109,6 +118,7 @@ impl MethodKind {
         match self {
             MethodKind::Full | MethodKind::Qsplat | MethodKind::Spt => &[],
             MethodKind::Lpc => lpc::RUNTIME_PARAMS,
+            MethodKind::Mwkd => mwkd::RUNTIME_PARAMS,
         }
     }
 
@@ -142,6 +152,7 @@ impl MethodKind {
             MethodKind::Qsplat => Ok(Box::new(qsplat::Qsplat::open(dir, manifest)?)),
             MethodKind::Spt => Ok(Box::new(spt::Spt::open(dir, manifest)?)),
             MethodKind::Lpc => Ok(Box::new(lpc::Lpc::open(dir, manifest)?)),
+            MethodKind::Mwkd => Ok(Box::new(mwkd::Mwkd::open(dir, manifest)?)),
         }
     }
 }

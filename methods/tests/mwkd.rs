@@ -172,7 +172,7 @@ fn check_lod(cloud: &PointCloud, p: &MwkdParams) -> Lod {
     let tree = &lod.tree;
     let plan = Plan::new(cloud.len() as u64, u64::from(p.fanout), p.vbo).unwrap();
     assert_eq!(tree.depth, plan.depth);
-    assert_eq!(lod.inner.len(), tree.leaves().start);
+    assert_eq!(lod.inner.len(), tree.nodes.len());
     let (lo, hi) = plan.inner_held().unwrap();
     for (l, lp) in plan.levels.iter().enumerate().take(tree.depth as usize) {
         let mut total = 0u64;
@@ -207,14 +207,22 @@ fn lod_inner_nodes_hold_s_representatives() {
     // s divisible by N and not; statue (normals) and terrain (normals + colours).
     let statue = Generator::Statue.generate(120_000, 3).unwrap();
     let lod = check_lod(&statue, &params(&["fanout=4", "vbo=2048"]));
-    assert!(lod.inner.iter().all(|r| r.len() == 2048));
+    assert!(
+        lod.inner[..lod.tree.leaves().start]
+            .iter()
+            .all(|r| r.len() == 2048)
+    );
     check_lod(
         &statue,
         &params(&["fanout=6", "vbo=4009", "queue=deviation"]),
     );
     let terrain = Generator::Terrain.generate(60_000, 3).unwrap();
     let lod = check_lod(&terrain, &params(&["fanout=3", "vbo=1000", "grid=20"]));
-    assert!(lod.inner.iter().all(|r| r.len() == 1000));
+    assert!(
+        lod.inner[..lod.tree.leaves().start]
+            .iter()
+            .all(|r| r.len() == 1000)
+    );
 }
 
 #[test]
@@ -445,11 +453,15 @@ fn lod_1m_statue_leaves_within_one_inner_nodes_hold_s() {
     let lo = leaves.iter().map(|l| l.len).min().unwrap();
     let hi = leaves.iter().map(|l| l.len).max().unwrap();
     assert!(hi - lo <= 1, "leaves {lo}–{hi}");
-    assert!(lod.inner.iter().all(|r| r.len() == 16384));
+    assert!(
+        lod.inner[..lod.tree.leaves().start]
+            .iter()
+            .all(|r| r.len() == 16384)
+    );
     eprintln!(
         "1 M statue, N=8 s=16384: {} nodes, leaves {lo}–{hi}, inner nodes {} × 16384, build {:.1} s",
         lod.tree.nodes.len(),
-        lod.inner.len(),
+        lod.tree.leaves().start,
         t.elapsed().as_secs_f64()
     );
 }

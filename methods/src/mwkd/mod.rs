@@ -1,31 +1,94 @@
 //! `mwkd`: the multi-way kd-tree of Goswami, Erol, Mukhi, Pajarola and Gobbetti (~2010;
 //! `/work/shared/papers/mwkd-multiway-kd-tree.txt`, `/work/shared/METHODS.md`).
 //!
-//! This module holds the first pieces of the method (the `LodMethod` build/render is not
-//! written yet, so `mwkd` is **not** in the registry):
+//! Build ([`build`](mod@build)): the fully balanced `N`-ary kd-tree ([`tree::Tree::split`];
+//! [`tree::Plan`] gives its shape from `(n, N, s)` alone and reproduces the paper's Table
+//! II), representatives bottom-up ([`reps`]), every node encoded by [`codec`] into one LZO
+//! chunk with a checksum in `repo.bin`, and the index array `index.bin` ([`index`]). For the
+//! paper's Table IV ablation, `tree=kd` (binary) or `tree=octree` build the same
+//! representatives and files over another split.
 //!
-//! - [`MwkdParams`]: the `--param` keys (`fanout`, `vbo`, `grid`, `theta`, …), validated with
-//!   errors naming the parameter;
-//! - [`tree`]: the plan of the fully balanced `N`-ary tree computed from `(n, N, s)` alone in
-//!   exact integer arithmetic ([`tree::Plan`], used by `splatbench plan`, reproduces the
-//!   paper's Table II), the real split of a cloud into that tree ([`tree::Tree`]) and the
-//!   bottom-up LOD build with representatives ([`tree::Lod`]);
-//! - [`reps`]: the `Representatives` procedure — a pure function from a set of splats to
-//!   exactly the requested number of representatives (K³ grid, normal/colour clustering with
-//!   a relaxed θ driven by a priority queue of per-cell cluster lists);
-//! - [`codec`]: the per-node data codec (16-bit positions in the node box, 8-bit radii rounded
-//!   up, 16-bit 6×104×104 cube-map normals, optional colours; strict decoding).
+//! Frame ([`Mwkd`]): the front from [`select`] (the paper's `LODSelection` on a budget, or
+//! projected pixel size for `--eps`), then the frame-to-frame transitions of the paper's
+//! asynchronous loading: a front node not in core yet is stood in for by what the previous
+//! frame drew there (an ancestor, or descendants covering it), or, for a region new to the
+//! front, by the parent of its sibling group read synchronously — never a hole. Splats carry
+//! their radius, projected in the vertex stage.
 //!
 //! See `README.md` next to this file for the rules and what is faithful or deviating.
 
+pub mod build;
 pub mod codec;
+pub mod index;
 pub mod reps;
+pub mod select;
 pub mod tree;
 
-use crate::{MethodError, Params};
+use std::path::Path;
+use std::sync::Arc;
+
+use scenes::{Attributes, PointCloud, Progress, View};
+
+use crate::store::access::{DataAccess, Decoder, LoaderOptions, LocalSource};
+use crate::store::{self, Repository};
+use crate::{
+    BuildStats, ChunkId, DrawItem, DrawList, Feedback, LodMethod, Manifest, MethodError,
+    MethodStats, OcclusionCandidate, OcclusionPass, Params, SplatBatch, SplatSize, Target,
+};
+use index::IndexNode;
+use select::{Ctx, Front, Metric};
 
 /// Registry name (and `splatbench plan --method` value).
 pub const NAME: &str = "mwkd";
+/// Version of the on-disk layout.
+pub const FORMAT_VERSION: u32 = 1;
+/// The index array.
+pub const INDEX_FILE: &str = "index.bin";
+/// Bytes the build assumes per sample of a task in flight (16: encoded output and
+/// working copies) times the tasks assumed in flight (4): `task_points = mem_mb·2²⁰ / 64`.
+const TASK_BYTES_PER_SAMPLE: u64 = 64;
+/// Deepest level of an ablation octree (deeper nodes stay leaves: piles of duplicates).
+pub const OCTREE_MAX_DEPTH: u32 = 24;
+
+/// Parameters read at `open` only (rendering, data access): a run of an existing build may
+/// change them ([`crate::MethodKind::open_with`]).
+pub const RUNTIME_PARAMS: &[&str] = &[
+    "c0",
+    "c1",
+    "c2",
+    "core_mb",
+    "delay_frames",
+    "occlusion",
+    "occlusion_threshold",
+    "load",
+];
+
+/// How front nodes that are not in core are handled (`--param load=`).
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Default, serde::Deserialize, serde::Serialize)]
+#[serde(rename_all = "lowercase")]
+pub enum LoadMode {
+    /// The paper's asynchronous loading with the four transitions (stand-ins, never a hole).
+    #[default]
+    Async,
+    /// Every missing front node is read synchronously before the frame is drawn: the
+    /// "fully loaded" frame (the reference of the delayed-loader test), and the naive
+    /// behaviour the paper's scheme avoids (stalls show in `cpu_select_ms`).
+    Sync,
+}
+
+/// The hierarchy built (`--param tree=`): the paper's multi-way kd-tree, or one of the
+/// structures its Table IV compares it with, under the same representatives and renderer.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Default, serde::Deserialize, serde::Serialize)]
+#[serde(rename_all = "lowercase")]
+pub enum TreeKind {
+    /// Fully balanced `N`-ary kd-tree (fan-out `fanout`).
+    #[default]
+    Mwkd,
+    /// Binary kd-tree: the same median split with `N = 2` (`fanout` is ignored).
+    Kd,
+    /// Octree: regular subdivision of the bounding cube until a node holds ≤ `vbo` samples.
+    Octree,
+}
 
 /// How the priority queue of per-cell cluster lists is ordered (paper: "the maximum normal
 /// deviation of a point from its neighbors in l, or alternatively simply the length of l").
@@ -59,18 +122,53 @@ pub struct MwkdParams {
     pub color_threshold: f32,
     /// Order of the priority queue of cluster lists.
     pub queue: QueueOrder,
+    /// Hierarchy: `mwkd` (default), `kd` or `octree` (the paper's Table IV).
+    pub tree: TreeKind,
+    /// Working memory of the build's parallel tasks, MiB: a task covers at most
+    /// `mem_mb · 2²⁰ / 64` samples (about 16 bytes each while its encoded output waits to be
+    /// written, for up to 4 tasks in flight; the cut does not depend on the thread count, so
+    /// neither does the output); the in-core split's 4 bytes per sample come on top (see
+    /// [`build`](mod@build)).
+    pub mem_mb: u64,
+    /// `c₀` of `ε_l = c₀(l_max − l + 1)/(c₁d + c₂d²)` (> 0).
+    pub c0: f32,
+    /// `c₁` (≥ 0).
+    pub c1: f32,
+    /// `c₂` (≥ 0; `c₁ + c₂ > 0`).
+    pub c2: f32,
+    /// Decoded nodes kept in core, MiB.
+    pub core_mb: u64,
+    /// Frames between a request and the moment its node counts as available (simulated
+    /// latency; 0 = as soon as the loader thread has decoded it).
+    pub delay_frames: u32,
+    /// Occlusion culling with occlusion queries (as LPC's three phases).
+    pub occlusion: bool,
+    /// Fragments a node's sphere must pass to count as visible.
+    pub occlusion_threshold: u64,
+    /// Asynchronous loading with stand-ins (default) or synchronous reads.
+    pub load: LoadMode,
 }
 
 impl Default for MwkdParams {
     fn default() -> Self {
         Self {
             fanout: 4,
-            vbo: 32_768,
+            vbo: 8192,
             grid: 35,
             theta: 30.0,
             relax: 1.5,
             color_threshold: 30.0,
             queue: QueueOrder::Length,
+            tree: TreeKind::Mwkd,
+            mem_mb: 256,
+            c0: 1.0,
+            c1: 1.0,
+            c2: 0.0,
+            core_mb: 256,
+            delay_frames: 0,
+            occlusion: false,
+            occlusion_threshold: 0,
+            load: LoadMode::Async,
         }
     }
 }
@@ -92,11 +190,12 @@ impl MwkdParams {
         if self.vbo < 1 {
             return bad(format!("vbo must be ≥ 1, got {}", self.vbo));
         }
-        if self.vbo < u64::from(self.fanout) {
+        if self.vbo < u64::from(self.effective_fanout()) {
             return bad(format!(
                 "vbo must be ≥ fanout (each of the {} children passes vbo/fanout ≥ 1 \
                  representatives up), got vbo={}",
-                self.fanout, self.vbo
+                self.effective_fanout(),
+                self.vbo
             ));
         }
         if self.grid < 1 || self.grid > 1024 {
@@ -120,7 +219,51 @@ impl MwkdParams {
                 self.color_threshold
             ));
         }
+        if self.mem_mb < 16 {
+            return bad(format!("mem_mb must be ≥ 16, got {}", self.mem_mb));
+        }
+        if !(self.c0.is_finite() && self.c0 > 0.0) {
+            return bad(format!("c0 must be a finite number > 0, got {}", self.c0));
+        }
+        for (name, v) in [("c1", self.c1), ("c2", self.c2)] {
+            if !(v.is_finite() && v >= 0.0) {
+                return bad(format!("{name} must be a finite number ≥ 0, got {v}"));
+            }
+        }
+        if self.c1 + self.c2 <= 0.0 {
+            return bad("c1 + c2 must be > 0 (ε_l divides by c1·d + c2·d²)".into());
+        }
+        if self.core_mb < 1 {
+            return bad("core_mb must be ≥ 1".into());
+        }
         Ok(())
+    }
+
+    /// The fan-out the split uses (`2` for `tree=kd`, `8` at most for `tree=octree`).
+    pub fn effective_fanout(&self) -> u32 {
+        match self.tree {
+            TreeKind::Mwkd => self.fanout,
+            TreeKind::Kd => 2,
+            TreeKind::Octree => 8,
+        }
+    }
+
+    /// The split of `positions` these parameters ask for.
+    pub fn split(&self, positions: &[[f32; 3]]) -> Result<tree::Tree, MethodError> {
+        match self.tree {
+            TreeKind::Mwkd | TreeKind::Kd => {
+                tree::Tree::split(positions, self.effective_fanout(), self.vbo)
+            }
+            TreeKind::Octree => tree::Tree::octree(positions, self.vbo, OCTREE_MAX_DEPTH),
+        }
+    }
+
+    fn metric(&self) -> Metric {
+        Metric {
+            c0: self.c0,
+            c1: self.c1,
+            c2: self.c2,
+        }
     }
 
     /// The representative-selection settings these parameters give.
@@ -132,6 +275,501 @@ impl MwkdParams {
             color_threshold: self.color_threshold,
             queue: self.queue,
         }
+    }
+}
+
+/// What `mwkd.json` records about a build (read at `open`).
+#[derive(Debug, Clone, PartialEq, serde::Serialize, serde::Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct Info {
+    /// Hierarchy built.
+    pub tree: TreeKind,
+    /// Fan-out used by the split.
+    pub fanout: u32,
+    /// VBO size `s`.
+    pub vbo: u64,
+    /// Nodes.
+    pub nodes: u64,
+    /// Levels (deepest leaf + 1).
+    pub levels: u32,
+    /// Input samples.
+    pub points: u64,
+    /// Splats stored in all nodes together.
+    pub samples_stored: u64,
+}
+
+/// Build figures read at `open`.
+pub const INFO_FILE: &str = "mwkd.json";
+
+/// What MWKD stores: the scene's normals and colours if it has them, and always a radius
+/// per splat (representatives have their own, and every splat is drawn at its projected
+/// radius).
+pub fn mwkd_attributes(a: Attributes) -> Attributes {
+    Attributes { radii: true, ..a }
+}
+
+/// Builds an MWKD (or, with `tree=`, an ablation tree) of `cloud` into `dir`: `repo.bin`,
+/// `index.bin`, `mwkd.json`, then the manifest last, so a directory with a manifest is
+/// complete.
+pub fn build(
+    cloud: &PointCloud,
+    params: &Params,
+    scene: &str,
+    dir: &Path,
+    progress: &dyn Progress,
+) -> Result<BuildStats, MethodError> {
+    let t0 = std::time::Instant::now();
+    let p = MwkdParams::from_params(params)?;
+    progress.start("mwkd: split", cloud.len() as u64);
+    let tree = p.split(cloud.positions())?;
+    progress.finish();
+    let t_split = t0.elapsed().as_secs_f64();
+    // Independent of the thread count, so the output is too (see `build`'s module docs).
+    let task_points =
+        ((p.mem_mb << 20) / TASK_BYTES_PER_SAMPLE).min((cloud.len() as u64 / 16).max(1)) as usize;
+    let input = build::Input {
+        cloud,
+        tree: &tree,
+        reps: p.rep_config(),
+    };
+    let written =
+        build::write_repository(&input, &dir.join(codec::REPO_FILE), task_points, progress)?;
+    let index_path = dir.join(INDEX_FILE);
+    index::write(&index_path, &written.index)?;
+    let levels = tree.depth + 1;
+    let samples_stored: u64 = written.index.iter().map(|n| u64::from(n.points)).sum();
+    let info = Info {
+        tree: p.tree,
+        fanout: p.effective_fanout(),
+        vbo: p.vbo,
+        nodes: written.index.len() as u64,
+        levels,
+        points: cloud.len() as u64,
+        samples_stored,
+    };
+    crate::method::write_json(&dir.join(INFO_FILE), &info)?;
+    let index_bytes = std::fs::metadata(&index_path)
+        .map_err(|e| MethodError::io(&index_path, e))?
+        .len();
+    let mut extra = serde_json::Map::new();
+    let mut put = |k: &str, v: serde_json::Value| {
+        extra.insert(k.into(), v);
+    };
+    put("tree", serde_json::to_value(p.tree).unwrap_or_default());
+    put("fanout", p.effective_fanout().into());
+    put("vbo", p.vbo.into());
+    put("grid", p.grid.into());
+    put(
+        "leaves",
+        (tree.nodes.iter().filter(|n| n.child_count == 0).count() as u64).into(),
+    );
+    put("samples_stored", samples_stored.into());
+    put("raw_bytes", written.raw_bytes.into());
+    put("repo_bytes", written.repo_bytes.into());
+    put("index_bytes", index_bytes.into());
+    put(
+        "compression_ratio",
+        (written.repo_bytes as f64 / written.raw_bytes.max(1) as f64).into(),
+    );
+    put("split_seconds", t_split.into());
+    put("task_points", (task_points as u64).into());
+    let stats = BuildStats {
+        points_in: cloud.len() as u64,
+        nodes: written.index.len() as u64,
+        levels,
+        bytes_in: cloud.column_bytes(),
+        bytes_out: index_bytes + written.repo_bytes,
+        bits_per_sample: 0.0,
+        seconds: t0.elapsed().as_secs_f64(),
+        points_per_s: 0.0,
+        extra,
+    }
+    .finish();
+    Manifest {
+        method: NAME.into(),
+        format_version: FORMAT_VERSION,
+        params: params.clone(),
+        attributes: mwkd_attributes(cloud.attributes()),
+        points: cloud.len() as u64,
+        scene: scene.into(),
+    }
+    .write(dir)?;
+    Ok(stats)
+}
+
+/// Extra CSV columns of `mwkd`.
+pub const COLUMNS: &[&str] = &[
+    "front_nodes",
+    "front_points",
+    "nodes_culled",
+    "nodes_waiting",
+    "stand_ins",
+    "sync_loads",
+    "loader_pending",
+];
+
+/// Counters of one frame (the extra CSV columns).
+#[derive(Debug, Clone, Copy, Default, PartialEq)]
+pub struct FrameCounters {
+    /// Nodes of the selected front.
+    pub front_nodes: u64,
+    /// Splats of the selected front.
+    pub front_points: u64,
+    /// Nodes culled by the selection (frustum, back-face).
+    pub nodes_culled: u64,
+    /// Front nodes not in core yet (requested from the loader).
+    pub nodes_waiting: u64,
+    /// Nodes drawn in place of waiting ones (ancestors or descendants drawn last frame, or
+    /// parents read synchronously).
+    pub stand_ins: u64,
+    /// Nodes read synchronously this frame.
+    pub sync_loads: u64,
+}
+
+/// An opened MWKD.
+pub struct Mwkd {
+    nodes: Vec<IndexNode>,
+    parents: Vec<u32>,
+    info: Info,
+    params: MwkdParams,
+    attributes: Attributes,
+    access: Box<dyn DataAccess>,
+    /// Nodes drawn last frame (`prev_mark[id] == frame_no`).
+    prev: Vec<u32>,
+    prev_mark: Vec<u64>,
+    frame_no: u64,
+    last: FrameCounters,
+}
+
+impl Mwkd {
+    /// Opens a build directory with the local data-access layer (loader thread).
+    pub fn open(dir: &Path, manifest: Manifest) -> Result<Self, MethodError> {
+        let params = MwkdParams::from_params(&manifest.params)?;
+        let nodes = index::read(&dir.join(INDEX_FILE))?;
+        let repo = Repository::open(&dir.join(codec::REPO_FILE))?;
+        let refs = nodes.iter().map(|n| n.chunk).collect();
+        let source = LocalSource::new(repo, refs, "node");
+        let decoder: Decoder = Arc::new(codec::decode);
+        let access = store::access::Loader::spawn(
+            Arc::new(source),
+            decoder,
+            LoaderOptions {
+                core_bytes: params.core_mb << 20,
+                delay_frames: params.delay_frames,
+            },
+        );
+        Self::with_access(dir, manifest, nodes, Box::new(access))
+    }
+
+    /// Opens with a given data-access layer (the local loader from [`Mwkd::open`], or another
+    /// [`DataAccess`]).
+    pub fn with_access(
+        dir: &Path,
+        manifest: Manifest,
+        nodes: Vec<IndexNode>,
+        access: Box<dyn DataAccess>,
+    ) -> Result<Self, MethodError> {
+        let params = MwkdParams::from_params(&manifest.params)?;
+        let info: Info = crate::method::read_json(&dir.join(INFO_FILE))?;
+        if info.nodes != nodes.len() as u64
+            || info.points != manifest.points
+            || nodes[0].subtree_points != info.points
+        {
+            return Err(MethodError::corrupt(
+                dir.join(INFO_FILE),
+                format!(
+                    "{} nodes / {} points disagree with the index ({} nodes, {} samples) and \
+                     the manifest ({} points)",
+                    info.nodes,
+                    info.points,
+                    nodes.len(),
+                    nodes[0].subtree_points,
+                    manifest.points
+                ),
+            ));
+        }
+        // The root is the coarsest representation and the stand-in of last resort: read
+        // (and verified) now.
+        access.get(0)?;
+        Ok(Self {
+            parents: index::parents(&nodes),
+            prev_mark: vec![0; nodes.len()],
+            prev: Vec::new(),
+            frame_no: 0,
+            nodes,
+            info,
+            params,
+            attributes: manifest.attributes,
+            access,
+            last: FrameCounters::default(),
+        })
+    }
+
+    /// The index array.
+    pub fn nodes(&self) -> &[IndexNode] {
+        &self.nodes
+    }
+    /// Build figures.
+    pub fn info(&self) -> &Info {
+        &self.info
+    }
+    /// Counters of the last frame.
+    pub fn counters(&self) -> FrameCounters {
+        self.last
+    }
+    /// Nodes drawn by the last frame.
+    pub fn drawn(&self) -> &[u32] {
+        &self.prev
+    }
+
+    /// The front for `view` and `target` (pure; see [`select`]).
+    pub fn front(&self, view: &View, target: Target, held_back: &dyn Fn(u32) -> bool) -> Front {
+        let ctx = Ctx::new(&self.nodes, view, self.params.metric());
+        match target {
+            Target::Tolerance(eps) => select::eps_front(&ctx, eps, held_back),
+            Target::Budget(b) => select::budget_front(&ctx, b, held_back),
+        }
+    }
+
+    fn in_prev(&self, id: u32) -> bool {
+        self.frame_no > 0 && self.prev_mark[id as usize] == self.frame_no
+    }
+
+    /// Nodes drawn last frame that cover `id`'s visible part (`id` itself excluded): true
+    /// with them appended to `out` if every unculled branch under `id` reaches one that is
+    /// still available.
+    fn prev_cover(
+        &self,
+        ctx: &Ctx<'_>,
+        id: u32,
+        avail: &dyn Fn(u32) -> bool,
+        out: &mut Vec<u32>,
+    ) -> bool {
+        let n = &self.nodes[id as usize];
+        if n.is_leaf() {
+            return false;
+        }
+        for c in n.children() {
+            if ctx.culled(c) {
+                continue;
+            }
+            let ok = if self.in_prev(c) {
+                avail(c) && {
+                    out.push(c);
+                    true
+                }
+            } else {
+                self.prev_cover(ctx, c, avail, out)
+            };
+            if !ok {
+                return false;
+            }
+        }
+        true
+    }
+
+    fn ancestors(&self, id: u32) -> impl Iterator<Item = u32> + '_ {
+        std::iter::successors(Some(id), |&i| {
+            let p = self.parents[i as usize];
+            (p != u32::MAX).then_some(p)
+        })
+        .skip(1)
+    }
+}
+
+impl LodMethod for Mwkd {
+    fn attributes(&self) -> Attributes {
+        self.attributes
+    }
+    fn input_points(&self) -> u64 {
+        self.info.points
+    }
+    fn frame(
+        &mut self,
+        view: &View,
+        target: Target,
+        feedback: &Feedback,
+    ) -> Result<DrawList, MethodError> {
+        let target = target.validate()?;
+        self.access.begin_frame();
+        let occlusion = self.params.occlusion;
+        let held = |id: u32| occlusion && feedback.occluded.contains(&(id as ChunkId));
+        let front = self.front(view, target, &held);
+        let ctx = Ctx::new(&self.nodes, view, self.params.metric());
+        let access = &self.access;
+        let avail = |id: u32| feedback.cached.contains(&(id as ChunkId)) || access.available(id);
+        let mut c = FrameCounters {
+            front_nodes: front.nodes.len() as u64,
+            front_points: front.points,
+            nodes_culled: u64::from(front.culled),
+            ..Default::default()
+        };
+        // The four transitions, per front node: available → draw it; else request it and
+        // stand in for it with (3) the ancestor drawn last frame, (4) the descendants drawn
+        // last frame, or (2) the parent of its sibling group, read now. (1) nodes of the last
+        // front that nothing needs are simply not drawn.
+        let mut draws: Vec<u32> = Vec::with_capacity(front.nodes.len());
+        let mut stand_ins: Vec<u32> = Vec::new();
+        let mut waiting: Vec<u32> = Vec::new();
+        let mut sync = Vec::new();
+        for &id in &front.nodes {
+            if avail(id) {
+                draws.push(id);
+                continue;
+            }
+            waiting.push(id);
+            // (3) An ancestor was drawn last frame: the deepest available node on the way
+            // up to it stands in (it, or a finer one loaded since).
+            if let Some(a) = self.ancestors(id).find(|&a| self.in_prev(a))
+                && let Some(s) = self
+                    .ancestors(id)
+                    .take_while(|&x| x != a)
+                    .chain([a])
+                    .find(|&x| avail(x))
+            {
+                stand_ins.push(s);
+                continue;
+            }
+            let mut cover = Vec::new();
+            if self.prev_cover(&ctx, id, &avail, &mut cover) && !cover.is_empty() {
+                draws.extend(cover);
+                continue;
+            }
+            let p = self.parents[id as usize];
+            let p = if p == u32::MAX { id } else { p };
+            if !avail(p) {
+                sync.push(p);
+            }
+            stand_ins.push(p);
+        }
+        // Budget: stand-ins (ancestors, or descendants drawn last frame) may hold more
+        // splats than the nodes they replace; if the frame could exceed B, read the waiting
+        // nodes now instead (never over the budget).
+        let union_points = |draws: &[u32], stand_ins: &[u32]| -> u64 {
+            let mut all: Vec<u32> = draws.iter().chain(stand_ins).copied().collect();
+            all.sort_unstable();
+            all.dedup();
+            all.iter()
+                .map(|&i| u64::from(self.nodes[i as usize].points))
+                .sum()
+        };
+        let over_budget = || {
+            target
+                .budget_points()
+                .is_some_and(|b| union_points(&draws, &stand_ins) > b)
+        };
+        if !waiting.is_empty() && (self.params.load == LoadMode::Sync || over_budget()) {
+            draws = front.nodes.clone();
+            stand_ins.clear();
+            sync = std::mem::take(&mut waiting);
+        }
+        sync.sort_unstable();
+        sync.dedup();
+        for &id in &sync {
+            self.access.get(id)?;
+        }
+        for &id in &waiting {
+            self.access.request(id);
+        }
+        // A stand-in replaces everything under it: drop drawn nodes below one.
+        stand_ins.sort_unstable();
+        stand_ins.dedup();
+        let all = stand_ins.clone();
+        stand_ins.retain(|&s| !self.ancestors(s).any(|a| all.binary_search(&a).is_ok()));
+        if !stand_ins.is_empty() {
+            draws.retain(|&d| {
+                !self
+                    .ancestors(d)
+                    .any(|a| stand_ins.binary_search(&a).is_ok())
+            });
+        }
+        c.stand_ins = stand_ins.len() as u64;
+        c.sync_loads = sync.len() as u64;
+        c.nodes_waiting = waiting.len() as u64;
+        draws.extend(&stand_ins);
+        draws.sort_unstable();
+        draws.dedup();
+        // Held-back nodes (occluded last frame) are drawn in phase 3 if visible: read them now.
+        for &id in &front.held_back {
+            if !avail(id) {
+                self.access.get(id)?;
+                c.sync_loads += 1;
+            }
+        }
+        // Remember what was drawn.
+        self.frame_no += 1;
+        for &id in draws.iter().chain(&front.held_back) {
+            self.prev_mark[id as usize] = self.frame_no;
+        }
+        self.prev = draws.clone();
+        self.last = c;
+        let size = SplatSize::Radius {
+            scale: 1.0,
+            min_px: 1.0,
+        };
+        let item = |id: u32| DrawItem::Chunk {
+            id: id as ChunkId,
+            points: self.nodes[id as usize].points,
+            size,
+        };
+        let mut list = DrawList {
+            counters: vec![
+                c.front_nodes as f64,
+                c.front_points as f64,
+                c.nodes_culled as f64,
+                c.nodes_waiting as f64,
+                c.stand_ins as f64,
+                c.sync_loads as f64,
+                self.access.pending() as f64,
+            ],
+            fetch: waiting.iter().map(|&i| i as ChunkId).collect(),
+            ..Default::default()
+        };
+        if occlusion {
+            let mut candidates = Vec::with_capacity(draws.len() + front.held_back.len());
+            for &id in draws.iter().chain(&front.held_back) {
+                let (center, radius) = self.nodes[id as usize].sphere();
+                let phase1 = feedback.visible.contains(&(id as ChunkId));
+                if phase1 {
+                    list.items.push(item(id));
+                }
+                candidates.push(OcclusionCandidate {
+                    id: id as ChunkId,
+                    center: center.to_array(),
+                    radius,
+                    item: (!phase1).then(|| item(id)),
+                });
+            }
+            list.occlusion = Some(OcclusionPass {
+                candidates,
+                threshold: self.params.occlusion_threshold,
+            });
+        } else {
+            list.items = draws.iter().map(|&id| item(id)).collect();
+        }
+        Ok(list)
+    }
+    fn chunk(&self, id: ChunkId) -> Result<SplatBatch, MethodError> {
+        let id = u32::try_from(id)
+            .ok()
+            .filter(|&i| (i as usize) < self.nodes.len())
+            .ok_or(MethodError::NoChunk(id))?;
+        Ok(self.access.get(id)?.as_ref().clone())
+    }
+    fn stats(&self) -> MethodStats {
+        MethodStats {
+            resident_bytes: std::mem::size_of_val(self.nodes.as_slice()) as u64
+                + (self.parents.len() * 4 + self.prev_mark.len() * 8 + self.prev.len() * 4) as u64
+                + self.access.resident_bytes(),
+            nodes: self.nodes.len() as u64,
+            levels: self.info.levels,
+        }
+    }
+    fn extra_columns(&self) -> &'static [&'static str] {
+        COLUMNS
+    }
+    fn occlusion_culled(&self) -> bool {
+        self.params.occlusion
     }
 }
 

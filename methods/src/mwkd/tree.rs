@@ -26,7 +26,7 @@ use rayon::prelude::*;
 use scenes::{Aabb, PointCloud};
 
 use super::MwkdParams;
-use super::reps::{Splats, representatives};
+use super::reps::Splats;
 use crate::MethodError;
 
 /// Depth of the leaves (the root is level 0; the tree has `depth + 1` levels): the smallest
@@ -310,7 +310,16 @@ pub struct Node {
     pub len: usize,
     /// Tight bounding box of those samples.
     pub bounds: Aabb,
+    /// First child's index (children are contiguous); meaningless for a leaf.
+    pub first_child: u32,
+    /// Number of children (0 for a leaf).
+    pub child_count: u32,
+    /// Parent's index ([`NO_PARENT`] for the root).
+    pub parent: u32,
 }
+
+/// [`Node::parent`] of the root.
+pub const NO_PARENT: u32 = u32::MAX;
 
 impl Node {
     /// Index range into [`Tree::order`].
@@ -319,16 +328,20 @@ impl Node {
     }
 }
 
-/// The real, fully balanced N-ary split of a set of positions.
+/// A split of a set of positions into a tree whose nodes own contiguous runs of
+/// [`Tree::order`]: the real, fully balanced N-ary split ([`Tree::split`]), or for the
+/// paper's Table IV ablation a binary kd-tree (the same split with `N = 2`) or an octree
+/// ([`Tree::octree`]).
 #[derive(Debug, Clone)]
 pub struct Tree {
-    /// Fan-out `N`.
+    /// Fan-out `N` (most children of a node; 8 for an octree).
     pub fanout: usize,
     /// VBO size `s`.
     pub vbo: u64,
-    /// Depth of the leaves.
+    /// Depth of the deepest leaf (all leaves, for [`Tree::split`]).
     pub depth: u32,
-    /// Nodes, level by level (children of `i` at `N·i + 1 … N·i + N`).
+    /// Nodes, level by level, children of a node contiguous (for [`Tree::split`]: children
+    /// of `i` at `N·i + 1 … N·i + N`).
     pub nodes: Vec<Node>,
     /// Permutation of the input indices: every node's samples are contiguous.
     pub order: Vec<u32>,
@@ -384,6 +397,9 @@ impl Tree {
             start: 0,
             len: n,
             bounds: Aabb::from_points(positions),
+            first_child: 0,
+            child_count: 0,
+            parent: NO_PARENT,
         });
         let mut level_start = 0usize;
         for level in 0..depth {
@@ -398,7 +414,9 @@ impl Tree {
             }
             let children: Vec<Vec<Node>> = slices
                 .into_par_iter()
-                .map(|(node, idx)| {
+                .enumerate()
+                .map(|(k, (node, idx))| {
+                    let parent = (level_start + k) as u32;
                     let (q, r) = (node.len / nf, node.len % nf);
                     let starts: Vec<usize> = (0..=nf).map(|i| i * q + i.min(r)).collect();
                     let axis = node.bounds.longest_axis();
@@ -411,12 +429,19 @@ impl Tree {
                                 start: node.start + starts[i],
                                 len: s.len(),
                                 bounds: bounds_of(s, positions),
+                                first_child: 0,
+                                child_count: 0,
+                                parent,
                             }
                         })
                         .collect()
                 })
                 .collect();
             nodes.extend(children.into_iter().flatten());
+            for (k, node) in nodes[level_start..level_end].iter_mut().enumerate() {
+                node.first_child = ((level_start + k) * nf + 1) as u32;
+                node.child_count = nf as u32;
+            }
             level_start = level_end;
         }
         Ok(Tree {
@@ -428,97 +453,151 @@ impl Tree {
         })
     }
 
-    /// Node indices of level `l`: `(N^l − 1)/(N − 1) ..` `(N^(l+1) − 1)/(N − 1)`.
+    /// Node indices of level `l`: `(N^l − 1)/(N − 1) ..` `(N^(l+1) − 1)/(N − 1)` (fully
+    /// balanced trees from [`Tree::split`] only).
     pub fn level_range(&self, l: u32) -> Range<usize> {
         let first = |l: u32| (self.fanout.pow(l) - 1) / (self.fanout - 1);
         first(l)..first(l + 1)
     }
 
-    /// The leaves' indices.
+    /// The leaves' indices (fully balanced trees from [`Tree::split`] only; see
+    /// [`Tree::is_leaf`] for any tree).
     pub fn leaves(&self) -> Range<usize> {
         self.level_range(self.depth)
     }
 
     /// Children of node `i` (empty for a leaf).
     pub fn children(&self, i: usize) -> Range<usize> {
-        if self.nodes[i].level >= self.depth {
-            return 0..0;
-        }
-        self.fanout * i + 1..self.fanout * i + 1 + self.fanout
+        let n = &self.nodes[i];
+        n.first_child as usize..(n.first_child + n.child_count) as usize
+    }
+
+    /// True if node `i` has no child.
+    pub fn is_leaf(&self, i: usize) -> bool {
+        self.nodes[i].child_count == 0
     }
 
     /// Parent of node `i` (`None` for the root).
     pub fn parent(&self, i: usize) -> Option<usize> {
-        (i > 0).then(|| (i - 1) / self.fanout)
+        let p = self.nodes[i].parent;
+        (p != NO_PARENT).then_some(p as usize)
+    }
+
+    /// An octree over the cube around `positions`' bounding box (the paper's Table IV
+    /// baseline): a node of more than `vbo` samples is cut at its cube's centre into the
+    /// (up to 8) non-empty octants, down to `max_depth` (deeper nodes stay leaves however
+    /// many samples they hold — piles of duplicates). Unbalanced: leaves at any depth, with
+    /// 1 … `vbo` samples. Nodes breadth first, children of a node contiguous in octant order,
+    /// so the result is deterministic.
+    pub fn octree(positions: &[[f32; 3]], vbo: u64, max_depth: u32) -> Result<Tree, MethodError> {
+        let n = positions.len();
+        if n == 0 || n > u32::MAX as usize {
+            return Err(MethodError::Limit(format!(
+                "octree: {n} points (need 1 ..= 2³²−1)"
+            )));
+        }
+        check_args(n as u64, 8, vbo)?;
+        let b = Aabb::from_points(positions);
+        let half = b.size().max_element() / 2.0;
+        let mut order: Vec<u32> = (0..n as u32).collect();
+        let mut nodes = vec![Node {
+            level: 0,
+            start: 0,
+            len: n,
+            bounds: b,
+            first_child: 0,
+            child_count: 0,
+            parent: NO_PARENT,
+        }];
+        // Cube (centre, half side) of each node.
+        let mut cubes = vec![(b.center(), half)];
+        let mut depth = 0;
+        let mut i = 0;
+        while i < nodes.len() {
+            let node = nodes[i];
+            if node.len as u64 > vbo && node.level < max_depth {
+                let (c, h) = cubes[i];
+                let octant = |j: u32| {
+                    let p = positions[j as usize];
+                    usize::from(p[0] >= c.x)
+                        | usize::from(p[1] >= c.y) << 1
+                        | usize::from(p[2] >= c.z) << 2
+                };
+                let idx = &mut order[node.range()];
+                idx.sort_by_key(|&j| (octant(j), j));
+                let first = nodes.len() as u32;
+                let mut start = 0;
+                for o in 0..8 {
+                    let len = idx[start..].iter().take_while(|&&j| octant(j) == o).count();
+                    if len == 0 {
+                        continue;
+                    }
+                    let s = &idx[start..start + len];
+                    nodes.push(Node {
+                        level: node.level + 1,
+                        start: node.start + start,
+                        len,
+                        bounds: bounds_of(s, positions),
+                        first_child: 0,
+                        child_count: 0,
+                        parent: i as u32,
+                    });
+                    let sign = |bit: usize| if o >> bit & 1 == 1 { 0.5 } else { -0.5 };
+                    cubes.push((c + Vec3::new(sign(0), sign(1), sign(2)) * h, h / 2.0));
+                    start += len;
+                }
+                nodes[i].first_child = first;
+                nodes[i].child_count = nodes.len() as u32 - first;
+                depth = depth.max(node.level + 1);
+            }
+            i += 1;
+        }
+        Ok(Tree {
+            fanout: 8,
+            vbo,
+            depth,
+            nodes,
+            order,
+        })
     }
 }
 
-/// The tree with every inner node's representatives (in memory).
+/// The tree with every inner node's representatives (in memory; the disk build is
+/// [`super::build`], which runs the same [`super::build::bottom_up`]).
 #[derive(Debug, Clone)]
 pub struct Lod {
     /// The split.
     pub tree: Tree,
-    /// Representatives of inner node `i` (index = node id, `< tree.level_range(depth).start`).
+    /// Representatives of inner node `i` (index = node id; empty for leaves).
     pub inner: Vec<Splats>,
 }
 
 impl Lod {
-    /// Splits `cloud` and builds the representatives bottom-up, level by level (nodes of a
-    /// level in parallel; deterministic). Leaf splat radii are the cloud's radii, or else its
-    /// k-NN spacing ([`scenes::spacing`]).
+    /// Splits `cloud` and builds the representatives bottom-up (deterministic). Leaf splat
+    /// radii are the cloud's radii, or else the within-leaf k-NN spacing
+    /// ([`super::build::leaf_splats`]).
     pub fn build(cloud: &PointCloud, params: &MwkdParams) -> Result<Lod, MethodError> {
         params.validate()?;
         let tree = Tree::split(cloud.positions(), params.fanout, params.vbo)?;
-        let radii: Vec<f32> = match cloud.radii() {
-            Some(r) => r.to_vec(),
-            None => scenes::spacing::knn_spacing(cloud.positions(), scenes::spacing::DEFAULT_K)
-                .into_iter()
-                .map(scenes::spacing::radius_from_spacing)
-                .collect(),
+        let mut inner: Vec<Splats> = vec![Splats::default(); tree.nodes.len()];
+        let input = super::build::Input {
+            cloud,
+            tree: &tree,
+            reps: params.rep_config(),
         };
-        let leaf = |i: usize| -> Splats {
-            let idx = &tree.order[tree.nodes[i].range()];
-            let pos = cloud.positions();
-            Splats {
-                positions: idx.iter().map(|&j| Vec3::from(pos[j as usize])).collect(),
-                normals: cloud
-                    .normals()
-                    .map(|n| idx.iter().map(|&j| Vec3::from(n[j as usize])).collect()),
-                colors: cloud
-                    .colors()
-                    .map(|c| idx.iter().map(|&j| c[j as usize].map(f32::from)).collect()),
-                radii: idx.iter().map(|&j| radii[j as usize]).collect(),
-                weights: vec![1; idx.len()],
-            }
-        };
-        let attrs = cloud.attributes();
-        let targets = child_targets(u64::from(params.fanout), params.vbo);
-        let cfg = params.rep_config();
-        let n_inner = tree.leaves().start;
-        let mut inner: Vec<Splats> = vec![Splats::default(); n_inner];
-        for level in (0..tree.depth).rev() {
-            let range = tree.level_range(level);
-            let built: Vec<Splats> = range
-                .clone()
-                .into_par_iter()
-                .map(|i| {
-                    let mut out = Splats::empty(attrs.normals, attrs.colors);
-                    for (k, c) in tree.children(i).enumerate() {
-                        let t = targets[k] as usize;
-                        let sel = if level + 1 == tree.depth {
-                            representatives(&leaf(c), t, &cfg)
-                        } else {
-                            representatives(&inner[c], t, &cfg)
-                        };
-                        out.append(&sel.reps);
-                    }
-                    out
-                })
-                .collect();
-            for (i, s) in range.zip(built) {
-                inner[i] = s;
-            }
-        }
+        let leaf = |i: usize| tree.is_leaf(i);
+        super::build::bottom_up(
+            &input,
+            (cloud.len() / 8).max(1),
+            &|i, s: &Splats| Ok((!leaf(i)).then(|| s.clone())),
+            &mut |i, s| {
+                if let Some(s) = s {
+                    inner[i] = s;
+                }
+                Ok(())
+            },
+            &scenes::NoProgress,
+        )?;
         Ok(Lod { tree, inner })
     }
 }

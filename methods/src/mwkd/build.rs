@@ -19,9 +19,10 @@
 //! A streaming split (quantile histograms, temporary files as in LPC) is not written.
 //!
 //! **Leaf radii**: the scene's radii if it has them, else the distance to the 8th nearest
-//! neighbour ([`scenes::spacing`], as `full`) computed within the leaf: a sample near a leaf's
-//! border finds its neighbours on one side only and gets a somewhat larger (never smaller)
-//! radius. This keeps the build one leaf at a time.
+//! neighbour ([`scenes::spacing`], as `full`) computed within the leaf ([`leaf_radii`]): a
+//! sample near a leaf's border finds its neighbours on one side only and gets a somewhat
+//! larger radius, and radii are capped at [`LEAF_RADIUS_CAP`] × the leaf's median (slivers).
+//! This keeps the build one leaf at a time.
 
 use glam::Vec3;
 use rayon::prelude::*;
@@ -42,10 +43,7 @@ pub fn leaf_splats(cloud: &PointCloud, tree: &Tree, i: usize) -> Splats {
     let positions: Vec<[f32; 3]> = idx.iter().map(|&j| pos[j as usize]).collect();
     let radii = match cloud.radii() {
         Some(r) => idx.iter().map(|&j| r[j as usize]).collect(),
-        None => scenes::spacing::knn_spacing(&positions, scenes::spacing::DEFAULT_K)
-            .into_iter()
-            .map(scenes::spacing::radius_from_spacing)
-            .collect(),
+        None => leaf_radii(&positions),
     };
     Splats {
         positions: positions.into_iter().map(Vec3::from).collect(),
@@ -58,6 +56,33 @@ pub fn leaf_splats(cloud: &PointCloud, tree: &Tree, i: usize) -> Splats {
         radii,
         weights: vec![1; idx.len()],
     }
+}
+
+/// Largest leaf radius from k-NN spacing, as a multiple of the leaf's median radius.
+pub const LEAF_RADIUS_CAP: f32 = 3.0;
+
+/// Splat radii of a leaf's samples without scene radii: the k-NN spacing within the leaf
+/// ([`scenes::spacing::knn_spacing`], `k` = 8, as `full`), capped at
+/// [`LEAF_RADIUS_CAP`] × the leaf's median. The cap matters where a leaf's box clips a
+/// sliver of another part of the surface: its few samples find their 8 neighbours only
+/// far away, and one such radius (36 × the mean on a 200 K statue) became a 110-pixel
+/// square that every ancestor inherited through its covering radii. A sample's true
+/// spacing is that of the surface around it, which the leaf's median estimates.
+pub fn leaf_radii(positions: &[[f32; 3]]) -> Vec<f32> {
+    let mut r: Vec<f32> = scenes::spacing::knn_spacing(positions, scenes::spacing::DEFAULT_K)
+        .into_iter()
+        .map(scenes::spacing::radius_from_spacing)
+        .collect();
+    if r.len() > 2 {
+        let mut sorted = r.clone();
+        let mid = sorted.len() / 2;
+        let (_, median, _) = sorted.select_nth_unstable_by(mid, f32::total_cmp);
+        let cap = *median * LEAF_RADIUS_CAP;
+        for v in &mut r {
+            *v = v.min(cap);
+        }
+    }
+    r
 }
 
 /// The tree and what the build needs to read for it.
@@ -290,4 +315,28 @@ pub fn write_repository(
         raw_bytes,
         repo_bytes,
     })
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn leaf_radii_cap_slivers() {
+        // A 40 × 40 grid of spacing 0.01 and three samples far away in the same leaf.
+        let mut p: Vec<[f32; 3]> = (0..1600)
+            .map(|i| [(i % 40) as f32 * 0.01, (i / 40) as f32 * 0.01, 0.0])
+            .collect();
+        p.extend([[5.0, 5.0, 0.0], [5.01, 5.0, 0.0], [5.0, 5.01, 0.0]]);
+        let r = leaf_radii(&p);
+        let plain = scenes::spacing::knn_spacing(&p, scenes::spacing::DEFAULT_K);
+        assert!(plain[1601] > 5.0, "uncapped, the sliver reaches across: {}", plain[1601]);
+        let median = 0.03f32; // the 8th neighbour on a grid of spacing 0.01 is ~0.022–0.03 away
+        for (i, v) in r.iter().enumerate() {
+            assert!(*v <= LEAF_RADIUS_CAP * median + 1e-6, "sample {i}: {v}");
+            assert!(*v > 0.0);
+        }
+        // Samples of the grid keep their own spacing.
+        assert_eq!(r[820], plain[820]);
+    }
 }

@@ -316,3 +316,85 @@ fn delayed_loader_never_leaves_a_hole_and_respects_the_budget() {
         "waited {waited}, stand-ins {stood_in}"
     );
 }
+
+/// Occlusion culling: the frame is an occlusion pass whose phase 1 draws the nodes visible
+/// last frame; nodes occluded last frame are held back (candidates drawn only if found
+/// visible) and their budget refines the others.
+#[test]
+fn occlusion_holds_back_occluded_nodes_and_reclaims_their_budget() {
+    let cloud = Generator::Statue.generate(60_000, 2).unwrap();
+    let tmp = tempfile::tempdir().unwrap();
+    build(&cloud, &["vbo=1000", "occlusion=true"], tmp.path());
+    let mut m = open(tmp.path());
+    assert!(m.occlusion_culled());
+    let v = view(&cloud, 1.5);
+    let b = Target::Budget(12_000);
+    let settle = |m: &mut Mwkd, fb: &Feedback| loop {
+        let l = m.frame(&v, b, fb).unwrap();
+        if l.fetch.is_empty() {
+            return l;
+        }
+        std::thread::sleep(std::time::Duration::from_millis(1));
+    };
+    let first = settle(&mut m, &Feedback::default());
+    // Nothing was visible last frame: phase 1 is empty, every front node is a candidate.
+    assert!(first.items.is_empty());
+    let pass = first.occlusion.clone().unwrap();
+    let ids: Vec<u64> = pass.candidates.iter().map(|c| c.id).collect();
+    assert!(pass.candidates.iter().all(|c| c.item.is_some()));
+    let front_points: u64 = pass
+        .candidates
+        .iter()
+        .map(|c| c.item.as_ref().unwrap().points())
+        .sum();
+    assert!(front_points <= 12_000);
+    // Half the candidates were occluded, the rest visible.
+    let (occluded, visible) = ids.split_at(ids.len() / 2);
+    let fb = Feedback {
+        occluded: occluded.iter().copied().collect(),
+        visible: visible.iter().copied().collect(),
+        ..Default::default()
+    };
+    let l = settle(&mut m, &fb);
+    let pass = l.occlusion.clone().unwrap();
+    // Held-back nodes stay candidates with their item; phase 1 draws only visible ones.
+    for id in occluded {
+        let c = pass.candidates.iter().find(|c| c.id == *id);
+        assert!(c.is_some_and(|c| c.item.is_some()), "occluded node {id}");
+    }
+    assert!(
+        drawn(&l)
+            .iter()
+            .all(|id| fb.visible.contains(&u64::from(*id)))
+    );
+    // The budget counts the nodes not held back, and is spent: it refines the visible half.
+    let counted: u64 = pass
+        .candidates
+        .iter()
+        .filter(|c| !fb.occluded.contains(&c.id))
+        .map(|c| match &c.item {
+            Some(i) => i.points(),
+            None => l
+                .items
+                .iter()
+                .find(|i| matches!(i, DrawItem::Chunk { id, .. } if *id == c.id))
+                .unwrap()
+                .points(),
+        })
+        .sum();
+    assert!(counted <= 12_000, "{counted}");
+    // Last frame the visible half held fewer splats; its share of the budget grew.
+    let visible_before: u64 = first
+        .occlusion
+        .as_ref()
+        .unwrap()
+        .candidates
+        .iter()
+        .filter(|c| fb.visible.contains(&c.id))
+        .map(|c| c.item.as_ref().unwrap().points())
+        .sum();
+    assert!(
+        counted > visible_before && m.counters().front_points == counted,
+        "reclaimed budget: {counted} splats now vs {visible_before} for the same region"
+    );
+}

@@ -330,7 +330,11 @@ mod tests {
         p.extend([[5.0, 5.0, 0.0], [5.01, 5.0, 0.0], [5.0, 5.01, 0.0]]);
         let r = leaf_radii(&p);
         let plain = scenes::spacing::knn_spacing(&p, scenes::spacing::DEFAULT_K);
-        assert!(plain[1601] > 5.0, "uncapped, the sliver reaches across: {}", plain[1601]);
+        assert!(
+            plain[1601] > 5.0,
+            "uncapped, the sliver reaches across: {}",
+            plain[1601]
+        );
         let median = 0.03f32; // the 8th neighbour on a grid of spacing 0.01 is ~0.022–0.03 away
         for (i, v) in r.iter().enumerate() {
             assert!(*v <= LEAF_RADIUS_CAP * median + 1e-6, "sample {i}: {v}");

@@ -28,7 +28,10 @@ fn build_read(
     std::fs::create_dir_all(dir).unwrap();
     let lp = params(p);
     let mem = budget.unwrap_or(lp.mem_mb << 20);
-    build::build_with_budget(cloud, &lp, "test", dir, &scenes::NoProgress, mem).unwrap();
+    build::build_with_budget(cloud, &lp, "test", dir, &scenes::NoProgress, mem)
+        .unwrap()
+        .write(dir) // as the registry does
+        .unwrap();
     let nodes = index::read(&dir.join(lpc::INDEX_FILE)).unwrap();
     let repo = Repository::open(&dir.join(lpc::REPO_FILE)).unwrap();
     let src = LocalSource::new(repo, nodes.iter().map(|n| n.chunk).collect(), "cloud");

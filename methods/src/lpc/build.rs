@@ -339,7 +339,6 @@ pub fn build_with_budget(
         extra,
     }
     .finish();
-    stats.write(dir)?;
     Ok(stats)
 }
 

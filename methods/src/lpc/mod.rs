@@ -175,7 +175,7 @@ pub fn build(
     progress: &dyn Progress,
 ) -> Result<BuildStats, MethodError> {
     let p = LpcParams::from_params(params)?;
-    // `build::build` writes index, repository, info and build.json; the manifest goes
+    // `build::build` writes index, repository and info (the registry adds build.json); the manifest goes
     // last, so a directory with a manifest is complete.
     let stats = build::build(cloud, &p, scene, dir, progress)?;
     Manifest {

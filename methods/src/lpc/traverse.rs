@@ -194,6 +194,9 @@ impl Traversal {
     ) -> Selection {
         let (lo_eps, hi_eps) = BUDGET_EPS_RANGE;
         let mut hi = self.run(nodes, ctx, hi_eps, avail);
+        // The best selection within the budget so far, with its stopped nodes (the fill
+        // step needs them), so the final ε is not traversed again.
+        let mut hi_stopped = self.stopped.clone();
         if hi.points > b {
             // Even the coarsest admissible cut is too large (the eye inside spheres forces
             // refinement): keep clouds in traversal order (coarse first) while they fit.
@@ -220,14 +223,16 @@ impl Traversal {
             let s = self.run(nodes, ctx, m.exp(), avail);
             if s.points <= b {
                 h = m;
+                hi = s;
+                std::mem::swap(&mut hi_stopped, &mut self.stopped);
             } else {
                 l = m;
             }
         }
-        let mut sel = self.run(nodes, ctx, h.exp(), avail);
+        let mut sel = hi;
         // Fill: the next refinements are the stopped nodes with the largest projected
         // spacing; add their visible, available children one cloud at a time while they fit.
-        let mut stopped = std::mem::take(&mut self.stopped);
+        let mut stopped = hi_stopped;
         stopped.sort_by(|a, b| b.1.total_cmp(&a.1).then(a.0.cmp(&b.0)));
         let fine = sel.eps_px.max(MIN_SPLAT_PX);
         'fill: for &(i, _) in &stopped {

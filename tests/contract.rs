@@ -99,7 +99,9 @@ fn check_chunks(kind: MethodKind, m: &dyn LodMethod, cloud: &PointCloud, list: &
                 *prefix as usize,
                 *size,
             ),
-            DrawItem::Stream { batch, size } => (batch.clone(), batch.len(), *size),
+            DrawItem::Stream { batch, size } => {
+                (std::sync::Arc::new(batch.clone()), batch.len(), *size)
+            }
         };
         batch.validate().unwrap();
         assert!(

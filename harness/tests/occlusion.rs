@@ -168,10 +168,10 @@ impl LodMethod for Walls {
         });
         Ok(list)
     }
-    fn chunk(&self, id: ChunkId) -> Result<SplatBatch, MethodError> {
+    fn chunk(&self, id: ChunkId) -> Result<std::sync::Arc<SplatBatch>, MethodError> {
         self.clouds
             .get(id as usize)
-            .map(|c| c.batch.clone())
+            .map(|c| std::sync::Arc::new(c.batch.clone()))
             .ok_or(MethodError::NoChunk(id))
     }
     fn stats(&self) -> MethodStats {

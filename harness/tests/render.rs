@@ -277,8 +277,11 @@ impl LodMethod for IntervalMock {
     ) -> Result<DrawList, methods::MethodError> {
         Ok(DrawList::default())
     }
-    fn chunk(&self, _: methods::ChunkId) -> Result<SplatBatch, methods::MethodError> {
-        Ok(self.batch.clone())
+    fn chunk(
+        &self,
+        _: methods::ChunkId,
+    ) -> Result<std::sync::Arc<SplatBatch>, methods::MethodError> {
+        Ok(std::sync::Arc::new(self.batch.clone()))
     }
     fn stats(&self) -> methods::MethodStats {
         Default::default()

@@ -5,6 +5,7 @@
 //! `Box<dyn LodMethod>` that the runner drives frame by frame.
 
 use std::path::Path;
+use std::sync::Arc;
 
 use scenes::{Attributes, View};
 
@@ -23,8 +24,9 @@ pub trait LodMethod: Send {
         target: Target,
         feedback: &Feedback,
     ) -> Result<DrawList, MethodError>;
-    /// Decodes chunk `id` for upload.
-    fn chunk(&self, id: ChunkId) -> Result<SplatBatch, MethodError>;
+    /// Decoded chunk `id`, for upload. Shared: a method that keeps decoded chunks in core
+    /// (LPC, MWKD) hands out its copy without cloning it.
+    fn chunk(&self, id: ChunkId) -> Result<Arc<SplatBatch>, MethodError>;
     /// Resident memory and structure counters.
     fn stats(&self) -> MethodStats;
     /// Names of the extra CSV columns this method appends (values in [`DrawList::counters`]).

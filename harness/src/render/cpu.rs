@@ -184,22 +184,21 @@ fn footprints<'a>(
     let (mut points, mut chunks) = (0u64, 0u64);
     for item in items {
         let size = item.size();
+        let chunk;
         let (batch, count, test) = match (item, item.cached()) {
             (_, Some((id, sent, test))) => {
-                let b = method.chunk(id)?;
-                let c = (sent as usize).min(b.len());
+                chunk = method.chunk(id)?;
+                let c = (sent as usize).min(chunk.len());
                 chunks += 1;
-                (std::borrow::Cow::Owned(b), c, test)
+                (&*chunk, c, test)
             }
-            (DrawItem::Stream { batch, .. }, None) => {
-                (std::borrow::Cow::Borrowed(batch), batch.len(), None)
-            }
+            (DrawItem::Stream { batch, .. }, None) => (batch, batch.len(), None),
             (item, None) => anyhow::bail!("unexpected draw item {item:?}"),
         };
         points += count as u64;
         for i in 0..count {
             if let Some(t) = &test
-                && !interval_passes(&batch, i, t, eye)
+                && !interval_passes(batch, i, t, eye)
             {
                 continue;
             }
@@ -232,7 +231,7 @@ fn footprints<'a>(
                 z: clip.z / clip.w,
                 z_pushed: back.z / back.w,
                 ellipse,
-                linear: shade_linear(&batch, i, eye),
+                linear: shade_linear(batch, i, eye),
             });
         }
     }

@@ -181,7 +181,7 @@ impl LodMethod for Full {
             ..Default::default()
         })
     }
-    fn chunk(&self, id: ChunkId) -> Result<SplatBatch, MethodError> {
+    fn chunk(&self, id: ChunkId) -> Result<std::sync::Arc<SplatBatch>, MethodError> {
         let n = self.cloud.len();
         let start = usize::try_from(id)
             .ok()
@@ -189,11 +189,11 @@ impl LodMethod for Full {
             .filter(|&s| s < n)
             .ok_or(MethodError::NoChunk(id))?;
         let range = start..(start + CHUNK_POINTS).min(n);
-        Ok(SplatBatch::from_cloud_range(
+        Ok(std::sync::Arc::new(SplatBatch::from_cloud_range(
             &self.cloud,
             range,
             self.cloud.radii(),
-        ))
+        )))
     }
     fn stats(&self) -> MethodStats {
         MethodStats {

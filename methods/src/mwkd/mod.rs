@@ -749,12 +749,12 @@ impl LodMethod for Mwkd {
         }
         Ok(list)
     }
-    fn chunk(&self, id: ChunkId) -> Result<SplatBatch, MethodError> {
+    fn chunk(&self, id: ChunkId) -> Result<Arc<SplatBatch>, MethodError> {
         let id = u32::try_from(id)
             .ok()
             .filter(|&i| (i as usize) < self.nodes.len())
             .ok_or(MethodError::NoChunk(id))?;
-        Ok(self.access.get(id)?.as_ref().clone())
+        self.access.get(id)
     }
     fn stats(&self) -> MethodStats {
         MethodStats {

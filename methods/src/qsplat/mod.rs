@@ -289,7 +289,7 @@ impl LodMethod for Qsplat {
             occlusion: None,
         })
     }
-    fn chunk(&self, id: ChunkId) -> Result<SplatBatch, MethodError> {
+    fn chunk(&self, id: ChunkId) -> Result<std::sync::Arc<SplatBatch>, MethodError> {
         Err(MethodError::NoChunk(id))
     }
     fn stats(&self) -> MethodStats {

@@ -823,7 +823,7 @@ impl LodMethod for Spt {
         ];
         Ok(list)
     }
-    fn chunk(&self, id: ChunkId) -> Result<SplatBatch, MethodError> {
+    fn chunk(&self, id: ChunkId) -> Result<std::sync::Arc<SplatBatch>, MethodError> {
         let c = usize::try_from(id)
             .ok()
             .and_then(|i| self.index.chunks.get(i))
@@ -832,7 +832,7 @@ impl LodMethod for Spt {
         let mut batch =
             SplatBatch::from_cloud_range(&self.cloud, range.clone(), self.cloud.radii());
         batch.lod = Some(self.lod[range].to_vec());
-        Ok(batch)
+        Ok(std::sync::Arc::new(batch))
     }
     fn stats(&self) -> MethodStats {
         MethodStats {

@@ -598,3 +598,192 @@ fn run_reuses_an_existing_build() {
             .ends_with("clouds_queried,clouds_occluded")
     );
 }
+
+/// `sweep` builds once and runs the path at every budget (`sweep.csv`: one row per target,
+/// budgets kept, more budget ⇒ more points, FLIP in [0, 1]) and plots it; a second sweep, at
+/// tolerances on an existing build (`--build-dir`), and `plot-sweep` overlays both.
+#[test]
+fn sweep_budgets_and_tolerances_then_plot_sweep() {
+    if !have_gpu("sweep_budgets_and_tolerances_then_plot_sweep") {
+        return;
+    }
+    let tmp = tempfile::tempdir().unwrap();
+    let cache = tmp.path().join("cache");
+    let scene = "statue:5000:1";
+    let sweep = |args: &[&str], out: &Path| {
+        bin()
+            .args([
+                "sweep", "--scene", scene, "--path", "orbit", "--frames", "2",
+            ])
+            .args(["--width", "96", "--height", "96"])
+            .args(args)
+            .arg("--out")
+            .arg(out)
+            .arg("--cache")
+            .arg(&cache)
+            .assert()
+            .success()
+            .stdout(predicate::str::contains("sweep.csv (2 targets)"));
+    };
+    let mwkd = tmp.path().join("mwkd");
+    sweep(
+        &[
+            "--method",
+            "mwkd",
+            "--param",
+            "vbo=400",
+            "--budgets",
+            "500,2000",
+        ],
+        &mwkd,
+    );
+    let (h, rows) = read_csv(&mwkd.join("sweep.csv"));
+    assert_eq!(
+        h.join(","),
+        "method,params,scene,path,target,value,frames,points_drawn_median,splats_per_s_median,\
+         gpu_ms_median,cpu_select_ms_median,flip_mean_median,flip_mean_max,hole_ratio_median,\
+         hole_ratio_max,psnr_db_median,rss_bytes_max"
+    );
+    assert_eq!(rows.len(), 2);
+    let col = |name: &str| h.iter().position(|c| c == name).unwrap();
+    let num = |r: &csv::StringRecord, name: &str| r[col(name)].parse::<f64>().unwrap();
+    for (r, budget) in rows.iter().zip([500.0, 2000.0]) {
+        assert_eq!(&r[col("method")], "mwkd");
+        assert_eq!(&r[col("params")], "vbo=400");
+        assert_eq!(&r[col("scene")], scene);
+        assert_eq!(&r[col("path")], "orbit");
+        assert_eq!(&r[col("target")], "budget");
+        assert_eq!(num(r, "value"), budget);
+        assert_eq!(num(r, "frames"), 2.0);
+        let drawn = num(r, "points_drawn_median");
+        assert!(drawn > 0.0 && drawn <= budget, "{budget}: {drawn} points");
+        for c in ["flip_mean_median", "flip_mean_max"] {
+            let v = num(r, c);
+            assert!((0.0..=1.0).contains(&v), "{c} = {v}");
+        }
+        assert!(num(r, "flip_mean_median") <= num(r, "flip_mean_max"));
+        assert!(num(r, "rss_bytes_max") > 0.0);
+    }
+    assert!(
+        num(&rows[1], "points_drawn_median") > num(&rows[0], "points_drawn_median"),
+        "a larger budget draws more"
+    );
+    assert!(mwkd.join("build/method.json").exists(), "one build");
+    for run in ["budget-500", "budget-2000"] {
+        let dir = mwkd.join(run);
+        for f in ["frames.csv", "summary.json", "timeline.png", "timeline.svg"] {
+            assert!(dir.join(f).exists(), "{run}/{f} missing");
+        }
+        assert!(
+            !dir.join("build").exists(),
+            "{run} reused the sweep's build"
+        );
+        let s: serde_json::Value =
+            serde_json::from_str(&std::fs::read_to_string(dir.join("summary.json")).unwrap())
+                .unwrap();
+        assert_eq!(s["complete"], true);
+        assert_eq!(s["params"]["vbo"], "400");
+    }
+    for f in ["sweep.png", "sweep.svg"] {
+        assert!(mwkd.join(f).exists(), "{f} missing");
+    }
+
+    let build = tmp.path().join("lpc-build");
+    bin()
+        .args([
+            "build", "--method", "lpc", "--param", "m=256", "--scene", scene,
+        ])
+        .arg("--out")
+        .arg(&build)
+        .arg("--cache")
+        .arg(&cache)
+        .assert()
+        .success();
+    let lpc = tmp.path().join("lpc");
+    let build_arg = build.to_str().unwrap();
+    sweep(
+        &["--method", "lpc", "--build-dir", build_arg, "--eps", "4,1"],
+        &lpc,
+    );
+    let (_, rows) = read_csv(&lpc.join("sweep.csv"));
+    let targets: Vec<(&str, &str, &str)> = rows
+        .iter()
+        .map(|r| (&r[col("params")], &r[col("target")], &r[col("value")]))
+        .collect();
+    assert_eq!(
+        targets,
+        [("m=256", "eps", "4"), ("m=256", "eps", "1")],
+        "the build's parameters"
+    );
+    assert!(num(&rows[1], "points_drawn_median") >= num(&rows[0], "points_drawn_median"));
+    assert!(lpc.join("eps-4/frames.csv").exists() && lpc.join("eps-1/frames.csv").exists());
+    assert!(!lpc.join("build").exists(), "--build-dir: nothing built");
+
+    let cmp = tmp.path().join("cmp");
+    bin()
+        .arg("plot-sweep")
+        .arg(&mwkd)
+        .arg(&lpc)
+        .arg("--out")
+        .arg(&cmp)
+        .assert()
+        .success();
+    let svg = std::fs::read_to_string(cmp.join("sweep-comparison.svg")).unwrap();
+    assert!(svg.contains("mwkd vbo=400") && svg.contains("lpc m=256"));
+    assert!(cmp.join("sweep-comparison.png").exists());
+}
+
+/// Bad sweep targets fail before anything is built or rendered (no GPU needed), naming the
+/// flag; `plot-sweep` of a folder without `sweep.csv` says so.
+#[test]
+fn sweep_errors_are_clear() {
+    let tmp = tempfile::tempdir().unwrap();
+    let out = tmp.path().join("sweep");
+    let out = out.to_str().unwrap();
+    let sweep = |extra: &[&str], needle: &str| {
+        let mut args = vec![
+            "sweep",
+            "--method",
+            "mwkd",
+            "--scene",
+            "statue:100",
+            "--out",
+            out,
+        ];
+        args.extend(extra);
+        fails_with(&args, needle);
+    };
+    sweep(&[], "--budgets");
+    sweep(&[], "--eps");
+    sweep(&["--budgets", "500", "--eps", "1"], "exclusive");
+    sweep(&["--budgets", ""], "--budgets: the list is empty");
+    sweep(&["--eps", " "], "--eps: the list is empty");
+    sweep(&["--budgets", "500,,2000"], "value 2 is empty");
+    sweep(&["--budgets", "500,lots"], "--budgets: budget 'lots'");
+    sweep(
+        &["--budgets", "500,0"],
+        "--budgets: budget '0': must be at least 1",
+    );
+    sweep(&["--budgets", "-5"], "--budgets");
+    sweep(&["--eps", "2,wide"], "--eps: 'wide' is not a number");
+    sweep(&["--eps", "-1"], "--eps: '-1'");
+    sweep(&["--eps", "2,NaN"], "--eps: 'NaN'");
+    sweep(&["--eps", "inf"], "--eps: 'inf'");
+    sweep(&["--eps", "2,1,2.0"], "--eps: 2 is given twice");
+    sweep(&["--budgets", "1k,1000"], "--budgets: 1000 is given twice");
+    sweep(&["--eps", "1", "--param", "vbo=0"], "vbo");
+    sweep(&["--eps", "1", "--frames", "0"], "--frames");
+    sweep(&["--eps", "1", "--path", "spiral"], "orbit");
+    assert!(!Path::new(out).exists(), "nothing written");
+    let empty = tmp.path().join("empty");
+    std::fs::create_dir_all(&empty).unwrap();
+    fails_with(
+        &[
+            "plot-sweep",
+            empty.to_str().unwrap(),
+            "--out",
+            tmp.path().join("cmp").to_str().unwrap(),
+        ],
+        "no sweep.csv",
+    );
+}

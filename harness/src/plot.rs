@@ -29,6 +29,17 @@
 //!   plus its target when the runs' targets differ, plus its folder name if labels still
 //!   collide.
 //!
+//! Sweeps (`splatbench sweep`): a sweep folder holds `sweep.csv`, header [`SWEEP_COLUMNS`],
+//! one row per target ([`SweepRow`], written by [`write_sweep`] atomically, read back by
+//! [`read_sweep`] with the same rules and errors as `frames.csv`; `params` may be empty).
+//! [`plot_sweep`] writes `sweep.png`/`sweep.svg` into the sweep folder, [`plot_sweeps`]
+//! `sweep-comparison.png`/`.svg` into its output folder; both [`SWEEP_SIZE`], one figure:
+//! median `flip_mean` (y, from 0) against median `points_drawn` per frame (x, logarithmic by
+//! the comparison's rule), one line per sweep through its targets in order of points drawn,
+//! each point annotated with its target ("25k", "2 px"). A sweep is labelled by its method and
+//! parameters, plus its folder name if labels collide. Targets without a FLIP value (no
+//! reference) are left out.
+//!
 //! Text uses the bundled DejaVu Sans (`assets/DejaVuSans.ttf`, licence beside it),
 //! registered once as family "sans-serif" for plotters' `ab_glyph` backend: no system fonts.
 
@@ -146,6 +157,18 @@ pub struct FrameRecord {
 /// Reads `frames.csv` by header name (extra columns ignored). Errors name the file, and for
 /// bad values the column and the row. A file without frames is an error.
 pub fn read_frames(csv_path: &Path) -> anyhow::Result<Vec<FrameRecord>> {
+    read_table(csv_path, &FRAME_COLUMNS, "frames", |row| row.parse())
+}
+
+/// Reads a CSV file whose header holds `columns` (any order, extra columns ignored), one
+/// `parse` per record. Errors name the file; a file without rows is an error ("no `what` in
+/// file").
+fn read_table<T>(
+    csv_path: &Path,
+    columns: &[&str],
+    what: &str,
+    parse: impl Fn(&Row<'_>) -> anyhow::Result<T>,
+) -> anyhow::Result<Vec<T>> {
     let file = csv_path.display();
     let mut reader = csv::ReaderBuilder::new()
         .trim(csv::Trim::All)
@@ -155,15 +178,17 @@ pub fn read_frames(csv_path: &Path) -> anyhow::Result<Vec<FrameRecord>> {
         .headers()
         .with_context(|| format!("cannot read the header of {file}"))?;
     if headers.iter().all(str::is_empty) {
-        bail!("no frames in {file} (the file is empty)");
+        bail!("no {what} in {file} (the file is empty)");
     }
-    let mut index = [0usize; FRAME_COLUMNS.len()];
-    for (slot, column) in index.iter_mut().zip(FRAME_COLUMNS) {
-        *slot = headers
-            .iter()
-            .position(|h| h == column)
-            .ok_or_else(|| anyhow!("{file}: missing column '{column}'"))?;
-    }
+    let index = columns
+        .iter()
+        .map(|&column| {
+            headers
+                .iter()
+                .position(|h| h == column)
+                .ok_or_else(|| anyhow!("{file}: missing column '{column}'"))
+        })
+        .collect::<anyhow::Result<Vec<usize>>>()?;
     let mut rows = Vec::new();
     for (n, record) in reader.records().enumerate() {
         let record = record.with_context(|| format!("cannot read {file}"))?;
@@ -171,12 +196,13 @@ pub fn read_frames(csv_path: &Path) -> anyhow::Result<Vec<FrameRecord>> {
             file: csv_path,
             row: n + 1,
             record: &record,
+            columns,
             index: &index,
         };
-        rows.push(row.parse()?);
+        rows.push(parse(&row)?);
     }
     if rows.is_empty() {
-        bail!("no frames in {file}");
+        bail!("no {what} in {file}");
     }
     Ok(rows)
 }
@@ -234,6 +260,396 @@ pub fn plot_comparison(run_dirs: &[PathBuf], out_dir: &Path) -> anyhow::Result<V
     )
 }
 
+/// The columns of `sweep.csv`, in file order: one row per target of a sweep, the medians
+/// (and some maxima) over that target's run.
+pub const SWEEP_COLUMNS: [&str; 17] = [
+    "method",
+    "params",
+    "scene",
+    "path",
+    "target",
+    "value",
+    "frames",
+    "points_drawn_median",
+    "splats_per_s_median",
+    "gpu_ms_median",
+    "cpu_select_ms_median",
+    "flip_mean_median",
+    "flip_mean_max",
+    "hole_ratio_median",
+    "hole_ratio_max",
+    "psnr_db_median",
+    "rss_bytes_max",
+];
+
+/// Size in pixels of `sweep.png` and `sweep-comparison.png` (and of the SVGs in user units).
+pub const SWEEP_SIZE: (u32, u32) = (1200, 800);
+
+/// One row of `sweep.csv`: one target of a sweep, summarised over its run's frames.
+#[derive(Debug, Clone, PartialEq)]
+pub struct SweepRow {
+    /// Method name.
+    pub method: String,
+    /// The run's method parameters, `key=value` separated by spaces (empty: defaults).
+    pub params: String,
+    /// Scene name.
+    pub scene: String,
+    /// Camera path name.
+    pub path: String,
+    /// `eps` or `budget`.
+    pub target: String,
+    /// The tolerance in pixels or the budget in points.
+    pub value: f64,
+    /// Frames in the run.
+    pub frames: u64,
+    /// Median points drawn per frame.
+    pub points_drawn_median: f64,
+    /// Median splats per second.
+    pub splats_per_s_median: f64,
+    /// Median GPU ms (empty without timestamp queries).
+    pub gpu_ms_median: Option<f64>,
+    /// Median selection ms.
+    pub cpu_select_ms_median: f64,
+    /// Median of the frames' mean FLIP (empty without a reference).
+    pub flip_mean_median: Option<f64>,
+    /// Largest mean FLIP of a frame.
+    pub flip_mean_max: Option<f64>,
+    /// Median hole ratio.
+    pub hole_ratio_median: Option<f64>,
+    /// Largest hole ratio of a frame.
+    pub hole_ratio_max: Option<f64>,
+    /// Median PSNR, dB.
+    pub psnr_db_median: Option<f64>,
+    /// Largest resident set size after a frame, bytes.
+    pub rss_bytes_max: u64,
+}
+
+impl SweepRow {
+    /// The row of one run of a sweep: `frames` as [`read_frames`] returns them, `params` as
+    /// recorded, `value` the target's value as given (the CSV's `eps_px` is an `f32` widened,
+    /// so 0.1 would read back as 0.10000000149…). Medians are [`crate::results::median`], the
+    /// same as `summary.json`'s; empty values are skipped, and a column empty in every frame
+    /// stays empty.
+    pub fn of_run(frames: &[FrameRecord], params: &str, value: f64) -> anyhow::Result<Self> {
+        use crate::results::median;
+        let Some(first) = frames.first() else {
+            bail!("a run without frames has no sweep row");
+        };
+        let max = |f: fn(&FrameRecord) -> Option<f64>| frames.iter().filter_map(f).reduce(f64::max);
+        let med = |f: fn(&FrameRecord) -> Option<f64>| median(frames.iter().filter_map(f));
+        let need = |v: Option<f64>, what: &str| {
+            v.ok_or_else(|| anyhow!("no finite {what} in the run's frames"))
+        };
+        Ok(Self {
+            method: first.method.clone(),
+            params: params.to_owned(),
+            scene: first.scene.clone(),
+            path: first.path.clone(),
+            target: first.target.clone(),
+            value,
+            frames: frames.len() as u64,
+            points_drawn_median: need(med(|f| Some(f.points_drawn as f64)), "points_drawn")?,
+            splats_per_s_median: need(med(|f| Some(f.splats_per_s)), "splats_per_s")?,
+            gpu_ms_median: med(|f| f.gpu_ms),
+            cpu_select_ms_median: need(med(|f| Some(f.cpu_select_ms)), "cpu_select_ms")?,
+            flip_mean_median: med(|f| f.flip_mean),
+            flip_mean_max: max(|f| f.flip_mean),
+            hole_ratio_median: med(|f| f.hole_ratio),
+            hole_ratio_max: max(|f| f.hole_ratio),
+            psnr_db_median: med(|f| f.psnr_db),
+            rss_bytes_max: frames.iter().map(|f| f.rss_bytes).max().unwrap_or(0),
+        })
+    }
+
+    /// The row as CSV fields, in [`SWEEP_COLUMNS`] order (`None` → empty field).
+    fn fields(&self) -> Vec<String> {
+        let opt = |v: Option<f64>| v.map(|v| v.to_string()).unwrap_or_default();
+        vec![
+            self.method.clone(),
+            self.params.clone(),
+            self.scene.clone(),
+            self.path.clone(),
+            self.target.clone(),
+            self.value.to_string(),
+            self.frames.to_string(),
+            self.points_drawn_median.to_string(),
+            self.splats_per_s_median.to_string(),
+            opt(self.gpu_ms_median),
+            self.cpu_select_ms_median.to_string(),
+            opt(self.flip_mean_median),
+            opt(self.flip_mean_max),
+            opt(self.hole_ratio_median),
+            opt(self.hole_ratio_max),
+            opt(self.psnr_db_median),
+            self.rss_bytes_max.to_string(),
+        ]
+    }
+
+    /// The legend label of a sweep: its method and parameters.
+    fn label(&self) -> String {
+        if self.params.is_empty() {
+            self.method.clone()
+        } else {
+            format!("{} {}", self.method, self.params)
+        }
+    }
+
+    /// The target as a point's annotation: "25k" (a budget) or "2 px" (a tolerance).
+    fn target_text(&self) -> String {
+        match self.target.as_str() {
+            "eps" => format!("{} px", self.value),
+            _ => si(self.value),
+        }
+    }
+}
+
+/// Writes `sweep.csv` (header [`SWEEP_COLUMNS`], one line per row) atomically: a temporary
+/// file renamed over `path`, so the file is either absent, the previous one, or complete.
+pub fn write_sweep(path: &Path, rows: &[SweepRow]) -> anyhow::Result<()> {
+    let mut w = csv::Writer::from_writer(Vec::new());
+    w.write_record(SWEEP_COLUMNS)?;
+    for row in rows {
+        w.write_record(row.fields())?;
+    }
+    let bytes = w
+        .into_inner()
+        .map_err(|e| anyhow!("cannot format {}: {e}", path.display()))?;
+    write_atomically(path, &bytes).with_context(|| format!("cannot write {}", path.display()))
+}
+
+/// Reads `sweep.csv` by header name (extra columns ignored). Errors name the file, and for
+/// bad values the column and the row; a file without rows is an error.
+pub fn read_sweep(csv_path: &Path) -> anyhow::Result<Vec<SweepRow>> {
+    read_table(csv_path, &SWEEP_COLUMNS, "sweep rows", |row| {
+        row.parse_sweep()
+    })
+}
+
+/// Plots one sweep: reads `sweep_dir/sweep.csv`, writes `sweep.png` and `sweep.svg` into
+/// `sweep_dir`, returns their paths.
+pub fn plot_sweep(sweep_dir: &Path) -> anyhow::Result<Vec<PathBuf>> {
+    let series = sweep_series(&[sweep_dir.to_path_buf()])?;
+    let title = match series.first().and_then(|s| s.rows.first()) {
+        Some(r) => format!("{} · {} · {}", r.label(), r.scene, r.path),
+        None => String::from("sweep"),
+    };
+    render_both(
+        sweep_dir,
+        "sweep",
+        SWEEP_SIZE,
+        &SweepFigure { title, series },
+    )
+}
+
+/// Overlays several sweeps (each a `splatbench sweep --out` folder with `sweep.csv`): writes
+/// `sweep-comparison.png` and `sweep-comparison.svg` into `out_dir` (created if missing),
+/// returns their paths.
+pub fn plot_sweeps(sweep_dirs: &[PathBuf], out_dir: &Path) -> anyhow::Result<Vec<PathBuf>> {
+    if sweep_dirs.is_empty() {
+        bail!("no sweeps to compare");
+    }
+    let series = sweep_series(sweep_dirs)?;
+    let rows = || series.iter().flat_map(|s| s.rows.iter());
+    let scenes: std::collections::BTreeSet<_> = rows().map(|r| (&r.scene, &r.path)).collect();
+    let title = match scenes.iter().next() {
+        Some((scene, path)) if scenes.len() == 1 => {
+            format!("image error vs points drawn · {scene} · {path}")
+        }
+        _ => String::from("image error vs points drawn"),
+    };
+    std::fs::create_dir_all(out_dir)
+        .with_context(|| format!("cannot create {}", out_dir.display()))?;
+    render_both(
+        out_dir,
+        "sweep-comparison",
+        SWEEP_SIZE,
+        &SweepFigure { title, series },
+    )
+}
+
+/// Reads the sweeps in `dirs` and labels them (method and parameters, plus the folder name
+/// where labels collide).
+fn sweep_series(dirs: &[PathBuf]) -> anyhow::Result<Vec<SweepSeries>> {
+    let sweeps = dirs
+        .iter()
+        .map(|dir| {
+            let csv = dir.join("sweep.csv");
+            if !csv.is_file() {
+                bail!(
+                    "{}: no sweep.csv (not a `splatbench sweep --out` folder, or its sweep did \
+                     not finish)",
+                    dir.display()
+                );
+            }
+            read_sweep(&csv)
+        })
+        .collect::<anyhow::Result<Vec<_>>>()?;
+    let mut labels: Vec<String> = sweeps
+        .iter()
+        .map(|rows| {
+            rows.first()
+                .map_or_else(|| String::from("?"), SweepRow::label)
+        })
+        .collect();
+    disambiguate(&mut labels, dirs);
+    Ok(sweeps
+        .into_iter()
+        .zip(labels)
+        .enumerate()
+        .map(|(i, (mut rows, label))| {
+            rows.sort_by(|a, b| a.points_drawn_median.total_cmp(&b.points_drawn_median));
+            SweepSeries {
+                label,
+                colour: PALETTE[i % PALETTE.len()],
+                rows,
+            }
+        })
+        .collect())
+}
+
+/// One sweep as its plot sees it.
+struct SweepSeries {
+    /// Legend label.
+    label: String,
+    /// Colour of its line and points.
+    colour: RGBColor,
+    /// Its rows, by points drawn.
+    rows: Vec<SweepRow>,
+}
+
+impl SweepSeries {
+    /// (median points drawn, median FLIP, target) of the rows that have a FLIP value.
+    fn points(&self) -> impl Iterator<Item = (f64, f64, String)> + '_ {
+        self.rows
+            .iter()
+            .filter_map(|r| Some((r.points_drawn_median, r.flip_mean_median?, r.target_text())))
+    }
+}
+
+/// The figure of one or more sweeps: median FLIP against median points drawn, one line per
+/// sweep, each point annotated with its target.
+struct SweepFigure {
+    /// Figure title.
+    title: String,
+    /// One entry per sweep.
+    series: Vec<SweepSeries>,
+}
+
+impl Figure for SweepFigure {
+    fn draw<DB: DrawingBackend>(&self, root: &DrawingArea<DB, Shift>) -> anyhow::Result<()>
+    where
+        DB::ErrorType: 'static,
+    {
+        root.fill(&WHITE)?;
+        let root = root.titled(&self.title, (FONT, 26))?;
+        let points: Vec<(f64, f64)> = self
+            .series
+            .iter()
+            .flat_map(|s| s.points().map(|(x, y, _)| (x, y)))
+            .collect();
+        let y = 0.0..nice_top(points.iter().map(|p| p.1).fold(0.0, f64::max) * 1.05);
+        let caption = "median FLIP mean vs median points drawn per frame";
+        match PointsAxis::of(points.iter().map(|p| p.0)) {
+            PointsAxis::Log(x) => {
+                let caption = format!("{caption} (log x)");
+                sweep_panel(&root, x.log_scale(), y, &self.series, &caption)
+            }
+            PointsAxis::Linear(x) => sweep_panel(&root, x, y, &self.series, caption),
+            PointsAxis::Empty => {
+                let caption = format!("{caption} (no reference: not recorded)");
+                sweep_panel(&root, 0.0..1.0, 0.0..1.0, &self.series, &caption)
+            }
+        }
+    }
+}
+
+/// The sweeps' lines on x axis `x`, with a legend.
+fn sweep_panel<DB, X>(
+    area: &DrawingArea<DB, Shift>,
+    x: X,
+    y: Range<f64>,
+    series: &[SweepSeries],
+    caption: &str,
+) -> anyhow::Result<()>
+where
+    DB: DrawingBackend,
+    DB::ErrorType: 'static,
+    X: AsRangedCoord<Value = f64>,
+    X::CoordDescType: ValueFormatter<f64>,
+{
+    let mut chart = ChartBuilder::on(area)
+        .caption(caption, (FONT, 20))
+        .margin(16)
+        .x_label_area_size(50)
+        .y_label_area_size(80)
+        .build_cartesian_2d(x, y)?;
+    chart
+        .configure_mesh()
+        .x_desc("points drawn per frame (median)")
+        .y_desc("flip_mean (median)")
+        .x_label_formatter(&|v| si(*v))
+        .y_label_formatter(&|v| si(*v))
+        .label_style((FONT, 14))
+        .axis_desc_style((FONT, 16))
+        .light_line_style(WHITE)
+        .draw()?;
+    let note = TextStyle::from((FONT, 13).into_font()).pos(Pos::new(HPos::Left, VPos::Bottom));
+    for s in series {
+        let style = s.colour.stroke_width(2);
+        let name = if s.points().next().is_none() {
+            format!("{} (no data)", s.label)
+        } else {
+            s.label.clone()
+        };
+        chart
+            .draw_series(LineSeries::new(s.points().map(|(x, y, _)| (x, y)), style))?
+            .label(name)
+            .legend(move |(x, y)| PathElement::new(vec![(x, y), (x + 24, y)], style));
+        chart.draw_series(
+            s.points()
+                .map(|(x, y, _)| Circle::new((x, y), 4, s.colour.filled())),
+        )?;
+        chart.draw_series(s.points().map(|(x, y, text)| {
+            EmptyElement::at((x, y)) + Text::new(text, (6, -6), note.clone().color(&s.colour))
+        }))?;
+    }
+    chart
+        .configure_series_labels()
+        .position(SeriesLabelPosition::UpperRight)
+        .background_style(WHITE.mix(0.85))
+        .border_style(BLACK.mix(0.4))
+        .label_font((FONT, 15))
+        .draw()?;
+    Ok(())
+}
+
+/// The x axis of an error-against-points plot.
+enum PointsAxis {
+    /// Every x > 0 and they span more than a factor 10: logarithmic over this range.
+    Log(Range<f64>),
+    /// Linear over this range.
+    Linear(Range<f64>),
+    /// No points.
+    Empty,
+}
+
+impl PointsAxis {
+    /// The axis that shows `xs` (padded a little on both sides).
+    fn of(xs: impl Iterator<Item = f64>) -> Self {
+        let (lo, hi) = xs.fold((f64::INFINITY, f64::NEG_INFINITY), |(lo, hi), x| {
+            (lo.min(x), hi.max(x))
+        });
+        if lo > hi {
+            Self::Empty
+        } else if lo > 0.0 && hi / lo > 10.0 {
+            Self::Log(lo / 1.25..hi * 1.25)
+        } else {
+            let span = (hi - lo).max(hi.abs() * 0.1).max(1.0);
+            Self::Linear((lo - 0.05 * span).max(0.0)..hi + 0.05 * span)
+        }
+    }
+}
+
 /// One run as the comparison plot sees it.
 struct RunSeries {
     /// Legend label.
@@ -254,14 +670,16 @@ struct Row<'a> {
     row: usize,
     /// The record.
     record: &'a csv::StringRecord,
-    /// Position in the record of each of [`FRAME_COLUMNS`].
-    index: &'a [usize; FRAME_COLUMNS.len()],
+    /// The columns read (e.g. [`FRAME_COLUMNS`]).
+    columns: &'a [&'a str],
+    /// Position in the record of each of `columns`.
+    index: &'a [usize],
 }
 
 impl Row<'_> {
-    /// The trimmed text of column `name` (one of [`FRAME_COLUMNS`]).
+    /// The trimmed text of column `name` (one of `columns`).
     fn text(&self, name: &str) -> &str {
-        FRAME_COLUMNS
+        self.columns
             .iter()
             .position(|&c| c == name)
             .and_then(|c| self.record.get(self.index[c]))
@@ -324,8 +742,8 @@ impl Row<'_> {
             .ok_or_else(|| self.error(name, "empty, an integer is required"))
     }
 
-    /// The whole record.
-    fn parse(&self) -> anyhow::Result<FrameRecord> {
+    /// Column `target`: `eps` or `budget`.
+    fn target(&self) -> anyhow::Result<String> {
         let target = self.string("target")?;
         if target != "eps" && target != "budget" {
             return Err(self.error(
@@ -333,6 +751,12 @@ impl Row<'_> {
                 &format!("\"{target}\" is neither \"eps\" nor \"budget\""),
             ));
         }
+        Ok(target)
+    }
+
+    /// The whole record, as a frame of `frames.csv`.
+    fn parse(&self) -> anyhow::Result<FrameRecord> {
+        let target = self.target()?;
         Ok(FrameRecord {
             frame: self.u64("frame")?,
             method: self.string("method")?,
@@ -355,6 +779,29 @@ impl Row<'_> {
             flip_mean: self.opt_f64("flip_mean")?,
             hole_ratio: self.opt_f64("hole_ratio")?,
             extra_coverage: self.opt_f64("extra_coverage")?,
+        })
+    }
+
+    /// The whole record, as a row of `sweep.csv`.
+    fn parse_sweep(&self) -> anyhow::Result<SweepRow> {
+        Ok(SweepRow {
+            method: self.string("method")?,
+            params: self.text("params").to_owned(),
+            scene: self.string("scene")?,
+            path: self.string("path")?,
+            target: self.target()?,
+            value: self.f64("value")?,
+            frames: self.u64("frames")?,
+            points_drawn_median: self.f64("points_drawn_median")?,
+            splats_per_s_median: self.f64("splats_per_s_median")?,
+            gpu_ms_median: self.opt_f64("gpu_ms_median")?,
+            cpu_select_ms_median: self.f64("cpu_select_ms_median")?,
+            flip_mean_median: self.opt_f64("flip_mean_median")?,
+            flip_mean_max: self.opt_f64("flip_mean_max")?,
+            hole_ratio_median: self.opt_f64("hole_ratio_median")?,
+            hole_ratio_max: self.opt_f64("hole_ratio_max")?,
+            psnr_db_median: self.opt_f64("psnr_db_median")?,
+            rss_bytes_max: self.u64("rss_bytes_max")?,
         })
     }
 }
@@ -653,31 +1100,16 @@ impl Figure for Comparison {
             .flat_map(|r| r.flip_vs_points.iter().copied())
             .collect();
         let y_top = nice_top(points.iter().map(|p| p.1).fold(0.0, f64::max) * 1.05);
-        let x_min = points.iter().map(|p| p.0).reduce(f64::min);
-        let x_max = points.iter().map(|p| p.0).reduce(f64::max);
-        match (x_min, x_max) {
-            (Some(lo), Some(hi)) if lo > 0.0 && hi / lo > 10.0 => {
-                let x = (lo / 1.25..hi * 1.25).log_scale();
-                scatter_panel(
-                    &left,
-                    x,
-                    0.0..y_top,
-                    &self.runs,
-                    "FLIP mean vs points drawn (log x)",
-                )?;
+        match PointsAxis::of(points.iter().map(|p| p.0)) {
+            PointsAxis::Log(x) => {
+                let caption = "FLIP mean vs points drawn (log x)";
+                scatter_panel(&left, x.log_scale(), 0.0..y_top, &self.runs, caption)?;
             }
-            (Some(lo), Some(hi)) => {
-                let span = (hi - lo).max(hi.abs() * 0.1).max(1.0);
-                let x = (lo - 0.05 * span).max(0.0)..hi + 0.05 * span;
-                scatter_panel(
-                    &left,
-                    x,
-                    0.0..y_top,
-                    &self.runs,
-                    "FLIP mean vs points drawn",
-                )?;
+            PointsAxis::Linear(x) => {
+                let caption = "FLIP mean vs points drawn";
+                scatter_panel(&left, x, 0.0..y_top, &self.runs, caption)?;
             }
-            _ => {
+            PointsAxis::Empty => {
                 let caption = "FLIP mean vs points drawn (no reference: not recorded)";
                 scatter_panel(&left, 0.0..1.0, 0.0..1.0, &self.runs, caption)?;
             }
@@ -812,11 +1244,17 @@ fn run_labels(run_dirs: &[PathBuf], runs: &[Vec<FrameRecord>]) -> Vec<String> {
             None => String::from("?"),
         })
         .collect();
+    disambiguate(&mut labels, run_dirs);
+    labels
+}
+
+/// Appends the folder's name to every label that more than one folder has.
+fn disambiguate(labels: &mut [String], dirs: &[PathBuf]) {
     let mut counts: HashMap<String, usize> = HashMap::new();
-    for label in &labels {
+    for label in labels.iter() {
         *counts.entry(label.clone()).or_default() += 1;
     }
-    for (label, dir) in labels.iter_mut().zip(run_dirs) {
+    for (label, dir) in labels.iter_mut().zip(dirs) {
         if counts.get(label).copied().unwrap_or(0) > 1 {
             let name = dir.file_name().map_or_else(
                 || dir.display().to_string(),
@@ -825,7 +1263,6 @@ fn run_labels(run_dirs: &[PathBuf], runs: &[Vec<FrameRecord>]) -> Vec<String> {
             *label = format!("{label} ({name})");
         }
     }
-    labels
 }
 
 /// Median of `values` (mean of the middle two for an even count; 0 when empty).
@@ -899,6 +1336,112 @@ mod tests {
         assert_eq!(si(0.0), "0");
         assert_eq!(si(-0.0001), "-0.0001");
         assert_eq!(si(2e9), "2G");
+    }
+
+    fn frame(frame: u64, points: u64, flip: Option<f64>, rss: u64) -> FrameRecord {
+        FrameRecord {
+            frame,
+            method: "mwkd".into(),
+            scene: "statue:5000:1".into(),
+            path: "orbit".into(),
+            target: "eps".into(),
+            eps_px: Some(0.1f32 as f64),
+            budget: None,
+            points_drawn: points,
+            chunks_drawn: 1,
+            gpu_ms: None,
+            wall_ms: 1.0,
+            cpu_select_ms: 0.5,
+            upload_bytes: 0,
+            splats_per_s: points as f64 * 1e3,
+            rss_bytes: rss,
+            gpu_cache_bytes: 0,
+            psnr_db: Some(30.0),
+            ssim: None,
+            flip_mean: flip,
+            hole_ratio: Some(0.0),
+            extra_coverage: None,
+        }
+    }
+
+    #[test]
+    fn sweep_rows_summarise_and_round_trip() {
+        let frames = [
+            frame(0, 100, Some(0.2), 10),
+            frame(1, 300, None, 30),
+            frame(2, 200, Some(0.4), 20),
+        ];
+        let row = SweepRow::of_run(&frames, "vbo=400 fanout=6", 0.1).unwrap();
+        assert_eq!(row.points_drawn_median, 200.0);
+        assert!(
+            (row.flip_mean_median.unwrap() - 0.3).abs() < 1e-12,
+            "{row:?}"
+        );
+        assert_eq!(row.flip_mean_max, Some(0.4));
+        assert_eq!(row.gpu_ms_median, None);
+        assert_eq!(row.rss_bytes_max, 30);
+        assert_eq!(
+            (row.target.as_str(), row.value, row.frames),
+            ("eps", 0.1, 3)
+        );
+        let dir = tempfile::tempdir().unwrap();
+        let path = dir.path().join("sweep.csv");
+        let mut other = row.clone();
+        other.params = String::new();
+        write_sweep(&path, &[row.clone(), other.clone()]).unwrap();
+        let text = std::fs::read_to_string(&path).unwrap();
+        assert!(text.starts_with(&SWEEP_COLUMNS.join(",")), "{text}");
+        assert!(text.contains(",eps,0.1,3,200,"), "{text}");
+        assert_eq!(read_sweep(&path).unwrap(), vec![row, other]);
+        let leftovers = std::fs::read_dir(dir.path()).unwrap().count();
+        assert_eq!(leftovers, 1, "no temporary file left");
+        assert!(SweepRow::of_run(&[], "", 1.0).is_err());
+    }
+
+    #[test]
+    fn sweep_files_errors_name_file_column_row() {
+        let dir = tempfile::tempdir().unwrap();
+        let e = format!(
+            "{:#}",
+            plot_sweeps(&[dir.path().to_path_buf()], dir.path()).unwrap_err()
+        );
+        assert!(e.contains("no sweep.csv"), "{e}");
+        let path = dir.path().join("sweep.csv");
+        std::fs::write(&path, SWEEP_COLUMNS.join(",") + "\n").unwrap();
+        let e = format!("{:#}", read_sweep(&path).unwrap_err());
+        assert!(e.contains("no sweep rows in"), "{e}");
+        std::fs::write(&path, "method,params\nmwkd,\n").unwrap();
+        let e = format!("{:#}", read_sweep(&path).unwrap_err());
+        assert!(e.contains("missing column 'scene'"), "{e}");
+        let mut fields: Vec<&str> = vec!["lpc", "", "s", "orbit", "budget", "500", "2"];
+        fields.extend(["x"; 10]);
+        let bad = format!("{}\n{}\n", SWEEP_COLUMNS.join(","), fields.join(","));
+        std::fs::write(&path, bad).unwrap();
+        let e = format!("{:#}", read_sweep(&path).unwrap_err());
+        assert!(
+            e.contains("row 1") && e.contains("points_drawn_median"),
+            "{e}"
+        );
+    }
+
+    #[test]
+    fn points_axis_is_log_past_a_factor_ten() {
+        assert!(matches!(
+            PointsAxis::of([10.0, 1000.0].into_iter()),
+            PointsAxis::Log(_)
+        ));
+        assert!(matches!(
+            PointsAxis::of([10.0, 90.0].into_iter()),
+            PointsAxis::Linear(_)
+        ));
+        assert!(matches!(
+            PointsAxis::of([0.0, 90.0].into_iter()),
+            PointsAxis::Linear(_)
+        ));
+        assert!(matches!(
+            PointsAxis::of(std::iter::empty()),
+            PointsAxis::Empty
+        ));
     }
 
     #[test]

@@ -36,14 +36,28 @@ use crate::MethodError;
 use crate::cull::Cone;
 use crate::store::{self, RepoWriter};
 
-/// What a leaf holds: its samples, with the scene's radii or the within-leaf k-NN spacing.
+/// Leaves with fewer samples than this take their k-NN radii from their parent's samples.
+pub const LEAF_KNN_MIN: usize = 64;
+
+/// What a leaf holds: its samples, with the scene's radii or the within-leaf k-NN spacing
+/// ([`leaf_radii`]; a leaf of fewer than [`LEAF_KNN_MIN`] samples — an octree octant that
+/// clips a corner of the surface — measures among its parent's samples, of which its own are
+/// a contiguous run: alone, one sample has no neighbour and three have only each other).
 pub fn leaf_splats(cloud: &PointCloud, tree: &Tree, i: usize) -> Splats {
-    let idx = &tree.order[tree.nodes[i].range()];
+    let node = &tree.nodes[i];
+    let idx = &tree.order[node.range()];
     let pos = cloud.positions();
-    let positions: Vec<[f32; 3]> = idx.iter().map(|&j| pos[j as usize]).collect();
-    let radii = match cloud.radii() {
-        Some(r) => idx.iter().map(|&j| r[j as usize]).collect(),
-        None => leaf_radii(&positions),
+    let gather = |idx: &[u32]| -> Vec<[f32; 3]> { idx.iter().map(|&j| pos[j as usize]).collect() };
+    let positions = gather(idx);
+    let radii = match (cloud.radii(), tree.parent(i)) {
+        (Some(r), _) => idx.iter().map(|&j| r[j as usize]).collect(),
+        (None, Some(p)) if idx.len() < LEAF_KNN_MIN => {
+            let parent = &tree.nodes[p];
+            let all = leaf_radii(&gather(&tree.order[parent.range()]));
+            let at = node.start - parent.start;
+            all[at..at + idx.len()].to_vec()
+        }
+        (None, _) => leaf_radii(&positions),
     };
     Splats {
         positions: positions.into_iter().map(Vec3::from).collect(),
@@ -320,6 +334,24 @@ pub fn write_repository(
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    #[test]
+    fn tiny_octree_leaves_measure_among_their_parents_samples() {
+        // A dense 30 × 30 grid at z = 0 and one sample just across the octree's centre
+        // plane: its octant holds it alone.
+        let mut p: Vec<[f32; 3]> = (0..900)
+            .map(|i| [(i % 30) as f32 * 0.01, (i / 30) as f32 * 0.01, 0.0])
+            .collect();
+        p.push([0.3, 0.3, 0.301]);
+        let cloud = PointCloud::new(glam::DVec3::ZERO, p.into(), None, None, None).unwrap();
+        let tree = Tree::octree(cloud.positions(), 800, 24).unwrap();
+        let lone = (0..tree.nodes.len())
+            .find(|&i| tree.is_leaf(i) && tree.nodes[i].len == 1)
+            .unwrap();
+        let r = leaf_splats(&cloud, &tree, lone).radii[0];
+        // Its 8th neighbour among the parent's samples, not the 1.0 fallback of a lone sample.
+        assert!(r > 0.01 && r < 0.35, "{r}");
+    }
 
     #[test]
     fn leaf_radii_cap_slivers() {

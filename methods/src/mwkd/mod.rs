@@ -642,36 +642,8 @@ impl LodMethod for Mwkd {
             }
             stand_ins.push(p);
         }
-        // Budget: stand-ins (ancestors, or descendants drawn last frame) may hold more
-        // splats than the nodes they replace; if the frame could exceed B, read the waiting
-        // nodes now instead (never over the budget).
-        let union_points = |draws: &[u32], stand_ins: &[u32]| -> u64 {
-            let mut all: Vec<u32> = draws.iter().chain(stand_ins).copied().collect();
-            all.sort_unstable();
-            all.dedup();
-            all.iter()
-                .map(|&i| u64::from(self.nodes[i as usize].points))
-                .sum()
-        };
-        let over_budget = || {
-            target
-                .budget_points()
-                .is_some_and(|b| union_points(&draws, &stand_ins) > b)
-        };
-        if !waiting.is_empty() && (self.params.load == LoadMode::Sync || over_budget()) {
-            draws = front.nodes.clone();
-            stand_ins.clear();
-            sync = std::mem::take(&mut waiting);
-        }
-        sync.sort_unstable();
-        sync.dedup();
-        for &id in &sync {
-            self.access.get(id)?;
-        }
-        for &id in &waiting {
-            self.access.request(id);
-        }
-        // A stand-in replaces everything under it: drop drawn nodes below one.
+        // A stand-in replaces everything under it: drop nested stand-ins and drawn nodes
+        // below one.
         stand_ins.sort_unstable();
         stand_ins.dedup();
         let all = stand_ins.clone();
@@ -683,12 +655,34 @@ impl LodMethod for Mwkd {
                     .any(|a| stand_ins.binary_search(&a).is_ok())
             });
         }
-        c.stand_ins = stand_ins.len() as u64;
-        c.sync_loads = sync.len() as u64;
-        c.nodes_waiting = waiting.len() as u64;
         draws.extend(&stand_ins);
         draws.sort_unstable();
         draws.dedup();
+        // Budget: stand-ins (ancestors, or descendants drawn last frame) may hold more
+        // splats than the nodes they replace; if the frame would exceed B, read the waiting
+        // nodes now instead (never over the budget). `load=sync` always does.
+        let drawn_points: u64 = draws
+            .iter()
+            .map(|&i| u64::from(self.nodes[i as usize].points))
+            .sum();
+        let over_budget = target.budget_points().is_some_and(|b| drawn_points > b);
+        if !waiting.is_empty() && (self.params.load == LoadMode::Sync || over_budget) {
+            draws = front.nodes.clone();
+            draws.sort_unstable();
+            stand_ins.clear();
+            sync = std::mem::take(&mut waiting);
+        }
+        sync.sort_unstable();
+        sync.dedup();
+        for &id in &sync {
+            self.access.get(id)?;
+        }
+        for &id in &waiting {
+            self.access.request(id);
+        }
+        c.stand_ins = stand_ins.len() as u64;
+        c.sync_loads = sync.len() as u64;
+        c.nodes_waiting = waiting.len() as u64;
         // Held-back nodes (occluded last frame) are drawn in phase 3 if visible: read them now.
         for &id in &front.held_back {
             if !avail(id) {

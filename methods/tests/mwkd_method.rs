@@ -72,11 +72,14 @@ fn settled(m: &mut dyn LodMethod, v: &View, t: Target) -> DrawList {
 
 #[test]
 fn written_index_matches_the_plan_and_the_data() {
-    let cloud = Generator::Statue.generate(200_000, 3).unwrap();
+    // A real build on 1 M points: N = 4, s = 3000 → 1,365 nodes, leaves of 976–977 samples.
+    const N: usize = 1_000_000;
+    let cloud = Generator::Statue.generate(N, 3).unwrap();
     let tmp = tempfile::tempdir().unwrap();
     build(&cloud, &["fanout=4", "vbo=3000"], tmp.path());
     let nodes = index::read(&tmp.path().join("index.bin")).unwrap();
-    let plan = Plan::new(200_000, 4, 3000).unwrap();
+    let plan = Plan::new(N as u64, 4, 3000).unwrap();
+    assert_eq!(nodes.len(), 1_365);
     assert_eq!(nodes.len() as u64, plan.nodes());
     let m = open(tmp.path());
     for n in &nodes {
@@ -109,7 +112,7 @@ fn written_index_matches_the_plan_and_the_data() {
     assert!(hi - lo <= 1, "leaves {lo}–{hi}");
     assert_eq!(
         leaves.iter().map(|n| u64::from(n.points)).sum::<u64>(),
-        200_000
+        N as u64
     );
     // Every sample's normal lies in the cone of each node above it: check the root's cone.
     let root = &nodes[0];

@@ -3,7 +3,7 @@
 //! (throughput = nodes visited), and the chunk store's LZO + checksum on one chunk. Timing is
 //! reported, never asserted.
 //! Run: `cargo bench -p methods --bench kernels` (QSplat only: `... -- qsplat/`; store only:
-//! `... -- store/`).
+//! `... -- store/`; MWKD only: `... -- mwkd/`).
 #![allow(missing_docs, clippy::unwrap_used)]
 
 use criterion::{Criterion, Throughput, criterion_group, criterion_main};
@@ -156,5 +156,69 @@ fn store(c: &mut Criterion) {
     g.finish();
 }
 
-criterion_group!(benches, kernels, store);
+/// MWKD's kernels: `Representatives` for one inner node (4 leaves of 2048 samples each pass
+/// 512 up: throughput = input splats), the node codec (encode / decode one 8192-splat node),
+/// and the per-frame front selection on a 1 M-point build (budget `LODSelection` and the
+/// `--eps` front; throughput = nodes in the index).
+fn mwkd(c: &mut Criterion) {
+    use methods::mwkd::{build::leaf_splats, codec, reps, select, tree::Tree};
+    let mut g = c.benchmark_group("mwkd");
+    g.sample_size(10);
+    let cloud = Generator::Statue.generate(8192, 3).unwrap();
+    let tree = Tree::split(cloud.positions(), 4, 2048).unwrap();
+    let leaves: Vec<reps::Splats> = tree
+        .leaves()
+        .map(|i| leaf_splats(&cloud, &tree, i))
+        .collect();
+    let cfg = reps::RepConfig::default();
+    g.throughput(Throughput::Elements(8192));
+    g.bench_function("representatives_4x2048_to_4x512", |b| {
+        b.iter(|| {
+            leaves
+                .iter()
+                .map(|l| reps::representatives(l, 512, &cfg).reps.len())
+                .sum::<usize>()
+        })
+    });
+    let pos: Vec<[f32; 3]> = cloud.positions().to_vec();
+    let radii = vec![0.01f32; pos.len()];
+    let normals = cloud.normals().unwrap().to_vec();
+    let (bytes, _) = codec::encode(&pos, &radii, Some(&normals), None).unwrap();
+    g.bench_function("codec_encode_8192", |b| {
+        b.iter(|| codec::encode(&pos, &radii, Some(&normals), None).unwrap())
+    });
+    g.bench_function("codec_decode_8192", |b| {
+        b.iter(|| codec::decode(0, &bytes).unwrap())
+    });
+    let big = Generator::Statue.generate(1_000_000, 1).unwrap();
+    let dir = tempfile::tempdir().unwrap();
+    let params = Params::parse(&["vbo=2048"]).unwrap();
+    MethodKind::Mwkd
+        .build(&big, &params, "bench", dir.path(), &scenes::NoProgress)
+        .unwrap();
+    let nodes = methods::mwkd::index::read(&dir.path().join("index.bin")).unwrap();
+    let view = scenes::View {
+        camera: PathSpec::parse("orbit")
+            .unwrap()
+            .camera(0, 1, &big.bounds()),
+        width: 1024,
+        height: 1024,
+    };
+    let metric = select::Metric {
+        c0: 1.0,
+        c1: 1.0,
+        c2: 0.0,
+    };
+    let ctx = select::Ctx::new(&nodes, &view, metric);
+    g.throughput(Throughput::Elements(nodes.len() as u64));
+    g.bench_function("budget_front_1m_b200k", |b| {
+        b.iter(|| select::budget_front(&ctx, 200_000, &|_| false).points)
+    });
+    g.bench_function("eps_front_1m_1px", |b| {
+        b.iter(|| select::eps_front(&ctx, 1.0, &|_| false).points)
+    });
+    g.finish();
+}
+
+criterion_group!(benches, kernels, store, mwkd);
 criterion_main!(benches);

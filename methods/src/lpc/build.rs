@@ -293,7 +293,7 @@ pub fn build_with_budget(
     progress.finish();
 
     let index_path = dir.join(INDEX_FILE);
-    index::write(&index_path, &out)?;
+    let index_bytes = index::write(&index_path, &out)?;
     let levels = out.iter().map(|n| n.level).max().unwrap_or(0) + 1;
     let info = Info {
         input_spacing: r,
@@ -305,9 +305,6 @@ pub fn build_with_budget(
     };
     crate::method::write_json(&dir.join(INFO_FILE), &info)?;
     drop(temps);
-    let index_bytes = std::fs::metadata(&index_path)
-        .map_err(|e| MethodError::io(&index_path, e))?
-        .len();
     let mut extra = serde_json::Map::new();
     let mut put = |k: &str, v: serde_json::Value| {
         extra.insert(k.into(), v);

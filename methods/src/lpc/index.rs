@@ -8,7 +8,7 @@
 use std::path::Path;
 
 use crate::MethodError;
-use crate::store::{ChunkRef, checksum};
+use crate::store::{ChunkRef, records};
 
 /// No child.
 pub const NONE: u32 = u32::MAX;
@@ -54,48 +54,16 @@ impl Node {
     }
 }
 
-/// Writes `nodes` to `path` (through a temporary file and a rename).
-pub fn write(path: &Path, nodes: &[Node]) -> Result<(), MethodError> {
-    let body: &[u8] = bytemuck::cast_slice(nodes);
-    let mut bytes = Vec::with_capacity(24 + body.len());
-    bytes.extend_from_slice(MAGIC);
-    bytes.extend_from_slice(&(nodes.len() as u64).to_le_bytes());
-    bytes.extend_from_slice(&checksum(body).to_le_bytes());
-    bytes.extend_from_slice(body);
-    let tmp = scenes::colfile::temp_path(path);
-    std::fs::write(&tmp, &bytes).map_err(|e| MethodError::io(&tmp, e))?;
-    std::fs::rename(&tmp, path).map_err(|e| MethodError::io(path, e))
+/// Writes `nodes` to `path` (through a temporary file and a rename); returns the file size.
+pub fn write(path: &Path, nodes: &[Node]) -> Result<u64, MethodError> {
+    records::write(path, MAGIC, nodes)
 }
 
 /// Reads and validates an index: magic, length, checksum, and the tree's shape (children
 /// after their parent, in range, each node with at most one parent, levels consistent).
 pub fn read(path: &Path) -> Result<Vec<Node>, MethodError> {
-    let bytes = std::fs::read(path).map_err(|e| MethodError::io(path, e))?;
+    let nodes: Vec<Node> = records::read(path, MAGIC, "an LPC index", u64::MAX)?;
     let bad = |msg: String| MethodError::corrupt(path, msg);
-    if bytes.len() < 24 || &bytes[..8] != MAGIC {
-        return Err(bad("not an LPC index (bad magic)".into()));
-    }
-    let word = |at: usize| {
-        let mut w = [0u8; 8];
-        w.copy_from_slice(&bytes[at..at + 8]);
-        u64::from_le_bytes(w)
-    };
-    let count = word(8);
-    let size = std::mem::size_of::<Node>() as u64;
-    if count == 0 || count.checked_mul(size) != Some(bytes.len() as u64 - 24) {
-        return Err(bad(format!(
-            "{count} nodes do not match the file size ({} bytes)",
-            bytes.len()
-        )));
-    }
-    let body = &bytes[24..];
-    if checksum(body) != word(16) {
-        return Err(bad("index checksum mismatch".into()));
-    }
-    let nodes: Vec<Node> = body
-        .chunks_exact(size as usize)
-        .map(bytemuck::pod_read_unaligned)
-        .collect();
     let mut parent = vec![NONE; nodes.len()];
     for (i, n) in nodes.iter().enumerate() {
         if n.cloud as usize != i {

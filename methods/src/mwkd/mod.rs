@@ -335,7 +335,7 @@ pub fn build(
     let written =
         build::write_repository(&input, &dir.join(codec::REPO_FILE), task_points, progress)?;
     let index_path = dir.join(INDEX_FILE);
-    index::write(&index_path, &written.index)?;
+    let index_bytes = index::write(&index_path, &written.index)?;
     let levels = tree.depth + 1;
     let samples_stored: u64 = written.index.iter().map(|n| u64::from(n.points)).sum();
     let info = Info {
@@ -348,9 +348,6 @@ pub fn build(
         samples_stored,
     };
     crate::method::write_json(&dir.join(INFO_FILE), &info)?;
-    let index_bytes = std::fs::metadata(&index_path)
-        .map_err(|e| MethodError::io(&index_path, e))?
-        .len();
     let mut extra = serde_json::Map::new();
     let mut put = |k: &str, v: serde_json::Value| {
         extra.insert(k.into(), v);

@@ -12,6 +12,7 @@
 //! available now" and "get it", and a local implementation that decodes on a loader thread.
 
 pub mod access;
+pub mod records;
 
 use std::fs::File;
 use std::io::{BufWriter, Write};

@@ -36,8 +36,7 @@ use std::sync::Arc;
 
 use scenes::{Attributes, PointCloud, Progress, View};
 
-use crate::store::access::{DataAccess, Decoder, LocalSource};
-use crate::store::{self, Repository};
+use crate::store::access::{DataAccess, Loader, LoaderOptions};
 use crate::{
     BuildStats, ChunkId, DrawItem, DrawList, Feedback, LodMethod, Manifest, MethodError,
     MethodStats, OcclusionCandidate, OcclusionPass, Params, SplatBatch, Target,
@@ -211,18 +210,16 @@ impl Lpc {
     pub fn open(dir: &Path, manifest: Manifest) -> Result<Self, MethodError> {
         let params = LpcParams::from_params(&manifest.params)?;
         let nodes = index::read(&dir.join(INDEX_FILE))?;
-        let repo = Repository::open(&dir.join(REPO_FILE))?;
-        let refs = nodes.iter().map(|n| n.chunk).collect();
-        let source = LocalSource::new(repo, refs, "cloud");
-        let decoder: Decoder = Arc::new(cloud::decode);
-        let access = store::access::Loader::spawn(
-            Arc::new(source),
-            decoder,
-            store::access::LoaderOptions {
+        let access = Loader::local(
+            &dir.join(REPO_FILE),
+            nodes.iter().map(|n| n.chunk).collect(),
+            "cloud",
+            Arc::new(cloud::decode),
+            LoaderOptions {
                 core_bytes: params.core_mb << 20,
                 delay_frames: params.delay_frames,
             },
-        );
+        )?;
         Self::with_access(dir, manifest, nodes, Box::new(access))
     }
 

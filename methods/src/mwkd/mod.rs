@@ -29,8 +29,7 @@ use std::sync::Arc;
 
 use scenes::{Attributes, PointCloud, Progress, View};
 
-use crate::store::access::{DataAccess, Decoder, LoaderOptions, LocalSource};
-use crate::store::{self, Repository};
+use crate::store::access::{DataAccess, Loader, LoaderOptions};
 use crate::{
     BuildStats, ChunkId, DrawItem, DrawList, Feedback, LodMethod, Manifest, MethodError,
     MethodStats, OcclusionCandidate, OcclusionPass, Params, SplatBatch, SplatSize, Target,
@@ -443,18 +442,16 @@ impl Mwkd {
     pub fn open(dir: &Path, manifest: Manifest) -> Result<Self, MethodError> {
         let params = MwkdParams::from_params(&manifest.params)?;
         let nodes = index::read(&dir.join(INDEX_FILE))?;
-        let repo = Repository::open(&dir.join(codec::REPO_FILE))?;
-        let refs = nodes.iter().map(|n| n.chunk).collect();
-        let source = LocalSource::new(repo, refs, "node");
-        let decoder: Decoder = Arc::new(codec::decode);
-        let access = store::access::Loader::spawn(
-            Arc::new(source),
-            decoder,
+        let access = Loader::local(
+            &dir.join(codec::REPO_FILE),
+            nodes.iter().map(|n| n.chunk).collect(),
+            "node",
+            Arc::new(codec::decode),
             LoaderOptions {
                 core_bytes: params.core_mb << 20,
                 delay_frames: params.delay_frames,
             },
-        );
+        )?;
         Self::with_access(dir, manifest, nodes, Box::new(access))
     }
 

@@ -333,6 +333,19 @@ pub struct Loader {
 }
 
 impl Loader {
+    /// A loader thread over the repository file `repo` whose chunk `i` is `refs[i]` (errors
+    /// name chunks "{noun} {i}"), decoding with `decode`: how LPC and MWKD open their data.
+    pub fn local(
+        repo: &std::path::Path,
+        refs: Vec<ChunkRef>,
+        noun: &'static str,
+        decode: Decoder,
+        options: LoaderOptions,
+    ) -> Result<Self, MethodError> {
+        let source = LocalSource::new(Repository::open(repo)?, refs, noun);
+        Ok(Self::spawn(Arc::new(source), decode, options))
+    }
+
     /// Starts a loader thread over `source`, decoding with `decode`.
     pub fn spawn(source: Arc<dyn ChunkSource>, decode: Decoder, options: LoaderOptions) -> Self {
         let shared = Arc::new(Shared {

@@ -10,6 +10,41 @@ use methods::{MethodKind, Params, Target};
 use scenes::SceneSpec;
 use scenes::paths::PathSpec;
 
+/// A run at 1 px with metrics, a square kernel, a 64 MiB GPU cache and seed 1, building into
+/// `dir/name` (scene cache in `dir/cache`); tests override fields with `..config(…)`.
+#[allow(clippy::too_many_arguments)]
+fn config(
+    method: MethodKind,
+    params: &[&str],
+    scene: &str,
+    path: &str,
+    frames: usize,
+    size: u32,
+    dir: &std::path::Path,
+    name: &str,
+) -> RunConfig {
+    RunConfig {
+        method,
+        params: Params::parse(params).unwrap(),
+        scene: SceneSpec::parse(scene, None, 1).unwrap(),
+        path: PathSpec::parse(path).unwrap(),
+        frames,
+        target: Target::tolerance(1.0).unwrap(),
+        render: RenderSettings {
+            width: size,
+            height: size,
+            kernel: Kernel::Square,
+            cache_bytes: 64 << 20,
+        },
+        seed: 1,
+        save_images: false,
+        metrics: true,
+        out: dir.join(name),
+        cache: dir.join("cache"),
+        build_dir: None,
+    }
+}
+
 #[test]
 fn every_method_leaves_at_most_one_percent_holes_at_1px() {
     let Some(gpu) =
@@ -20,26 +55,16 @@ fn every_method_leaves_at_most_one_percent_holes_at_1px() {
     let tmp = tempfile::tempdir().unwrap();
     for &method in MethodKind::ALL {
         let out = tmp.path().join(method.name());
-        let cfg = RunConfig {
+        let cfg = config(
             method,
-            params: Params::default(),
-            scene: SceneSpec::parse("statue:40000:2", None, 1).unwrap(),
-            path: PathSpec::parse("orbit").unwrap(),
-            frames: 4,
-            target: Target::tolerance(1.0).unwrap(),
-            render: RenderSettings {
-                width: 256,
-                height: 256,
-                kernel: Kernel::Square,
-                cache_bytes: 64 << 20,
-            },
-            seed: 1,
-            save_images: false,
-            metrics: true,
-            out: out.clone(),
-            cache: tmp.path().join("cache"),
-            build_dir: None,
-        };
+            &[],
+            "statue:40000:2",
+            "orbit",
+            4,
+            256,
+            tmp.path(),
+            method.name(),
+        );
         run(&cfg, &gpu, &scenes::NoProgress).unwrap_or_else(|e| panic!("{method}: {e:#}"));
         let mut r = csv::Reader::from_path(out.join("frames.csv")).unwrap();
         let h = r.headers().unwrap().clone();
@@ -67,24 +92,23 @@ fn qsplat_refines_progressively_during_a_pause() {
     let tmp = tempfile::tempdir().unwrap();
     let path = concat!(env!("CARGO_MANIFEST_DIR"), "/scenes/paths/pause.toml");
     let cfg = RunConfig {
-        method: MethodKind::Qsplat,
-        params: Params::parse(&["target_ms=0.000001"]).unwrap(),
-        scene: SceneSpec::parse("statue:20000:3", None, 1).unwrap(),
-        path: PathSpec::parse(path).unwrap(),
-        frames: 101,
-        target: Target::tolerance(1.0).unwrap(),
+        metrics: false,
         render: RenderSettings {
             width: 96,
             height: 96,
             kernel: Kernel::Square,
             cache_bytes: 16 << 20,
         },
-        seed: 1,
-        save_images: false,
-        metrics: false,
-        out: tmp.path().join("run"),
-        cache: tmp.path().join("cache"),
-        build_dir: None,
+        ..config(
+            MethodKind::Qsplat,
+            &["target_ms=0.000001"],
+            "statue:20000:3",
+            path,
+            101,
+            96,
+            tmp.path(),
+            "run",
+        )
     };
     run(&cfg, &gpu, &scenes::NoProgress).unwrap();
     let mut r = csv::Reader::from_path(tmp.path().join("run/frames.csv")).unwrap();
@@ -140,29 +164,18 @@ fn lpc_with_a_stalled_loader_renders_coarser_without_extra_holes() {
     const D: usize = 4;
     let tmp = tempfile::tempdir().unwrap();
     let run_with = |params: &[&str], name: &str| {
-        let out = tmp.path().join(name);
-        let cfg = RunConfig {
-            method: MethodKind::Lpc,
-            params: Params::parse(params).unwrap(),
-            scene: SceneSpec::parse("statue:60000:4", None, 1).unwrap(),
-            path: PathSpec::parse("zoom").unwrap(),
-            frames: 10,
-            target: Target::tolerance(1.0).unwrap(),
-            render: RenderSettings {
-                width: 192,
-                height: 192,
-                kernel: Kernel::Square,
-                cache_bytes: 64 << 20,
-            },
-            seed: 1,
-            save_images: false,
-            metrics: true,
-            out: out.clone(),
-            cache: tmp.path().join("cache"),
-            build_dir: None,
-        };
+        let cfg = config(
+            MethodKind::Lpc,
+            params,
+            "statue:60000:4",
+            "zoom",
+            10,
+            192,
+            tmp.path(),
+            name,
+        );
         run(&cfg, &gpu, &scenes::NoProgress).unwrap();
-        out
+        cfg.out
     };
     let m = "m=512";
     let loaded = run_with(&[m], "loaded");
@@ -218,29 +231,18 @@ fn mwkd_with_a_delayed_loader_has_no_more_holes_than_fully_loaded() {
     };
     let tmp = tempfile::tempdir().unwrap();
     let run_with = |params: &[&str], name: &str| {
-        let out = tmp.path().join(name);
-        let cfg = RunConfig {
-            method: MethodKind::Mwkd,
-            params: Params::parse(params).unwrap(),
-            scene: SceneSpec::parse("statue:60000:4", None, 1).unwrap(),
-            path: PathSpec::parse("zoom").unwrap(),
-            frames: 12,
-            target: Target::tolerance(1.0).unwrap(),
-            render: RenderSettings {
-                width: 192,
-                height: 192,
-                kernel: Kernel::Square,
-                cache_bytes: 64 << 20,
-            },
-            seed: 1,
-            save_images: false,
-            metrics: true,
-            out: out.clone(),
-            cache: tmp.path().join("cache"),
-            build_dir: None,
-        };
+        let cfg = config(
+            MethodKind::Mwkd,
+            params,
+            "statue:60000:4",
+            "zoom",
+            12,
+            192,
+            tmp.path(),
+            name,
+        );
         run(&cfg, &gpu, &scenes::NoProgress).unwrap();
-        out
+        cfg.out
     };
     let loaded = run_with(&["vbo=1500", "load=sync"], "loaded");
     let delayed = run_with(&["vbo=1500", "delay_frames=3"], "delayed");

@@ -1,10 +1,12 @@
 //! LPC through `LodMethod` on real builds: budget mode, fetch limits, the stalled loader.
 #![allow(clippy::unwrap_used)]
 
-use glam::Vec3;
-use methods::{DrawList, Feedback, LodMethod, MethodKind, Params, Target};
+mod common;
+
+use common::{settled, view};
+use methods::{Feedback, LodMethod, MethodKind, Params, Target};
+use scenes::PointCloud;
 use scenes::generators::Generator;
-use scenes::{Camera, PointCloud, View};
 
 fn open(cloud: &PointCloud, params: &[&str], dir: &std::path::Path) -> Box<dyn LodMethod> {
     let p = Params::parse(params).unwrap();
@@ -12,35 +14,6 @@ fn open(cloud: &PointCloud, params: &[&str], dir: &std::path::Path) -> Box<dyn L
         .build(cloud, &p, "test", dir, &scenes::NoProgress)
         .unwrap();
     MethodKind::open(dir).unwrap()
-}
-
-fn view(cloud: &PointCloud, dist: f32) -> View {
-    let b = cloud.bounds();
-    let c = b.center();
-    View {
-        camera: Camera {
-            position: c + Vec3::new(0.3, -1.0, 0.4).normalize() * b.radius() * dist,
-            target: c,
-            up: Vec3::Z,
-            fov_y: 0.8,
-            near: b.radius() * 0.01,
-            far: b.radius() * 100.0,
-        },
-        width: 320,
-        height: 240,
-    }
-}
-
-/// Repeats the frame until nothing is missing (as a still camera would).
-fn settled(m: &mut dyn LodMethod, v: &View, t: Target) -> DrawList {
-    for _ in 0..5000 {
-        let l = m.frame(v, t, &Feedback::default()).unwrap();
-        if l.fetch.is_empty() {
-            return l;
-        }
-        std::thread::sleep(std::time::Duration::from_millis(1));
-    }
-    panic!("never settled");
 }
 
 #[test]

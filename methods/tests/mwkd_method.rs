@@ -3,16 +3,19 @@
 //! (never a hole: every front node is drawn or covered by what is drawn).
 #![allow(clippy::unwrap_used)]
 
+mod common;
+
 use std::collections::HashSet;
 use std::path::Path;
 
+use common::{settled, settled_with, view};
 use glam::Vec3;
 use methods::mwkd::index::{self, IndexNode};
 use methods::mwkd::select::{Ctx, Metric};
 use methods::mwkd::{Mwkd, codec, tree::Plan};
 use methods::{DrawItem, DrawList, Feedback, LodMethod, Manifest, MethodKind, Params, Target};
 use scenes::generators::Generator;
-use scenes::{Camera, PointCloud, View};
+use scenes::{PointCloud, View};
 
 /// Culling does not depend on the metric.
 const METRIC: Metric = Metric {
@@ -32,23 +35,6 @@ fn open(dir: &Path) -> Mwkd {
     Mwkd::open(dir, Manifest::read(dir).unwrap()).unwrap()
 }
 
-fn view(cloud: &PointCloud, dist: f32) -> View {
-    let b = cloud.bounds();
-    let c = b.center();
-    View {
-        camera: Camera {
-            position: c + Vec3::new(0.3, -1.0, 0.4).normalize() * b.radius() * dist,
-            target: c,
-            up: Vec3::Z,
-            fov_y: 0.8,
-            near: b.radius() * 0.01,
-            far: b.radius() * 100.0,
-        },
-        width: 320,
-        height: 240,
-    }
-}
-
 fn drawn(l: &DrawList) -> Vec<u32> {
     l.items
         .iter()
@@ -57,17 +43,6 @@ fn drawn(l: &DrawList) -> Vec<u32> {
             other => panic!("mwkd draws whole chunks only: {other:?}"),
         })
         .collect()
-}
-
-fn settled(m: &mut dyn LodMethod, v: &View, t: Target) -> DrawList {
-    for _ in 0..5000 {
-        let l = m.frame(v, t, &Feedback::default()).unwrap();
-        if l.fetch.is_empty() {
-            return l;
-        }
-        std::thread::sleep(std::time::Duration::from_millis(1));
-    }
-    panic!("never settled");
 }
 
 #[test]
@@ -332,14 +307,7 @@ fn occlusion_holds_back_occluded_nodes_and_reclaims_their_budget() {
     assert!(m.occlusion_culled());
     let v = view(&cloud, 1.5);
     let b = Target::Budget(12_000);
-    let settle = |m: &mut Mwkd, fb: &Feedback| loop {
-        let l = m.frame(&v, b, fb).unwrap();
-        if l.fetch.is_empty() {
-            return l;
-        }
-        std::thread::sleep(std::time::Duration::from_millis(1));
-    };
-    let first = settle(&mut m, &Feedback::default());
+    let first = settled(&mut m, &v, b);
     // Nothing was visible last frame: phase 1 is empty, every front node is a candidate.
     assert!(first.items.is_empty());
     let pass = first.occlusion.clone().unwrap();
@@ -358,7 +326,7 @@ fn occlusion_holds_back_occluded_nodes_and_reclaims_their_budget() {
         visible: visible.iter().copied().collect(),
         ..Default::default()
     };
-    let l = settle(&mut m, &fb);
+    let l = settled_with(&mut m, &v, b, &fb);
     let pass = l.occlusion.clone().unwrap();
     // Held-back nodes stay candidates with their item; phase 1 draws only visible ones.
     for id in occluded {

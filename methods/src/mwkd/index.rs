@@ -1,5 +1,5 @@
 //! The MWKD index array (`index.bin`), loaded whole at `open`: one [`IndexNode`] per tree
-//! node, in tree order (for the multi-way kd-tree: level by level, children of `i` at
+//! node, in level order (for the multi-way kd-tree: level by level, children of `i` at
 //! `N·i + 1 … N·i + N`; for the ablation trees: breadth first, children contiguous). The
 //! paper's "small index array per node: id, level, bounding box, min/max radius, byte size",
 //! plus what rendering needs without touching the data: the sample count, the mean radius
@@ -89,6 +89,9 @@ pub fn read(path: &Path) -> Result<Vec<IndexNode>, MethodError> {
 
 fn validate(nodes: &[IndexNode]) -> Result<(), String> {
     let len = nodes.len() as u64;
+    if let Some(i) = (1..nodes.len()).find(|&i| nodes[i].level < nodes[i - 1].level) {
+        return Err(format!("node {i}: nodes are not in level order"));
+    }
     let mut has_parent = vec![false; nodes.len()];
     for (i, n) in nodes.iter().enumerate() {
         let fin = |v: &[f32]| v.iter().all(|x| x.is_finite());
@@ -202,6 +205,27 @@ mod tests {
         n[2].level = 2;
         write(&path, &n).unwrap();
         assert!(read(&path).unwrap_err().to_string().contains("child 2"));
+        // A valid tree out of level order (levels 0, 1, 1, 2, 3, 2).
+        let mut n = vec![tiny()[1]; 6];
+        for (i, (level, first, count, sub)) in [
+            (0, 1, 2, 4),
+            (1, 3, 1, 2),
+            (1, 5, 1, 2),
+            (2, 4, 1, 2),
+            (3, 0, 0, 2),
+            (2, 0, 0, 2),
+        ]
+        .into_iter()
+        .enumerate()
+        {
+            (n[i].id, n[i].level, n[i].first_child) = (i as u32, level, first);
+            (n[i].child_count, n[i].subtree_points) = (count, sub);
+        }
+        write(&path, &n).unwrap();
+        assert!(read(&path).unwrap_err().to_string().contains("level order"));
+        n[5].level = 3; // now a level-3 leaf under a level-1 node: the child check refuses it
+        write(&path, &n).unwrap();
+        assert!(read(&path).unwrap_err().to_string().contains("child 5"));
         let mut n = tiny();
         n[1].radius_max = f32::NAN;
         write(&path, &n).unwrap();

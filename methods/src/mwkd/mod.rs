@@ -519,10 +519,7 @@ impl Mwkd {
     /// The front for `view` and `target` (pure; see [`select`]).
     pub fn front(&self, view: &View, target: Target, held_back: &dyn Fn(u32) -> bool) -> Front {
         let ctx = Ctx::new(&self.nodes, view, self.params.metric());
-        match target {
-            Target::Tolerance(eps) => select::eps_front(&ctx, eps, held_back),
-            Target::Budget(b) => select::budget_front(&ctx, b, held_back),
-        }
+        select_front(&ctx, target, held_back)
     }
 
     fn in_prev(&self, id: u32) -> bool {
@@ -562,42 +559,16 @@ impl Mwkd {
         true
     }
 
-    fn ancestors(&self, id: u32) -> impl Iterator<Item = u32> + '_ {
-        std::iter::successors(Some(id), |&i| {
-            let p = self.parents[i as usize];
-            (p != u32::MAX).then_some(p)
-        })
-        .skip(1)
-    }
-}
-
-impl LodMethod for Mwkd {
-    fn attributes(&self) -> Attributes {
-        self.attributes
-    }
-    fn input_points(&self) -> u64 {
-        self.info.points
-    }
-    fn frame(
-        &mut self,
-        view: &View,
+    /// The paper's four transitions from the last drawn set to `front` (see [`Mwkd::frame`]):
+    /// what to draw, how many stand-ins that includes, which front nodes wait (to request)
+    /// and which nodes to read now.
+    fn transitions(
+        &self,
+        ctx: &Ctx<'_>,
+        front: &Front,
         target: Target,
-        feedback: &Feedback,
-    ) -> Result<DrawList, MethodError> {
-        let target = target.validate()?;
-        self.access.begin_frame();
-        let occlusion = self.params.occlusion;
-        let held = |id: u32| occlusion && feedback.occluded.contains(&(id as ChunkId));
-        let front = self.front(view, target, &held);
-        let ctx = Ctx::new(&self.nodes, view, self.params.metric());
-        let access = &self.access;
-        let avail = |id: u32| feedback.cached.contains(&(id as ChunkId)) || access.available(id);
-        let mut c = FrameCounters {
-            front_nodes: front.nodes.len() as u64,
-            front_points: front.points,
-            nodes_culled: u64::from(front.culled),
-            ..Default::default()
-        };
+        avail: &dyn Fn(u32) -> bool,
+    ) -> Transitions {
         // The four transitions, per front node: available → draw it; else request it and
         // stand in for it with (3) the ancestor drawn last frame, (4) the descendants drawn
         // last frame, or (2) the parent of its sibling group, read now. (1) nodes of the last
@@ -625,7 +596,7 @@ impl LodMethod for Mwkd {
                 continue;
             }
             let mut cover = Vec::new();
-            if self.prev_cover(&ctx, id, &avail, &mut cover) && !cover.is_empty() {
+            if self.prev_cover(ctx, id, avail, &mut cover) && !cover.is_empty() {
                 draws.extend(cover);
                 continue;
             }
@@ -668,13 +639,83 @@ impl LodMethod for Mwkd {
         }
         sync.sort_unstable();
         sync.dedup();
+        Transitions {
+            draws,
+            stand_ins: stand_ins.len() as u64,
+            waiting,
+            sync,
+        }
+    }
+
+    fn ancestors(&self, id: u32) -> impl Iterator<Item = u32> + '_ {
+        std::iter::successors(Some(id), |&i| {
+            let p = self.parents[i as usize];
+            (p != u32::MAX).then_some(p)
+        })
+        .skip(1)
+    }
+}
+
+/// What a frame draws after the transitions ([`Mwkd::transitions`]).
+struct Transitions {
+    /// Nodes to draw, sorted.
+    draws: Vec<u32>,
+    /// How many of them stand in for waiting nodes.
+    stand_ins: u64,
+    /// Front nodes not available yet (requested from the loader).
+    waiting: Vec<u32>,
+    /// Nodes to read synchronously, sorted.
+    sync: Vec<u32>,
+}
+
+/// The front for `target` in the frame `ctx` describes.
+fn select_front(ctx: &Ctx<'_>, target: Target, held_back: &dyn Fn(u32) -> bool) -> Front {
+    match target {
+        Target::Tolerance(eps) => select::eps_front(ctx, eps, held_back),
+        Target::Budget(b) => select::budget_front(ctx, b, held_back),
+    }
+}
+
+impl LodMethod for Mwkd {
+    fn attributes(&self) -> Attributes {
+        self.attributes
+    }
+    fn input_points(&self) -> u64 {
+        self.info.points
+    }
+    fn frame(
+        &mut self,
+        view: &View,
+        target: Target,
+        feedback: &Feedback,
+    ) -> Result<DrawList, MethodError> {
+        let target = target.validate()?;
+        self.access.begin_frame();
+        let occlusion = self.params.occlusion;
+        let held = |id: u32| occlusion && feedback.occluded.contains(&(id as ChunkId));
+        let ctx = Ctx::new(&self.nodes, view, self.params.metric());
+        let front = select_front(&ctx, target, &held);
+        let access = &self.access;
+        let avail = |id: u32| feedback.cached.contains(&(id as ChunkId)) || access.available(id);
+        let mut c = FrameCounters {
+            front_nodes: front.nodes.len() as u64,
+            front_points: front.points,
+            nodes_culled: u64::from(front.culled),
+            ..Default::default()
+        };
+        let Transitions {
+            draws,
+            stand_ins,
+            waiting,
+            sync,
+        } = self.transitions(&ctx, &front, target, &avail);
         for &id in &sync {
             self.access.get(id)?;
         }
         for &id in &waiting {
             self.access.request(id);
         }
-        c.stand_ins = stand_ins.len() as u64;
+        c.stand_ins = stand_ins;
         c.sync_loads = sync.len() as u64;
         c.nodes_waiting = waiting.len() as u64;
         // Held-back nodes (occluded last frame) are drawn in phase 3 if visible: read them now.
@@ -689,7 +730,6 @@ impl LodMethod for Mwkd {
         for &id in draws.iter().chain(&front.held_back) {
             self.prev_mark[id as usize] = self.frame_no;
         }
-        self.prev = draws.clone();
         self.last = c;
         let size = SplatSize::Radius {
             scale: 1.0,
@@ -735,6 +775,7 @@ impl LodMethod for Mwkd {
         } else {
             list.items = draws.iter().map(|&id| item(id)).collect();
         }
+        self.prev = draws;
         Ok(list)
     }
     fn chunk(&self, id: ChunkId) -> Result<Arc<SplatBatch>, MethodError> {

@@ -71,7 +71,8 @@ pub struct Ctx<'a> {
 }
 
 impl<'a> Ctx<'a> {
-    /// Constants for `view` over the index `nodes`.
+    /// Constants for `view` over the index `nodes` (in level order, as
+    /// [`super::index::read`] guarantees: the last node is on the deepest level).
     pub fn new(nodes: &'a [IndexNode], view: &View, metric: Metric) -> Self {
         Ctx {
             nodes,
@@ -79,7 +80,7 @@ impl<'a> Ctx<'a> {
             frustum: view.frustum(),
             k: view.proj_scale(),
             near: view.camera.near.max(f32::MIN_POSITIVE),
-            l_max: nodes.iter().map(|n| n.level).max().unwrap_or(0),
+            l_max: nodes.last().map_or(0, |n| n.level),
             metric,
         }
     }

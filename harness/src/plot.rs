@@ -51,6 +51,7 @@ use std::sync::OnceLock;
 use anyhow::{Context, anyhow, bail};
 use plotters::coord::Shift;
 use plotters::coord::ranged1d::{AsRangedCoord, ValueFormatter};
+use plotters::coord::types::RangedCoordf64;
 use plotters::prelude::*;
 use plotters::style::text_anchor::{HPos, Pos, VPos};
 
@@ -563,6 +564,41 @@ impl Figure for SweepFigure {
     }
 }
 
+/// A chart of image error against points drawn on `area` (x axis `x`, either linear or log),
+/// its mesh, SI labels and axis descriptions `desc = (x, y)` drawn: what the scatter and the
+/// sweep panels share.
+fn flip_chart<'a, DB, X>(
+    area: &'a DrawingArea<DB, Shift>,
+    (x, y): (X, Range<f64>),
+    caption: &str,
+    margin: u32,
+    desc: (&str, &str),
+) -> anyhow::Result<ChartContext<'a, DB, Cartesian2d<X::CoordDescType, RangedCoordf64>>>
+where
+    DB: DrawingBackend,
+    DB::ErrorType: 'static,
+    X: AsRangedCoord<Value = f64>,
+    X::CoordDescType: ValueFormatter<f64>,
+{
+    let mut chart = ChartBuilder::on(area)
+        .caption(caption, (FONT, 20))
+        .margin(margin)
+        .x_label_area_size(50)
+        .y_label_area_size(80)
+        .build_cartesian_2d(x, y)?;
+    chart
+        .configure_mesh()
+        .x_desc(desc.0)
+        .y_desc(desc.1)
+        .x_label_formatter(&|v| si(*v))
+        .y_label_formatter(&|v| si(*v))
+        .label_style((FONT, 14))
+        .axis_desc_style((FONT, 16))
+        .light_line_style(WHITE)
+        .draw()?;
+    Ok(chart)
+}
+
 /// The sweeps' lines on x axis `x`, with a legend.
 fn sweep_panel<DB, X>(
     area: &DrawingArea<DB, Shift>,
@@ -577,22 +613,13 @@ where
     X: AsRangedCoord<Value = f64>,
     X::CoordDescType: ValueFormatter<f64>,
 {
-    let mut chart = ChartBuilder::on(area)
-        .caption(caption, (FONT, 20))
-        .margin(16)
-        .x_label_area_size(50)
-        .y_label_area_size(80)
-        .build_cartesian_2d(x, y)?;
-    chart
-        .configure_mesh()
-        .x_desc("points drawn per frame (median)")
-        .y_desc("flip_mean (median)")
-        .x_label_formatter(&|v| si(*v))
-        .y_label_formatter(&|v| si(*v))
-        .label_style((FONT, 14))
-        .axis_desc_style((FONT, 16))
-        .light_line_style(WHITE)
-        .draw()?;
+    let mut chart = flip_chart(
+        area,
+        (x, y),
+        caption,
+        16,
+        ("points drawn per frame (median)", "flip_mean (median)"),
+    )?;
     let note = TextStyle::from((FONT, 13).into_font()).pos(Pos::new(HPos::Left, VPos::Bottom));
     for s in series {
         let style = s.colour.stroke_width(2);
@@ -1132,22 +1159,7 @@ where
     X: AsRangedCoord<Value = f64>,
     X::CoordDescType: ValueFormatter<f64>,
 {
-    let mut chart = ChartBuilder::on(area)
-        .caption(caption, (FONT, 20))
-        .margin(12)
-        .x_label_area_size(50)
-        .y_label_area_size(80)
-        .build_cartesian_2d(x, y)?;
-    chart
-        .configure_mesh()
-        .x_desc("points drawn")
-        .y_desc("flip_mean")
-        .x_label_formatter(&|v| si(*v))
-        .y_label_formatter(&|v| si(*v))
-        .label_style((FONT, 14))
-        .axis_desc_style((FONT, 16))
-        .light_line_style(WHITE)
-        .draw()?;
+    let mut chart = flip_chart(area, (x, y), caption, 12, ("points drawn", "flip_mean"))?;
     for run in runs {
         let colour = run.colour;
         chart

@@ -159,6 +159,17 @@ fn demo_runs_every_method_and_plots() {
         assert!(d.path().join(m.name()).join("frames.csv").exists(), "{m}");
     }
     assert!(d.path().join("comparison.png").exists());
+    // `plot --out` creates the directory it is given.
+    let out = d.path().join("new/plots");
+    bin()
+        .arg("plot")
+        .arg(d.path().join("full"))
+        .arg(d.path().join("mwkd"))
+        .arg("--out")
+        .arg(&out)
+        .assert()
+        .success();
+    assert!(out.join("comparison.png").exists() && out.join("comparison.svg").exists());
 }
 
 #[test]

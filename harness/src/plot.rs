@@ -458,8 +458,6 @@ pub fn plot_sweeps(sweep_dirs: &[PathBuf], out_dir: &Path) -> anyhow::Result<Vec
         }
         _ => String::from("image error vs points drawn"),
     };
-    std::fs::create_dir_all(out_dir)
-        .with_context(|| format!("cannot create {}", out_dir.display()))?;
     render_both(
         out_dir,
         "sweep-comparison",
@@ -863,6 +861,7 @@ fn render_both(
     figure: &impl Figure,
 ) -> anyhow::Result<Vec<PathBuf>> {
     ensure_font()?;
+    std::fs::create_dir_all(dir).with_context(|| format!("cannot create {}", dir.display()))?;
     let png_path = dir.join(format!("{stem}.png"));
     let svg_path = dir.join(format!("{stem}.svg"));
 

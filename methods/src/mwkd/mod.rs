@@ -613,6 +613,9 @@ impl Mwkd {
         stand_ins.dedup();
         let all = stand_ins.clone();
         stand_ins.retain(|&s| !self.ancestors(s).any(|a| all.binary_search(&a).is_ok()));
+        // Only stand-ins still drawn need reading (a parent nested under another stand-in
+        // was queued for a synchronous read it does not need).
+        sync.retain(|p| stand_ins.binary_search(p).is_ok());
         if !stand_ins.is_empty() {
             draws.retain(|&d| {
                 !self

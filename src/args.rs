@@ -1,0 +1,55 @@
+//! Argument groups shared by several subcommands, flattened into their argument structs.
+
+use clap::Args;
+use harness::render::Kernel;
+use methods::MethodKind;
+
+#[derive(Args, Clone)]
+pub struct MethodArgs {
+    /// Method.
+    #[arg(long, value_enum)]
+    pub method: MethodKind,
+    /// Method parameter, `key=value` (repeatable).
+    #[arg(long = "param", value_name = "KEY=VALUE")]
+    pub params: Vec<String>,
+}
+
+#[derive(Args, Clone)]
+pub struct SceneArgs {
+    /// Scene: `generator:points[:seed]` (e.g. statue:200000), or a .ply/.las/.laz/.sbc/.toml file.
+    #[arg(long)]
+    pub scene: String,
+    /// Resample a PLY mesh surface to this many points.
+    #[arg(long)]
+    pub sample: Option<usize>,
+    /// Seed for generators and resampling that do not name their own.
+    #[arg(long, default_value_t = 1)]
+    pub seed: u64,
+}
+
+#[derive(Args, Clone)]
+pub struct RenderArgs {
+    /// Image width, pixels.
+    #[arg(long, default_value_t = 512)]
+    pub width: u32,
+    /// Image height, pixels.
+    #[arg(long, default_value_t = 512)]
+    pub height: u32,
+    /// Splat kernel (a method's `--param kernel=` overrides it).
+    #[arg(long, value_enum, default_value = "square")]
+    pub kernel: Kernel,
+    /// GPU chunk-cache budget, MiB.
+    #[arg(long, default_value_t = 512)]
+    pub gpu_cache_mb: u64,
+}
+
+#[derive(Args, Clone)]
+#[group(multiple = false)]
+pub struct TargetArgs {
+    /// Pixel tolerance (default 1).
+    #[arg(long, allow_negative_numbers = true)]
+    pub eps: Option<f32>,
+    /// Point budget per frame.
+    #[arg(long)]
+    pub budget: Option<u64>,
+}

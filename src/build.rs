@@ -1,0 +1,48 @@
+//! `splatbench build`: a method's representation of a scene, written into a directory.
+
+use std::path::{Path, PathBuf};
+
+use anyhow::Context as _;
+use clap::Args;
+use methods::Params;
+use scenes::SceneSpec;
+
+use crate::args::{MethodArgs, SceneArgs};
+
+#[derive(Args, Clone)]
+pub struct BuildArgs {
+    #[command(flatten)]
+    pub method: MethodArgs,
+    #[command(flatten)]
+    pub scene: SceneArgs,
+    /// Output directory.
+    #[arg(long)]
+    pub out: PathBuf,
+    /// Cache directory for large generated scenes.
+    #[arg(long, default_value = "results/cache")]
+    pub cache: PathBuf,
+}
+
+/// `splatbench build`: builds and prints `build.json`.
+pub fn main(a: &BuildArgs) -> anyhow::Result<()> {
+    let stats = build(&a.method, &a.scene, &a.out, &a.cache)?;
+    println!("{}", serde_json::to_string_pretty(&stats)?);
+    Ok(())
+}
+
+/// Loads the scene and builds the method into `out` (`sweep` builds through it too).
+pub fn build(
+    m: &MethodArgs,
+    s: &SceneArgs,
+    out: &Path,
+    cache: &Path,
+) -> anyhow::Result<methods::BuildStats> {
+    let params = Params::parse(&m.params)?;
+    m.method.check_params(&params)?;
+    let spec = SceneSpec::parse(&s.scene, s.sample, s.seed)?;
+    let bar = harness::progress::Bar::new();
+    let cloud = spec
+        .load(Some(cache), &bar)
+        .with_context(|| format!("loading scene '{}'", s.scene))?;
+    Ok(m.method.build(&cloud, &params, &spec.label(), out, &bar)?)
+}

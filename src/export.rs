@@ -1,0 +1,56 @@
+//! `splatbench export`: a scene written to a LAS/LAZ, PLY or column file.
+
+use std::path::{Path, PathBuf};
+
+use anyhow::{Context as _, bail};
+use clap::Args;
+use scenes::SceneSpec;
+
+use crate::args::SceneArgs;
+
+#[derive(Args, Clone)]
+pub struct ExportArgs {
+    #[command(flatten)]
+    pub scene: SceneArgs,
+    /// Output file.
+    #[arg(long)]
+    pub out: PathBuf,
+    /// Cache directory for large generated scenes.
+    #[arg(long, default_value = "results/cache")]
+    pub cache: PathBuf,
+}
+
+/// `splatbench export`.
+pub fn main(a: &ExportArgs) -> anyhow::Result<()> {
+    export(&a.scene, &a.out, &a.cache)
+}
+
+fn export(s: &SceneArgs, out: &Path, cache: &Path) -> anyhow::Result<()> {
+    let ext = out
+        .extension()
+        .and_then(|e| e.to_str())
+        .map(str::to_ascii_lowercase)
+        .unwrap_or_default();
+    if !matches!(ext.as_str(), "las" | "laz" | "ply" | "sbc") {
+        bail!(
+            "--out {}: the extension must be .las, .laz, .ply or .sbc",
+            out.display()
+        );
+    }
+    let spec = SceneSpec::parse(&s.scene, s.sample, s.seed)?;
+    let cloud = spec
+        .load(Some(cache), &harness::progress::Bar::new())
+        .with_context(|| format!("loading scene '{}'", s.scene))?;
+    let bytes = match ext.as_str() {
+        "las" | "laz" => scenes::las::write(out, &cloud)?,
+        "ply" => scenes::ply::write(out, &cloud, scenes::ply::PlyFormat::BinaryLittleEndian)?,
+        _ => scenes::colfile::write(out, &cloud)?,
+    };
+    println!(
+        "wrote {} ({} points, {}, {bytes} bytes)",
+        out.display(),
+        cloud.len(),
+        cloud.attributes()
+    );
+    Ok(())
+}

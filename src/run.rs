@@ -1,0 +1,99 @@
+//! `splatbench run`: build (or reuse a build), run a camera path, write `frames.csv`,
+//! `summary.json` and the timeline plot.
+
+use std::path::PathBuf;
+
+use anyhow::Context as _;
+use clap::Args;
+use harness::render::RenderSettings;
+use harness::runner::RunConfig;
+use methods::{Params, Target};
+use scenes::SceneSpec;
+use scenes::paths::PathSpec;
+
+use crate::args::{MethodArgs, RenderArgs, SceneArgs, TargetArgs};
+use crate::shared::{open_gpu, print_summary};
+
+#[derive(Args, Clone)]
+pub struct RunArgs {
+    #[command(flatten)]
+    pub method: MethodArgs,
+    #[command(flatten)]
+    pub scene: SceneArgs,
+    #[command(flatten)]
+    pub render: RenderArgs,
+    #[command(flatten)]
+    pub target: TargetArgs,
+    /// Camera path: orbit, zoom, flythrough, or a keyframe .toml file.
+    #[arg(long, default_value = "orbit")]
+    pub path: String,
+    /// Frames along the path.
+    #[arg(long, default_value_t = 60)]
+    pub frames: usize,
+    /// Save every frame and its reference as PNG under images/.
+    #[arg(long)]
+    pub save_images: bool,
+    /// Skip the reference and the image metrics (speed only).
+    #[arg(long)]
+    pub no_metrics: bool,
+    /// Output directory.
+    #[arg(long)]
+    pub out: PathBuf,
+    /// Cache directory (large scenes, reference builds and images).
+    #[arg(long, default_value = "results/cache")]
+    pub cache: PathBuf,
+    /// Run an existing build (a `splatbench build --out` directory of the same method and
+    /// scene) instead of building: the run's memory is then the method's alone. `--param`
+    /// may change only runtime parameters (LPC: fetch_per_frame, core_mb, delay_frames,
+    /// occlusion, occlusion_threshold).
+    #[arg(long)]
+    pub build_dir: Option<PathBuf>,
+}
+
+/// The runner's configuration for `run`'s arguments (`sweep` makes one per target).
+pub fn run_config(a: &RunArgs) -> anyhow::Result<RunConfig> {
+    let params = Params::parse(&a.method.params)?;
+    let target = match (a.target.eps, a.target.budget) {
+        (_, Some(b)) => Target::budget(b)?,
+        (e, None) => Target::tolerance(e.unwrap_or(1.0))?,
+    };
+    Ok(RunConfig {
+        method: a.method.method,
+        params,
+        scene: SceneSpec::parse(&a.scene.scene, a.scene.sample, a.scene.seed)?,
+        path: PathSpec::parse(&a.path)?,
+        frames: a.frames,
+        target,
+        render: RenderSettings {
+            width: a.render.width,
+            height: a.render.height,
+            kernel: a.render.kernel,
+            cache_bytes: a
+                .render
+                .gpu_cache_mb
+                .checked_mul(1 << 20)
+                .context("--gpu-cache-mb is too large")?,
+        },
+        seed: a.scene.seed,
+        save_images: a.save_images,
+        metrics: !a.no_metrics,
+        out: a.out.clone(),
+        cache: a.cache.clone(),
+        build_dir: a.build_dir.clone(),
+    })
+}
+
+/// `splatbench run`.
+pub fn main(args: &RunArgs) -> anyhow::Result<()> {
+    let gpu = open_gpu()?;
+    let cfg = run_config(args)?;
+    let s = harness::runner::run(&cfg, &gpu, &harness::progress::Bar::new())?;
+    let plots = harness::plot::plot_run(&cfg.out)?;
+    print_summary(&s);
+    println!(
+        "wrote {}/frames.csv, summary.json and {} plot files",
+        cfg.out.display(),
+        plots.len()
+    );
+    Ok(())
+}

@@ -1,0 +1,203 @@
+//! `splatbench sweep`: one build, one run per budget or tolerance, `sweep.csv` and its plot.
+
+use std::path::PathBuf;
+
+use anyhow::{Context as _, bail};
+use clap::Args;
+use methods::{Params, Target};
+
+use crate::args::{MethodArgs, RenderArgs, SceneArgs, TargetArgs};
+use crate::build::build;
+use crate::run::{RunArgs, run_config};
+use crate::shared::{open_gpu, print_summary};
+
+#[derive(Args, Clone)]
+pub struct SweepArgs {
+    #[command(flatten)]
+    pub method: MethodArgs,
+    #[command(flatten)]
+    pub scene: SceneArgs,
+    #[command(flatten)]
+    pub render: RenderArgs,
+    /// Point budgets per frame, comma-separated, one run each (e.g. 25000,50000,100k).
+    #[arg(long, value_name = "POINTS,...", allow_hyphen_values = true)]
+    pub budgets: Option<String>,
+    /// Pixel tolerances, comma-separated, one run each (e.g. 8,4,2,1).
+    #[arg(long, value_name = "PX,...", allow_hyphen_values = true)]
+    pub eps: Option<String>,
+    /// Camera path: orbit, zoom, flythrough, or a keyframe .toml file.
+    #[arg(long, default_value = "orbit")]
+    pub path: String,
+    /// Frames along the path.
+    #[arg(long, default_value_t = 60)]
+    pub frames: usize,
+    /// Output directory: build/ (unless --build-dir), one run directory per target
+    /// (budget-25000/, eps-2/, …), sweep.csv, sweep.png and sweep.svg.
+    #[arg(long)]
+    pub out: PathBuf,
+    /// Cache directory (large scenes, reference builds and images).
+    #[arg(long, default_value = "results/cache")]
+    pub cache: PathBuf,
+    /// Run every target on an existing build (as `run --build-dir`) instead of building into
+    /// OUT/build; `--param` may then change only runtime parameters.
+    #[arg(long)]
+    pub build_dir: Option<PathBuf>,
+}
+
+/// One target of a sweep.
+struct SweepTarget {
+    /// The target.
+    target: Target,
+    /// Its value as `sweep.csv` records it (a budget's points, a tolerance's pixels).
+    value: f64,
+    /// Its run directory's name: `budget-25000`, `eps-2`.
+    name: String,
+}
+
+/// `splatbench sweep`: targets, parameters, scene spec, path and frames are checked before
+/// anything is built or rendered; then one build (or `--build-dir`, checked by the runner at
+/// the first target), one ordinary run per target (each through [`run_config`] with
+/// `build_dir` set, so the runner's `--build-dir` path opens it), then `sweep.csv` and its plot.
+pub fn main(a: &SweepArgs) -> anyhow::Result<()> {
+    let targets = sweep_targets(a.budgets.as_deref(), a.eps.as_deref())?;
+    anyhow::ensure!(a.frames >= 1, "--frames must be at least 1");
+    let params = Params::parse(&a.method.params)?;
+    a.method.method.check_params(&params)?;
+    let build_dir = a.build_dir.clone().unwrap_or_else(|| a.out.join("build"));
+    let configs = targets
+        .iter()
+        .map(|t| {
+            run_config(&RunArgs {
+                method: MethodArgs {
+                    method: a.method.method,
+                    // A build of our own already holds every --param (its method.json records
+                    // them); the runner lets a run of a build change runtime parameters only.
+                    params: if a.build_dir.is_some() {
+                        a.method.params.clone()
+                    } else {
+                        Vec::new()
+                    },
+                },
+                scene: a.scene.clone(),
+                render: a.render.clone(),
+                target: TargetArgs {
+                    eps: t.target.eps_px(),
+                    budget: t.target.budget_points(),
+                },
+                path: a.path.clone(),
+                frames: a.frames,
+                save_images: false,
+                no_metrics: false,
+                out: a.out.join(&t.name),
+                cache: a.cache.clone(),
+                build_dir: Some(build_dir.clone()),
+            })
+        })
+        .collect::<anyhow::Result<Vec<_>>>()?;
+    let gpu = open_gpu()?;
+    std::fs::create_dir_all(&a.out).with_context(|| format!("creating {}", a.out.display()))?;
+    // A sweep.csv (or plot) of an earlier sweep must not outlive a failure of this one.
+    for stale in ["sweep.csv", "sweep.png", "sweep.svg"] {
+        let p = a.out.join(stale);
+        match std::fs::remove_file(&p) {
+            Err(e) if e.kind() != std::io::ErrorKind::NotFound => {
+                return Err(e).with_context(|| format!("removing the old {}", p.display()));
+            }
+            _ => {}
+        }
+    }
+    if a.build_dir.is_none() {
+        eprintln!("building {} into {}", a.method.method, build_dir.display());
+        build(&a.method, &a.scene, &build_dir, &a.cache)?;
+    }
+    let bar = harness::progress::Bar::new();
+    let mut rows = Vec::with_capacity(targets.len());
+    for (cfg, t) in configs.iter().zip(&targets) {
+        let s = harness::runner::run(cfg, &gpu, &bar)
+            .and_then(|s| harness::plot::plot_run(&cfg.out).map(|_| s))
+            .with_context(|| format!("sweep target {}", t.name))?;
+        print_summary(&s);
+        let frames = harness::plot::read_frames(&cfg.out.join("frames.csv"))?;
+        let params = s
+            .params
+            .0
+            .iter()
+            .map(|(k, v)| format!("{k}={v}"))
+            .collect::<Vec<_>>()
+            .join(" ");
+        rows.push(harness::plot::SweepRow::of_run(&frames, &params, t.value)?);
+    }
+    let csv = a.out.join("sweep.csv");
+    harness::plot::write_sweep(&csv, &rows)?;
+    let plots = harness::plot::plot_sweep(&a.out)?;
+    println!(
+        "wrote {} ({} targets), {} and {} run directories",
+        csv.display(),
+        rows.len(),
+        plots
+            .iter()
+            .map(|p| p.display().to_string())
+            .collect::<Vec<_>>()
+            .join(", "),
+        configs.len()
+    );
+    Ok(())
+}
+
+/// The targets of `--budgets` or `--eps` (exactly one of them), in the order given. Empty
+/// lists and items, non-numbers, a budget of 0, a negative or non-finite tolerance and a
+/// target given twice are errors naming the flag.
+fn sweep_targets(budgets: Option<&str>, eps: Option<&str>) -> anyhow::Result<Vec<SweepTarget>> {
+    let (flag, list) = match (budgets, eps) {
+        (Some(_), Some(_)) => {
+            bail!("--budgets and --eps are exclusive: a sweep varies one kind of target")
+        }
+        (None, None) => bail!(
+            "a sweep needs its targets: --budgets POINTS,... (e.g. 25000,50000,100000) or \
+             --eps PX,... (e.g. 8,4,2,1)"
+        ),
+        (Some(b), None) => ("--budgets", b),
+        (None, Some(e)) => ("--eps", e),
+    };
+    if list.trim().is_empty() {
+        bail!("{flag}: the list is empty (give comma-separated values, e.g. {flag} 4,2,1)");
+    }
+    let mut targets: Vec<SweepTarget> = Vec::new();
+    for (i, item) in list.split(',').map(str::trim).enumerate() {
+        if item.is_empty() {
+            bail!("{flag} {list}: value {} is empty", i + 1);
+        }
+        let t = if flag == "--budgets" {
+            let n = scenes::spec::parse_count(item)
+                .map_err(|e| anyhow::anyhow!("{flag}: budget '{item}': {e}"))?;
+            let target = Target::budget(n as u64)?;
+            SweepTarget {
+                target,
+                value: n as f64,
+                name: format!("budget-{n}"),
+            }
+        } else {
+            let px: f32 = item.parse().map_err(|_| {
+                anyhow::anyhow!("{flag}: '{item}' is not a number of pixels (e.g. 2 or 0.5)")
+            })?;
+            let px = if px == 0.0 { 0.0 } else { px }; // -0 → 0
+            let target = Target::tolerance(px).map_err(|_| {
+                anyhow::anyhow!(
+                    "{flag}: '{item}': a tolerance must be a finite number of pixels ≥ 0"
+                )
+            })?;
+            // f32's shortest text, so that 0.1 is recorded as 0.1, not 0.10000000149.
+            let text = px.to_string();
+            SweepTarget {
+                target,
+                value: text.parse()?,
+                name: format!("eps-{text}"),
+            }
+        };
+        if let Some(same) = targets.iter().find(|o| o.name == t.name) {
+            bail!("{flag}: {} is given twice", same.value);
+        }
+        targets.push(t);
+    }
+    Ok(targets)
+}

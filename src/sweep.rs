@@ -4,7 +4,8 @@ use std::path::PathBuf;
 
 use anyhow::{Context as _, bail};
 use clap::Args;
-use methods::{Params, Target};
+use harness::sweep::SweepTarget;
+use methods::Params;
 
 use crate::args::{MethodArgs, RenderArgs, SceneArgs, TargetArgs};
 use crate::build::build;
@@ -44,92 +45,55 @@ pub struct SweepArgs {
     pub build_dir: Option<PathBuf>,
 }
 
-/// One target of a sweep.
-struct SweepTarget {
-    /// The target.
-    target: Target,
-    /// Its value as `sweep.csv` records it (a budget's points, a tolerance's pixels).
-    value: f64,
-    /// Its run directory's name: `budget-25000`, `eps-2`.
-    name: String,
-}
-
 /// `splatbench sweep`: targets, parameters, scene spec, path and frames are checked before
 /// anything is built or rendered; then one build (or `--build-dir`, checked by the runner at
-/// the first target), one ordinary run per target (each through [`run_config`] with
-/// `build_dir` set, so the runner's `--build-dir` path opens it), then `sweep.csv` and its plot.
+/// the first target), one ordinary run per target ([`harness::sweep::run_targets`] on a
+/// [`run_config`] with `build_dir` set, so the runner's `--build-dir` path opens it), then
+/// `sweep.csv` and its plot.
 pub fn main(a: &SweepArgs) -> anyhow::Result<()> {
     let targets = sweep_targets(a.budgets.as_deref(), a.eps.as_deref())?;
     anyhow::ensure!(a.frames >= 1, "--frames must be at least 1");
     let params = Params::parse(&a.method.params)?;
     a.method.method.check_params(&params)?;
     let build_dir = a.build_dir.clone().unwrap_or_else(|| a.out.join("build"));
-    let configs = targets
-        .iter()
-        .map(|t| {
-            run_config(&RunArgs {
-                method: MethodArgs {
-                    method: a.method.method,
-                    // A build of our own already holds every --param (its method.json records
-                    // them); the runner lets a run of a build change runtime parameters only.
-                    params: if a.build_dir.is_some() {
-                        a.method.params.clone()
-                    } else {
-                        Vec::new()
-                    },
-                },
-                scene: a.scene.clone(),
-                render: a.render.clone(),
-                target: TargetArgs {
-                    eps: t.target.eps_px(),
-                    budget: t.target.budget_points(),
-                },
-                path: a.path.clone(),
-                frames: a.frames,
-                save_images: false,
-                no_metrics: false,
-                out: a.out.join(&t.name),
-                cache: a.cache.clone(),
-                build_dir: Some(build_dir.clone()),
-            })
-        })
-        .collect::<anyhow::Result<Vec<_>>>()?;
+    let first = targets.first().map(|t| t.target);
+    let base = run_config(&RunArgs {
+        method: MethodArgs {
+            method: a.method.method,
+            // A build of our own already holds every --param (its method.json records
+            // them); the runner lets a run of a build change runtime parameters only.
+            params: if a.build_dir.is_some() {
+                a.method.params.clone()
+            } else {
+                Vec::new()
+            },
+        },
+        scene: a.scene.clone(),
+        render: a.render.clone(),
+        target: TargetArgs {
+            eps: first.and_then(|t| t.eps_px()),
+            budget: first.and_then(|t| t.budget_points()),
+        },
+        path: a.path.clone(),
+        frames: a.frames,
+        save_images: false,
+        no_metrics: false,
+        out: a.out.clone(),
+        cache: a.cache.clone(),
+        build_dir: Some(build_dir.clone()),
+    })?;
     let gpu = open_gpu()?;
     std::fs::create_dir_all(&a.out).with_context(|| format!("creating {}", a.out.display()))?;
     // A sweep.csv (or plot) of an earlier sweep must not outlive a failure of this one.
-    for stale in ["sweep.csv", "sweep.png", "sweep.svg"] {
-        let p = a.out.join(stale);
-        match std::fs::remove_file(&p) {
-            Err(e) if e.kind() != std::io::ErrorKind::NotFound => {
-                return Err(e).with_context(|| format!("removing the old {}", p.display()));
-            }
-            _ => {}
-        }
-    }
+    harness::sweep::remove_stale(&a.out)?;
     if a.build_dir.is_none() {
         eprintln!("building {} into {}", a.method.method, build_dir.display());
         build(&a.method, &a.scene, &build_dir, &a.cache)?;
     }
     let bar = harness::progress::Bar::new();
-    let mut rows = Vec::with_capacity(targets.len());
-    for (cfg, t) in configs.iter().zip(&targets) {
-        let s = harness::runner::run(cfg, &gpu, &bar)
-            .and_then(|s| harness::plot::plot_run(&cfg.out).map(|_| s))
-            .with_context(|| format!("sweep target {}", t.name))?;
-        print_summary(&s);
-        let frames = harness::plot::read_frames(&cfg.out.join("frames.csv"))?;
-        let params = s
-            .params
-            .0
-            .iter()
-            .map(|(k, v)| format!("{k}={v}"))
-            .collect::<Vec<_>>()
-            .join(" ");
-        rows.push(harness::plot::SweepRow::of_run(&frames, &params, t.value)?);
-    }
+    let rows = harness::sweep::run_targets(&base, &targets, &a.out, &gpu, &bar, print_summary)?;
     let csv = a.out.join("sweep.csv");
-    harness::plot::write_sweep(&csv, &rows)?;
-    let plots = harness::plot::plot_sweep(&a.out)?;
+    let plots = [a.out.join("sweep.png"), a.out.join("sweep.svg")];
     println!(
         "wrote {} ({} targets), {} and {} run directories",
         csv.display(),
@@ -139,7 +103,7 @@ pub fn main(a: &SweepArgs) -> anyhow::Result<()> {
             .map(|p| p.display().to_string())
             .collect::<Vec<_>>()
             .join(", "),
-        configs.len()
+        targets.len()
     );
     Ok(())
 }
@@ -170,29 +134,16 @@ fn sweep_targets(budgets: Option<&str>, eps: Option<&str>) -> anyhow::Result<Vec
         let t = if flag == "--budgets" {
             let n = scenes::spec::parse_count(item)
                 .map_err(|e| anyhow::anyhow!("{flag}: budget '{item}': {e}"))?;
-            let target = Target::budget(n as u64)?;
-            SweepTarget {
-                target,
-                value: n as f64,
-                name: format!("budget-{n}"),
-            }
+            SweepTarget::budget(n as u64)?
         } else {
             let px: f32 = item.parse().map_err(|_| {
                 anyhow::anyhow!("{flag}: '{item}' is not a number of pixels (e.g. 2 or 0.5)")
             })?;
-            let px = if px == 0.0 { 0.0 } else { px }; // -0 → 0
-            let target = Target::tolerance(px).map_err(|_| {
+            SweepTarget::tolerance(px).map_err(|_| {
                 anyhow::anyhow!(
                     "{flag}: '{item}': a tolerance must be a finite number of pixels ≥ 0"
                 )
-            })?;
-            // f32's shortest text, so that 0.1 is recorded as 0.1, not 0.10000000149.
-            let text = px.to_string();
-            SweepTarget {
-                target,
-                value: text.parse()?,
-                name: format!("eps-{text}"),
-            }
+            })?
         };
         if let Some(same) = targets.iter().find(|o| o.name == t.name) {
             bail!("{flag}: {} is given twice", same.value);

@@ -14,3 +14,4 @@ pub mod render;
 pub mod results;
 pub mod rss;
 pub mod runner;
+pub mod sweep;

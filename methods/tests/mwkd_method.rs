@@ -14,8 +14,8 @@ use methods::mwkd::index::{self, IndexNode};
 use methods::mwkd::select::{Ctx, Metric};
 use methods::mwkd::{Mwkd, codec, tree::Plan};
 use methods::{DrawItem, DrawList, Feedback, LodMethod, Manifest, MethodKind, Params, Target};
+use scenes::PointCloud;
 use scenes::generators::Generator;
-use scenes::{PointCloud, View};
 
 /// Culling does not depend on the metric.
 const METRIC: Metric = Metric {

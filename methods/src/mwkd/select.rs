@@ -332,7 +332,9 @@ mod tests {
         let ctx = Ctx::new(&nodes, &v, m);
         let d = 3.0f32;
         assert!((ctx.distance(0) - d).abs() < 1e-6);
-        let want = 2.0 * (2 - 0 + 1) as f32 / (0.5 * d + 0.25 * d * d);
+        // ε_l = c0·(l_max − l + 1)/(c1·d + c2·d²) with l_max = 2, l = 0.
+        let (l_max, l) = (2u32, 0u32);
+        let want = 2.0 * (l_max - l + 1) as f32 / (0.5 * d + 0.25 * d * d);
         assert!((ctx.eps_l(0) - want).abs() < 1e-6);
     }
 }

@@ -11,6 +11,7 @@ pub mod metrics;
 pub mod plot;
 pub mod progress;
 pub mod render;
+pub mod reproduce;
 pub mod results;
 pub mod rss;
 pub mod runner;

@@ -1,11 +1,17 @@
 //! Progress bars (indicatif) behind the library's [`scenes::Progress`] trait. Bars draw on
 //! stderr and hide themselves when stderr is not a terminal (CI logs stay clean).
 
-use indicatif::{ProgressBar, ProgressStyle};
+use std::sync::atomic::{AtomicBool, Ordering};
+
+use indicatif::{MultiProgress, ProgressBar, ProgressStyle};
 
 /// A progress bar that re-arms for each phase.
 pub struct Bar {
     bar: ProgressBar,
+    /// Drawn below other bars (`reproduce`'s per-table bar) instead of on its own.
+    multi: Option<MultiProgress>,
+    /// Whether the bar has been added to `multi` yet.
+    added: AtomicBool,
 }
 
 impl Default for Bar {
@@ -19,14 +25,31 @@ impl Bar {
     pub fn new() -> Self {
         Self {
             bar: ProgressBar::hidden(),
+            multi: None,
+            added: AtomicBool::new(false),
+        }
+    }
+
+    /// A phase bar drawn under the other bars of `multi` (added when first started).
+    pub fn under(multi: &MultiProgress) -> Self {
+        Self {
+            multi: Some(multi.clone()),
+            ..Self::new()
         }
     }
 }
 
 impl scenes::Progress for Bar {
     fn start(&self, what: &str, total: u64) {
-        self.bar
-            .set_draw_target(indicatif::ProgressDrawTarget::stderr());
+        match &self.multi {
+            Some(m) if !self.added.swap(true, Ordering::Relaxed) => {
+                m.add(self.bar.clone());
+            }
+            Some(_) => {}
+            None => self
+                .bar
+                .set_draw_target(indicatif::ProgressDrawTarget::stderr()),
+        }
         self.bar.reset();
         self.bar.set_length(total);
         self.bar.set_position(0);

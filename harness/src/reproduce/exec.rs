@@ -1,0 +1,751 @@
+//! Running a spec's measures and evaluating its rows.
+//!
+//! Builds are shared: a build is keyed by method, build parameters and scene, made once per
+//! reproduction under `OUT/builds/`, and reused by every measure (of any spec) with the same
+//! key; a build left by an earlier reproduction is reused only when it was made by the same
+//! clean commit. Runs and sweeps always run again, into `OUT/runs/<spec>/<measure>/` (the
+//! runner's ordinary `frames.csv`, `summary.json` and plots).
+//!
+//! Metrics a measure provides to expressions:
+//! - build: every number of `build.json` (`points_in`, `nodes`, `levels`, `bytes_in`,
+//!   `bytes_out`, `bits_per_sample`, `seconds`, `points_per_s`) and of its `extra`;
+//! - run: `STAT.COLUMN` for every numeric `frames.csv` column, STAT one of `median`, `mean`,
+//!   `min`, `max`, `first`, `last` over the frames after `skip`; `peak_rss_bytes` and
+//!   `run_seconds` of `summary.json`; and `build.KEY` of its build;
+//! - sweep: `TARGET.STAT.COLUMN` per target, TARGET the run directory's name with `-` and
+//!   `.` written `_` (`eps_2`, `eps_0_5`, `budget_25000`), and `build.KEY`;
+//! - plan: the numbers of `splatbench plan --json` (`levels`, `nodes`, `leaves`, `depth`,
+//!   `samples_total`, `leaf_points_min`, …).
+
+use std::collections::{BTreeMap, HashMap};
+use std::path::{Path, PathBuf};
+use std::time::Instant;
+
+use anyhow::{Context as _, anyhow, bail};
+use methods::{BuildStats, Manifest, MethodKind, Params};
+use scenes::spec::SceneSource;
+use scenes::{Progress, SceneSpec};
+
+use super::expr::Env;
+use super::spec::{Format, Measure, MeasureKind, Piece, Row, Spec};
+use super::verdict::{Paper, Verdict, judge};
+use crate::gpu::Gpu;
+use crate::render::RenderSettings;
+use crate::runner::{GIT_COMMIT, RunConfig};
+
+/// What one measure produced.
+#[derive(Debug, Clone, Default)]
+pub struct MeasureResult {
+    /// Metric values by key.
+    pub metrics: BTreeMap<String, f64>,
+    /// `(median FLIP, median points)` per target (sweeps).
+    pub curve: Vec<(f64, f64)>,
+    /// Per target of a sweep: its name and its medians (points, FLIP, holes, PSNR).
+    pub sweep: Vec<SweepLine>,
+    /// The measure's output directory (runs, sweeps).
+    pub dir: Option<PathBuf>,
+    /// Not run: it serves only GPU rows and the adapter is not a GPU.
+    pub skipped_for_gpu: bool,
+    /// Why it failed.
+    pub error: Option<String>,
+    /// Wall seconds.
+    pub seconds: f64,
+}
+
+/// One target of a sweep as the report lists it.
+#[derive(Debug, Clone, serde::Serialize)]
+pub struct SweepLine {
+    /// `eps-2`, `budget-25000`.
+    pub target: String,
+    /// Median points drawn.
+    pub points: Option<f64>,
+    /// Median of the frames' mean FLIP.
+    pub flip: Option<f64>,
+    /// Median hole ratio.
+    pub holes: Option<f64>,
+    /// Largest hole ratio of a frame.
+    pub holes_max: Option<f64>,
+    /// Median PSNR.
+    pub psnr: Option<f64>,
+}
+
+/// One evaluated row.
+#[derive(Debug, Clone, serde::Serialize)]
+pub struct RowResult {
+    /// What is compared.
+    pub what: String,
+    /// The paper's value as printed.
+    pub paper: String,
+    /// Our values (one per `ours` expression; `None` when not measured).
+    pub ours: Vec<Option<f64>>,
+    /// Our values as printed.
+    pub ours_text: String,
+    /// ours / paper, for a single paper number.
+    pub ratio: Option<f64>,
+    /// The rule as printed.
+    pub rule: String,
+    /// The verdict.
+    pub verdict: Verdict,
+    /// The reason, filled in, when it differs.
+    pub reason: Option<String>,
+}
+
+/// The state of a reproduction: the GPU (opened when first needed), the builds made so far.
+pub struct Context<'a> {
+    /// Output root.
+    pub out: PathBuf,
+    /// Scene / reference cache.
+    pub cache: PathBuf,
+    /// The `splatbench` binary, for `isolate` runs.
+    pub exe: Option<PathBuf>,
+    /// Phase progress.
+    pub progress: &'a dyn Progress,
+    gpu: Option<Option<Gpu>>,
+    builds: HashMap<String, (PathBuf, BuildStats)>,
+}
+
+impl<'a> Context<'a> {
+    /// A context writing under `out`.
+    pub fn new(out: &Path, cache: &Path, exe: Option<PathBuf>, progress: &'a dyn Progress) -> Self {
+        Self {
+            out: out.to_path_buf(),
+            cache: cache.to_path_buf(),
+            exe,
+            progress,
+            gpu: None,
+            builds: HashMap::new(),
+        }
+    }
+
+    /// The GPU, opened on first use; `None` when the machine has no adapter at all.
+    pub fn gpu(&mut self) -> anyhow::Result<Option<&Gpu>> {
+        if self.gpu.is_none() {
+            self.gpu = Some(Gpu::new()?);
+        }
+        Ok(self.gpu.as_ref().and_then(Option::as_ref))
+    }
+
+    /// Whether the adapter is a real GPU (not a CPU rasteriser such as lavapipe).
+    pub fn has_real_gpu(&mut self) -> anyhow::Result<bool> {
+        Ok(self
+            .gpu()?
+            .is_some_and(|g| !g.adapter.device_type.eq_ignore_ascii_case("cpu")))
+    }
+
+    /// The adapter, if one was opened.
+    pub fn adapter(&self) -> Option<&crate::gpu::AdapterDesc> {
+        self.gpu
+            .as_ref()
+            .and_then(Option::as_ref)
+            .map(|g| &g.adapter)
+    }
+
+    /// Runs `m` of `spec`.
+    pub fn measure(&mut self, spec: &Spec, m: &Measure) -> MeasureResult {
+        let t = Instant::now();
+        let mut r = match self.try_measure(spec, m) {
+            Ok(r) => r,
+            Err(e) => MeasureResult {
+                error: Some(format!("{e:#}")),
+                ..MeasureResult::default()
+            },
+        };
+        r.seconds = t.elapsed().as_secs_f64();
+        r
+    }
+
+    fn try_measure(&mut self, spec: &Spec, m: &Measure) -> anyhow::Result<MeasureResult> {
+        if m.kind == MeasureKind::Plan {
+            return plan(m);
+        }
+        let scene = scene_of(spec, m)?;
+        let (build_dir, stats) = self.build(m, scene)?;
+        let build_metrics = build_metrics(&stats);
+        let mut r = MeasureResult::default();
+        if m.kind == MeasureKind::Build {
+            r.metrics = build_metrics;
+            return Ok(r);
+        }
+        let dir = self.out.join("runs").join(&spec.id).join(&m.id);
+        if dir.exists() {
+            std::fs::remove_dir_all(&dir)
+                .with_context(|| format!("removing the old {}", dir.display()))?;
+        }
+        let base = self.run_config(m, scene, &build_dir, &dir)?;
+        match m.kind {
+            MeasureKind::Run => {
+                if m.isolate {
+                    self.run_isolated(m, scene, &build_dir, &dir)?;
+                } else {
+                    let progress = self.progress;
+                    let gpu = self.gpu()?.ok_or_else(no_adapter)?;
+                    crate::runner::run(&base, gpu, progress)?;
+                    crate::plot::plot_run(&dir)?;
+                }
+                r.metrics = run_metrics(&dir, m.skip)?;
+            }
+            MeasureKind::Sweep => {
+                let progress = self.progress;
+                let gpu = self.gpu()?.ok_or_else(no_adapter)?;
+                crate::sweep::run_targets(&base, &m.targets, &dir, gpu, progress, |_| {})?;
+                for t in &m.targets {
+                    let tm = run_metrics(&dir.join(&t.name), m.skip)?;
+                    let get = |k: &str| tm.get(k).copied();
+                    if let (Some(f), Some(p)) =
+                        (get("median.flip_mean"), get("median.points_drawn"))
+                    {
+                        r.curve.push((f, p));
+                    }
+                    r.sweep.push(SweepLine {
+                        target: t.name.clone(),
+                        points: get("median.points_drawn"),
+                        flip: get("median.flip_mean"),
+                        holes: get("median.hole_ratio"),
+                        holes_max: get("max.hole_ratio"),
+                        psnr: get("median.psnr_db"),
+                    });
+                    let key = t.name.replace(['-', '.'], "_");
+                    for (k, v) in tm {
+                        if !k.starts_with("build.") {
+                            r.metrics.insert(format!("{key}.{k}"), v);
+                        }
+                    }
+                }
+            }
+            MeasureKind::Build | MeasureKind::Plan => unreachable!("handled above"),
+        }
+        for (k, v) in build_metrics {
+            r.metrics.insert(format!("build.{k}"), v);
+        }
+        r.dir = Some(dir);
+        Ok(r)
+    }
+
+    /// The build of `m` on `scene`: made once per key, or reused from `OUT/builds/` when an
+    /// earlier reproduction made it with this same clean commit.
+    fn build(&mut self, m: &Measure, scene: &SceneSpec) -> anyhow::Result<(PathBuf, BuildStats)> {
+        let key = build_key(m.method, &m.build_params, scene);
+        if let Some(b) = self.builds.get(&key) {
+            return Ok(b.clone());
+        }
+        let mut h = scenes::hash::Fnv64::default();
+        h.write_str(&key);
+        let dir = self.out.join("builds").join(format!(
+            "{}-{}-{:08x}",
+            m.method,
+            sanitize(&scene.label()),
+            h.finish() as u32
+        ));
+        let stamp = dir.join("reproduce-key.json");
+        let reusable = !GIT_COMMIT.ends_with("-dirty")
+            && std::fs::read_to_string(&stamp)
+                .ok()
+                .and_then(|s| serde_json::from_str::<serde_json::Value>(&s).ok())
+                .is_some_and(|v| v["key"] == key.as_str() && v["commit"] == GIT_COMMIT)
+            && Manifest::read(&dir).is_ok();
+        let stats = match (reusable, BuildStats::read(&dir)) {
+            (true, Ok(stats)) => stats,
+            _ => {
+                if dir.exists() {
+                    std::fs::remove_dir_all(&dir)
+                        .with_context(|| format!("removing the old {}", dir.display()))?;
+                }
+                let cloud = scene
+                    .load(Some(&self.cache), self.progress)
+                    .with_context(|| format!("loading scene '{}'", scene.text))?;
+                let stats = m
+                    .method
+                    .build(&cloud, &m.build_params, &scene.label(), &dir, self.progress)
+                    .with_context(|| format!("building {} on {}", m.method, scene.label()))?;
+                crate::results::write_json(
+                    &stamp,
+                    &serde_json::json!({ "key": key, "commit": GIT_COMMIT }),
+                )?;
+                stats
+            }
+        };
+        self.builds.insert(key, (dir.clone(), stats.clone()));
+        Ok((dir, stats))
+    }
+
+    fn run_config(
+        &self,
+        m: &Measure,
+        scene: &SceneSpec,
+        build_dir: &Path,
+        out: &Path,
+    ) -> anyhow::Result<RunConfig> {
+        let target = m
+            .targets
+            .first()
+            .map(|t| t.target)
+            .ok_or_else(|| anyhow!("measure '{}' has no target", m.id))?;
+        Ok(RunConfig {
+            method: m.method,
+            params: m.runtime_params.clone(),
+            scene: scene.clone(),
+            path: m
+                .path
+                .clone()
+                .ok_or_else(|| anyhow!("measure '{}' has no path", m.id))?,
+            frames: m.frames,
+            target,
+            render: RenderSettings {
+                width: m.width,
+                height: m.height,
+                kernel: m.kernel,
+                cache_bytes: m
+                    .gpu_cache_mb
+                    .checked_mul(1 << 20)
+                    .context("gpu_cache_mb is too large")?,
+            },
+            seed: scene_seed(scene),
+            save_images: false,
+            metrics: m.metrics,
+            out: out.to_path_buf(),
+            cache: self.cache.clone(),
+            build_dir: Some(build_dir.to_path_buf()),
+        })
+    }
+
+    /// `splatbench run … --build-dir` in a child process, so its memory is its own.
+    fn run_isolated(
+        &self,
+        m: &Measure,
+        scene: &SceneSpec,
+        build_dir: &Path,
+        out: &Path,
+    ) -> anyhow::Result<()> {
+        let exe = self.exe.as_ref().ok_or_else(|| {
+            anyhow!(
+                "measure '{}' runs isolated, but no splatbench binary was given",
+                m.id
+            )
+        })?;
+        let t = m.targets.first().context("no target")?;
+        let mut cmd = std::process::Command::new(exe);
+        cmd.arg("run")
+            .args(["--method", m.method.name(), "--scene", &scene.text])
+            .args(["--seed", &scene_seed(scene).to_string()])
+            .args(["--path", m.path_text.as_deref().unwrap_or("orbit")])
+            .args(["--frames", &m.frames.to_string()])
+            .args([
+                "--width",
+                &m.width.to_string(),
+                "--height",
+                &m.height.to_string(),
+            ])
+            .args(["--kernel", m.kernel.name()])
+            .args(["--gpu-cache-mb", &m.gpu_cache_mb.to_string()])
+            .arg("--build-dir")
+            .arg(build_dir)
+            .arg("--out")
+            .arg(out)
+            .arg("--cache")
+            .arg(&self.cache);
+        if let SceneSource::Ply {
+            sample: Some(n), ..
+        } = scene.source
+        {
+            cmd.args(["--sample", &n.to_string()]);
+        }
+        match (t.target.eps_px(), t.target.budget_points()) {
+            (_, Some(b)) => cmd.args(["--budget", &b.to_string()]),
+            (e, None) => cmd.args(["--eps", &e.unwrap_or(1.0).to_string()]),
+        };
+        for (k, v) in &m.runtime_params.0 {
+            cmd.args(["--param", &format!("{k}={v}")]);
+        }
+        if !m.metrics {
+            cmd.arg("--no-metrics");
+        }
+        let o = cmd
+            .stdin(std::process::Stdio::null())
+            .output()
+            .with_context(|| format!("starting {}", exe.display()))?;
+        if !o.status.success() {
+            bail!(
+                "the isolated run failed ({}): {}",
+                o.status,
+                String::from_utf8_lossy(&o.stderr).trim()
+            );
+        }
+        Ok(())
+    }
+}
+
+fn no_adapter() -> anyhow::Error {
+    anyhow!(
+        "no GPU adapter found: install Mesa's software Vulkan driver (scripts/setup.sh) or run \
+         on a machine with a GPU"
+    )
+}
+
+fn scene_of<'s>(spec: &'s Spec, m: &Measure) -> anyhow::Result<&'s SceneSpec> {
+    let name = m.scene.as_deref().context("no scene")?;
+    spec.scenes
+        .get(name)
+        .ok_or_else(|| anyhow!("scene '{name}' is not defined"))
+}
+
+fn scene_seed(scene: &SceneSpec) -> u64 {
+    match scene.source {
+        SceneSource::Generator { seed, .. } | SceneSource::Ply { seed, .. } => seed,
+        _ => 1,
+    }
+}
+
+/// The identity of a build: method, build parameters, scene (and its resampling).
+fn build_key(method: MethodKind, params: &Params, scene: &SceneSpec) -> String {
+    let p: Vec<String> = params.0.iter().map(|(k, v)| format!("{k}={v}")).collect();
+    format!("{method}|{}|{}|{:?}", p.join(" "), scene.text, scene.source)
+}
+
+fn sanitize(s: &str) -> String {
+    s.chars()
+        .map(|c| {
+            if c.is_ascii_alphanumeric() || c == '-' || c == '_' {
+                c
+            } else {
+                '_'
+            }
+        })
+        .collect()
+}
+
+fn build_metrics(stats: &BuildStats) -> BTreeMap<String, f64> {
+    let mut m = BTreeMap::new();
+    if let Ok(serde_json::Value::Object(o)) = serde_json::to_value(stats) {
+        for (k, v) in &o {
+            if let Some(x) = v.as_f64() {
+                m.insert(k.clone(), x);
+            }
+        }
+    }
+    for (k, v) in &stats.extra {
+        if let Some(x) = v.as_f64() {
+            m.entry(k.clone()).or_insert(x);
+        }
+    }
+    m
+}
+
+fn plan(m: &Measure) -> anyhow::Result<MeasureResult> {
+    use methods::mwkd;
+    let p = mwkd::MwkdParams::from_params(&m.build_params)?;
+    let points = m.points.context("a plan needs points")?;
+    let plan = mwkd::tree::Plan::new(points, u64::from(p.effective_fanout()), p.vbo)?;
+    let mut r = MeasureResult::default();
+    if let serde_json::Value::Object(o) = plan.to_json() {
+        for (k, v) in o {
+            if let Some(x) = v.as_f64() {
+                r.metrics.insert(k, x);
+            }
+        }
+    }
+    Ok(r)
+}
+
+/// `STAT.COLUMN` over the frames of `dir/frames.csv` after the first `skip`, plus
+/// `summary.json`'s `peak_rss_bytes` and `run_seconds`.
+pub fn run_metrics(dir: &Path, skip: usize) -> anyhow::Result<BTreeMap<String, f64>> {
+    let file = dir.join("frames.csv");
+    let mut rd =
+        csv::Reader::from_path(&file).with_context(|| format!("reading {}", file.display()))?;
+    let headers: Vec<String> = rd
+        .headers()
+        .with_context(|| format!("reading {}", file.display()))?
+        .iter()
+        .map(String::from)
+        .collect();
+    let mut cols: Vec<Vec<f64>> = vec![Vec::new(); headers.len()];
+    let mut frames = 0;
+    for (i, rec) in rd.records().enumerate() {
+        let rec = rec.with_context(|| format!("reading {}", file.display()))?;
+        frames += 1;
+        if i < skip {
+            continue;
+        }
+        for (c, v) in rec.iter().enumerate() {
+            if let Ok(x) = v.trim().parse::<f64>()
+                && x.is_finite()
+                && c < cols.len()
+            {
+                cols[c].push(x);
+            }
+        }
+    }
+    if frames <= skip {
+        bail!(
+            "{}: {frames} frames, none left after skipping {skip}",
+            file.display()
+        );
+    }
+    let mut m = BTreeMap::new();
+    for (h, v) in headers.iter().zip(&cols) {
+        if v.is_empty() {
+            continue;
+        }
+        let mut s = v.clone();
+        s.sort_by(f64::total_cmp);
+        m.insert(
+            format!("median.{h}"),
+            crate::results::median(v.iter().copied()).unwrap_or(s[s.len() / 2]),
+        );
+        m.insert(format!("mean.{h}"), v.iter().sum::<f64>() / v.len() as f64);
+        m.insert(format!("min.{h}"), s[0]);
+        m.insert(format!("max.{h}"), s[s.len() - 1]);
+        m.insert(format!("first.{h}"), v[0]);
+        m.insert(format!("last.{h}"), v[v.len() - 1]);
+    }
+    let summary = dir.join("summary.json");
+    let v: serde_json::Value = serde_json::from_str(
+        &std::fs::read_to_string(&summary)
+            .with_context(|| format!("reading {}", summary.display()))?,
+    )
+    .with_context(|| format!("parsing {}", summary.display()))?;
+    if v["complete"] != true {
+        bail!("{}: the run did not complete", summary.display());
+    }
+    for k in ["peak_rss_bytes", "run_seconds"] {
+        if let Some(x) = v[k].as_f64() {
+            m.insert(k.into(), x);
+        }
+    }
+    Ok(m)
+}
+
+/// Expressions evaluated over a spec's measure results.
+pub struct Results<'r> {
+    /// By measure id.
+    pub by_id: &'r BTreeMap<String, MeasureResult>,
+}
+
+impl Env for Results<'_> {
+    fn metric(&self, measure: &str, key: &str) -> Result<f64, String> {
+        let r = self.get(measure)?;
+        r.metrics.get(key).copied().ok_or_else(|| {
+            let mut known: Vec<&str> = r.metrics.keys().map(String::as_str).collect();
+            let prefix = key.rsplit_once('.').map(|(p, _)| p).unwrap_or("");
+            let near: Vec<&str> = known
+                .iter()
+                .copied()
+                .filter(|k| !prefix.is_empty() && k.starts_with(prefix))
+                .take(12)
+                .collect();
+            if !near.is_empty() {
+                known = near;
+            } else {
+                known.truncate(12);
+            }
+            format!(
+                "measure '{measure}' has no metric '{key}' (it has: {}, …)",
+                known.join(", ")
+            )
+        })
+    }
+
+    fn curve(&self, measure: &str) -> Result<Vec<(f64, f64)>, String> {
+        let r = self.get(measure)?;
+        if r.curve.is_empty() {
+            return Err(format!("'{measure}' is not a sweep with image metrics"));
+        }
+        Ok(r.curve.clone())
+    }
+}
+
+impl Results<'_> {
+    fn get(&self, measure: &str) -> Result<&MeasureResult, String> {
+        let r = self
+            .by_id
+            .get(measure)
+            .ok_or_else(|| format!("measure '{measure}' was not run"))?;
+        if let Some(e) = &r.error {
+            return Err(format!("measure '{measure}' failed: {e}"));
+        }
+        Ok(r)
+    }
+}
+
+/// Evaluates a row: its values, ratio and verdict; GPU rows on a CPU adapter are "needs a
+/// GPU" without values.
+pub fn evaluate(row: &Row, env: &Results<'_>, real_gpu: bool) -> RowResult {
+    let paper = paper_text(row);
+    let rule = row.rule.describe(row.tolerance);
+    let base = RowResult {
+        what: row.what.clone(),
+        paper,
+        ours: vec![None; row.ours.len()],
+        ours_text: "—".into(),
+        ratio: None,
+        rule,
+        verdict: Verdict::NeedsGpu,
+        reason: None,
+    };
+    if row.needs_gpu && !real_gpu {
+        return base;
+    }
+    let values: Result<Vec<f64>, String> = row.ours.iter().map(|e| e.eval(env)).collect();
+    let values = match values {
+        Ok(v) => v,
+        // A FLIP the sweep never reaches is a measured outcome: a figure of ours says so, a
+        // judged row differs.
+        Err(e) if e.contains(super::expr::NOT_REACHED) => {
+            let text = e.replacen(super::expr::NOT_REACHED, "", 1);
+            let verdict = if row.rule == super::verdict::Rule::Report {
+                Verdict::OursOnly
+            } else {
+                Verdict::Differs
+            };
+            return RowResult {
+                ours_text: format!("not reached ({text})"),
+                reason: (verdict == Verdict::Differs).then(|| format!("not reached: {text}")),
+                verdict,
+                ..base
+            };
+        }
+        Err(e) => {
+            return RowResult {
+                verdict: Verdict::Failed(e),
+                ..base
+            };
+        }
+    };
+    let verdict =
+        judge(row.rule, row.paper.as_ref(), &values, row.tolerance).unwrap_or_else(Verdict::Failed);
+    let ratio = match (&row.paper, values.as_slice()) {
+        (Some(Paper::Value(p)), [v]) if *p != 0.0 => Some(v / p),
+        _ => None,
+    };
+    let reason = (verdict == Verdict::Differs)
+        .then(|| row.reason.as_ref().map(|r| fill(r, env)))
+        .flatten();
+    RowResult {
+        ours_text: values
+            .iter()
+            .map(|v| format_value(*v, row.format))
+            .collect::<Vec<_>>()
+            .join(" / "),
+        ours: values.into_iter().map(Some).collect(),
+        ratio,
+        verdict,
+        reason,
+        ..base
+    }
+}
+
+fn fill(pieces: &[Piece], env: &Results<'_>) -> String {
+    pieces
+        .iter()
+        .map(|p| match p {
+            Piece::Text(t) => t.clone(),
+            Piece::Value(e, f) => match e.eval(env) {
+                Ok(v) => format_value(v, *f),
+                Err(err) => format!("[{e}: {err}]"),
+            },
+        })
+        .collect()
+}
+
+fn paper_text(row: &Row) -> String {
+    if let Some(t) = &row.paper_text {
+        return t.clone();
+    }
+    let f = |v: f64| format_value(v, row.format);
+    match &row.paper {
+        None => "—".into(),
+        Some(Paper::Value(v)) => f(*v),
+        Some(Paper::Range(a, b)) => format!("{}–{}", f(*a), f(*b)),
+        Some(Paper::List(l)) => l.iter().map(|v| f(*v)).collect::<Vec<_>>().join(" / "),
+    }
+}
+
+/// Formats a number for the report.
+pub fn format_value(v: f64, f: Format) -> String {
+    match f {
+        Format::Percent => format!("{:.1} %", 100.0 * v),
+        Format::Int => thousands(v.round()),
+        Format::Si => {
+            let (d, s) = match v.abs() {
+                a if a >= 1e9 => (1e9, "G"),
+                a if a >= 1e6 => (1e6, "M"),
+                a if a >= 1e3 => (1e3, "k"),
+                _ => (1.0, ""),
+            };
+            format!("{}{s}", sig3(v / d))
+        }
+        Format::Auto => {
+            if v.fract() == 0.0 && v.abs() < 1e15 {
+                thousands(v)
+            } else if v.abs() >= 1000.0 {
+                thousands(v.round())
+            } else {
+                sig3(v)
+            }
+        }
+    }
+}
+
+fn sig3(v: f64) -> String {
+    if v == 0.0 {
+        return "0".into();
+    }
+    let digits = (2 - v.abs().log10().floor() as i32).max(0) as usize;
+    format!("{v:.digits$}")
+}
+
+fn thousands(v: f64) -> String {
+    let s = format!("{:.0}", v.abs());
+    let mut out = String::new();
+    for (i, c) in s.chars().enumerate() {
+        if i > 0 && (s.len() - i) % 3 == 0 {
+            out.push(',');
+        }
+        out.push(c);
+    }
+    if v < 0.0 { format!("-{out}") } else { out }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn numbers_print_for_people() {
+        assert_eq!(format_value(55987.0, Format::Auto), "55,987");
+        assert_eq!(format_value(186_850_683.0, Format::Int), "186,850,683");
+        assert_eq!(format_value(0.3496, Format::Auto), "0.350");
+        assert_eq!(format_value(13.84, Format::Auto), "13.8");
+        assert_eq!(format_value(0.138, Format::Percent), "13.8 %");
+        assert_eq!(format_value(2_350_000.0, Format::Si), "2.35M");
+        assert_eq!(format_value(-1234.4, Format::Auto), "-1,234");
+        assert_eq!(format_value(0.0, Format::Auto), "0");
+    }
+
+    #[test]
+    fn run_metrics_skip_leading_frames_and_need_a_complete_run() {
+        let d = tempfile::tempdir().unwrap();
+        std::fs::write(
+            d.path().join("frames.csv"),
+            "frame,points_drawn,flip_mean\n0,10,\n1,20,0.5\n2,40,0.25\n3,30,0.75\n",
+        )
+        .unwrap();
+        std::fs::write(d.path().join("summary.json"), r#"{"complete": false}"#).unwrap();
+        assert!(
+            format!("{:#}", run_metrics(d.path(), 0).unwrap_err()).contains("did not complete")
+        );
+        std::fs::write(
+            d.path().join("summary.json"),
+            r#"{"complete": true, "peak_rss_bytes": 123}"#,
+        )
+        .unwrap();
+        let m = run_metrics(d.path(), 1).unwrap();
+        assert_eq!(m["median.points_drawn"], 30.0);
+        assert_eq!(m["first.points_drawn"], 20.0);
+        assert_eq!(m["last.points_drawn"], 30.0);
+        assert_eq!(m["max.flip_mean"], 0.75);
+        assert_eq!(m["mean.flip_mean"], 0.5);
+        assert_eq!(m["peak_rss_bytes"], 123.0);
+        assert!(run_metrics(d.path(), 4).is_err());
+    }
+}

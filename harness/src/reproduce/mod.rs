@@ -1,0 +1,370 @@
+//! `splatbench reproduce`: the papers' tables regenerated from specs.
+//!
+//! A spec (`paper/specs/<id>.toml`, [`spec`]) names a paper's table or figure, its numbers,
+//! the scenes, camera paths, methods and parameters that measure ours, and the rule that
+//! decides whether the paper's shape holds ([`verdict`]). [`reproduce`] loads and checks
+//! every spec first (a typo fails before anything runs), then runs the selected specs' measures
+//! in order ([`exec`]: builds shared across tables), evaluates their rows, and writes
+//! `OUT/report.md` ([`report`]: per table the paper's value, ours, the ratio, the verdict and
+//! — where it differs — the measured reason; the command, adapter, commit and date),
+//! `OUT/results.json`, figures (PNG + SVG) under `OUT/figures/`, and the raw runs under
+//! `OUT/runs/`. With `publish` (and no `only`), a complete, failure-free reproduction also
+//! writes `report-<profile>.md`, `results-<profile>.json` and `figures-<profile>/` into that
+//! directory (the committed `paper/`).
+//!
+//! Rows marked `needs_gpu` are listed as "needs a GPU" when the adapter is a CPU rasteriser
+//! (lavapipe), and measured when a real GPU is present.
+
+pub mod exec;
+pub mod expr;
+pub mod report;
+pub mod spec;
+pub mod verdict;
+
+use std::collections::BTreeMap;
+use std::path::{Path, PathBuf};
+use std::time::Instant;
+
+use anyhow::{Context as _, bail};
+use indicatif::{MultiProgress, ProgressBar, ProgressStyle};
+
+pub use spec::{Profile, Spec, SpecError};
+pub use verdict::Verdict;
+
+use exec::{Context, MeasureResult, Results, RowResult, SweepLine};
+
+/// What to reproduce, and where.
+#[derive(Debug, Clone)]
+pub struct Options {
+    /// The spec directory (`paper/specs`).
+    pub specs: PathBuf,
+    /// Paths inside specs are relative to this (the repository root).
+    pub root: PathBuf,
+    /// Sizes.
+    pub profile: Profile,
+    /// Only these spec ids (all when `None`).
+    pub only: Option<Vec<String>>,
+    /// Output directory.
+    pub out: PathBuf,
+    /// Scene and reference cache.
+    pub cache: PathBuf,
+    /// The `splatbench` binary (for isolated runs).
+    pub exe: Option<PathBuf>,
+    /// Also write the report, results and figures here (`paper/`).
+    pub publish: Option<PathBuf>,
+    /// The command as typed, for the report.
+    pub command: String,
+}
+
+/// One table of the report.
+#[derive(Debug, Clone, serde::Serialize)]
+pub struct TableResult {
+    /// Spec id.
+    pub id: String,
+    /// The spec file (as given).
+    pub file: String,
+    /// Paper.
+    pub paper: String,
+    /// Table or figure.
+    pub title: String,
+    /// Where in the paper.
+    pub source: String,
+    /// Notes.
+    pub notes: Option<String>,
+    /// Rows.
+    pub rows: Vec<RowResult>,
+    /// The table's verdict (its worst row).
+    pub verdict: Verdict,
+    /// Wall seconds, including the builds it made.
+    pub seconds: f64,
+    /// What was measured.
+    pub measures: Vec<MeasureLine>,
+    /// Sweeps: measure id, label, per-target medians.
+    pub sweeps: Vec<(String, String, Vec<SweepLine>)>,
+    /// Figures: title and file names (under the figures directory).
+    pub figures: Vec<(String, String, String)>,
+}
+
+/// One measure as the report describes it.
+#[derive(Debug, Clone, serde::Serialize)]
+pub struct MeasureLine {
+    /// Id.
+    pub id: String,
+    /// What it is, in words.
+    pub what: String,
+    /// `ok`, `needs a GPU (not run)` or `failed: …`.
+    pub status: String,
+    /// Wall seconds.
+    pub seconds: f64,
+}
+
+/// What a reproduction produced.
+#[derive(Debug)]
+pub struct Outcome {
+    /// The tables, in spec order.
+    pub tables: Vec<TableResult>,
+    /// `OUT/report.md`.
+    pub report: PathBuf,
+    /// Files written under `publish`.
+    pub published: Vec<PathBuf>,
+}
+
+impl Outcome {
+    /// Tables whose measures or rows failed.
+    pub fn failed(&self) -> usize {
+        self.tables
+            .iter()
+            .filter(|t| matches!(t.verdict, Verdict::Failed(_)))
+            .count()
+    }
+}
+
+/// Loads the specs and keeps those `only` names (an unknown id is an error listing them).
+pub fn select(opts: &Options) -> anyhow::Result<Vec<Spec>> {
+    let specs = spec::load_dir(&opts.specs, &opts.root, opts.profile)?;
+    let Some(only) = &opts.only else {
+        return Ok(specs);
+    };
+    if only.is_empty() {
+        bail!("--only: give one or more spec ids");
+    }
+    let known: Vec<&str> = specs.iter().map(|s| s.id.as_str()).collect();
+    if let Some(bad) = only.iter().find(|id| !known.contains(&id.as_str())) {
+        bail!(
+            "--only: no spec '{bad}' in {} (specs: {})",
+            opts.specs.display(),
+            known.join(", ")
+        );
+    }
+    Ok(specs.into_iter().filter(|s| only.contains(&s.id)).collect())
+}
+
+/// Runs the selected specs and writes the report (see the module docs).
+pub fn reproduce(opts: &Options, multi: &MultiProgress) -> anyhow::Result<Outcome> {
+    let t0 = Instant::now();
+    if opts.publish.is_some() && opts.only.is_some() {
+        bail!("--publish regenerates the whole report: it cannot be combined with --only");
+    }
+    let specs = select(opts)?;
+    std::fs::create_dir_all(&opts.out)
+        .with_context(|| format!("creating {}", opts.out.display()))?;
+    for stale in ["report.md", "results.json"] {
+        let p = opts.out.join(stale);
+        if p.exists() {
+            std::fs::remove_file(&p)
+                .with_context(|| format!("removing the old {}", p.display()))?;
+        }
+    }
+    let figures_dir = opts.out.join("figures");
+    let phase = crate::progress::Bar::under(multi);
+    let mut ctx = Context::new(&opts.out, &opts.cache, opts.exe.clone(), &phase);
+    let mut tables = Vec::new();
+    for spec in &specs {
+        tables.push(run_spec(spec, opts, &mut ctx, multi, &figures_dir)?);
+    }
+    let meta = report::Meta {
+        profile: opts.profile,
+        command: opts.command.clone(),
+        commit: crate::runner::GIT_COMMIT.to_string(),
+        date: report::utc_now(),
+        adapter: ctx.adapter().cloned(),
+        cpus: std::thread::available_parallelism().map_or(1, |n| n.get()),
+        seconds: t0.elapsed().as_secs_f64(),
+        partial: opts.only.is_some(),
+    };
+    let report_path = opts.out.join("report.md");
+    report::write(&report_path, &meta, &tables, "figures")?;
+    crate::results::write_json(
+        &opts.out.join("results.json"),
+        &report::results(&meta, &tables),
+    )?;
+    let mut outcome = Outcome {
+        tables,
+        report: report_path,
+        published: Vec::new(),
+    };
+    if let Some(dir) = &opts.publish {
+        if outcome.failed() > 0 {
+            bail!(
+                "{} table(s) failed: nothing published to {} (see {})",
+                outcome.failed(),
+                dir.display(),
+                outcome.report.display()
+            );
+        }
+        outcome.published = publish(dir, &meta, &outcome.tables, &figures_dir)?;
+    }
+    Ok(outcome)
+}
+
+fn run_spec(
+    spec: &Spec,
+    opts: &Options,
+    ctx: &mut Context<'_>,
+    multi: &MultiProgress,
+    figures_dir: &Path,
+) -> anyhow::Result<TableResult> {
+    let t = Instant::now();
+    let uses = spec.measure_uses();
+    let needed: Vec<&spec::Measure> = spec
+        .measures
+        .iter()
+        .filter(|m| uses.contains_key(m.id.as_str()))
+        .collect();
+    let bar = multi.add(ProgressBar::new(needed.len() as u64));
+    if let Ok(style) =
+        ProgressStyle::with_template("{prefix:>28} [{bar:40}] {pos}/{len} measures {msg}")
+    {
+        bar.set_style(style.progress_chars("=> "));
+    }
+    bar.set_prefix(spec.id.clone());
+    let needs_gpu_rows = spec.rows.iter().any(|r| r.needs_gpu);
+    let real_gpu = needs_gpu_rows && ctx.has_real_gpu().unwrap_or(false);
+    let mut results: BTreeMap<String, MeasureResult> = BTreeMap::new();
+    let mut lines = Vec::new();
+    for m in needed {
+        bar.set_message(m.id.clone());
+        let gpu_only = uses.get(m.id.as_str()).copied().unwrap_or(false);
+        let r = if gpu_only && !real_gpu {
+            MeasureResult {
+                skipped_for_gpu: true,
+                ..MeasureResult::default()
+            }
+        } else {
+            ctx.measure(spec, m)
+        };
+        lines.push(MeasureLine {
+            id: m.id.clone(),
+            what: report::describe(spec, m, &opts.root),
+            status: match (&r.error, r.skipped_for_gpu) {
+                (Some(e), _) => format!("failed: {e}"),
+                (None, true) => "needs a GPU (not run)".into(),
+                (None, false) => "ok".into(),
+            },
+            seconds: r.seconds,
+        });
+        results.insert(m.id.clone(), r);
+        bar.inc(1);
+    }
+    let env = Results { by_id: &results };
+    let rows: Vec<RowResult> = spec
+        .rows
+        .iter()
+        .map(|r| exec::evaluate(r, &env, real_gpu))
+        .collect();
+    let mut sweeps = Vec::new();
+    for m in spec
+        .measures
+        .iter()
+        .filter(|m| m.kind == spec::MeasureKind::Sweep)
+    {
+        if let Some(r) = results
+            .get(&m.id)
+            .filter(|r| r.error.is_none() && !r.sweep.is_empty())
+        {
+            sweeps.push((m.id.clone(), report::label(spec, m), r.sweep.clone()));
+        }
+    }
+    let mut figures = Vec::new();
+    let mut figure_error = None;
+    for f in &spec.figures {
+        let dirs: Vec<PathBuf> = f
+            .sweeps
+            .iter()
+            .filter_map(|s| results.get(s).and_then(|r| r.dir.clone()))
+            .collect();
+        if dirs.len() != f.sweeps.len() {
+            figure_error = Some(format!("figure '{}': a sweep it plots did not run", f.name));
+            continue;
+        }
+        let stem = format!("{}-{}", spec.id, f.name);
+        match plot_figure(&dirs, figures_dir, &stem) {
+            Ok(()) => figures.push((
+                f.title.clone(),
+                format!("{stem}.png"),
+                format!("{stem}.svg"),
+            )),
+            Err(e) => figure_error = Some(format!("figure '{}': {e:#}", f.name)),
+        }
+    }
+    let mut verdict = Verdict::of_table(rows.iter().map(|r| &r.verdict));
+    if let (Some(e), false) = (figure_error, matches!(verdict, Verdict::Failed(_))) {
+        verdict = Verdict::Failed(e);
+    }
+    let seconds = t.elapsed().as_secs_f64();
+    bar.finish_and_clear();
+    multi.suspend(|| {
+        println!(
+            "{:<24} {:<12} {} rows, {:.1} s",
+            spec.id,
+            verdict.word(),
+            rows.len(),
+            seconds
+        );
+    });
+    Ok(TableResult {
+        id: spec.id.clone(),
+        file: spec.file.display().to_string(),
+        paper: spec.paper.clone(),
+        title: spec.title.clone(),
+        source: spec.source.clone(),
+        notes: spec.notes.clone(),
+        rows,
+        verdict,
+        seconds,
+        measures: lines,
+        sweeps,
+        figures,
+    })
+}
+
+/// Overlays the sweeps of `dirs` into `out/<stem>.png` and `.svg`.
+fn plot_figure(dirs: &[PathBuf], out: &Path, stem: &str) -> anyhow::Result<()> {
+    let tmp = out.join(format!(".{stem}"));
+    let files = crate::plot::plot_sweeps(dirs, &tmp)?;
+    for f in files {
+        let ext = f
+            .extension()
+            .and_then(|e| e.to_str())
+            .unwrap_or("png")
+            .to_string();
+        let to = out.join(format!("{stem}.{ext}"));
+        std::fs::rename(&f, &to)
+            .with_context(|| format!("moving {} to {}", f.display(), to.display()))?;
+    }
+    std::fs::remove_dir_all(&tmp).ok();
+    Ok(())
+}
+
+/// Writes `report-<profile>.md`, `results-<profile>.json` and `figures-<profile>/` into `dir`.
+fn publish(
+    dir: &Path,
+    meta: &report::Meta,
+    tables: &[TableResult],
+    figures_dir: &Path,
+) -> anyhow::Result<Vec<PathBuf>> {
+    let p = meta.profile.name();
+    let figs = dir.join(format!("figures-{p}"));
+    if figs.exists() {
+        std::fs::remove_dir_all(&figs).with_context(|| format!("removing {}", figs.display()))?;
+    }
+    std::fs::create_dir_all(&figs).with_context(|| format!("creating {}", figs.display()))?;
+    let mut out = Vec::new();
+    for t in tables {
+        for (_, png, svg) in &t.figures {
+            for f in [png, svg] {
+                let to = figs.join(f);
+                std::fs::copy(figures_dir.join(f), &to)
+                    .with_context(|| format!("copying {f} to {}", figs.display()))?;
+                out.push(to);
+            }
+        }
+    }
+    let report = dir.join(format!("report-{p}.md"));
+    report::write(&report, meta, tables, &format!("figures-{p}"))?;
+    let results = dir.join(format!("results-{p}.json"));
+    crate::results::write_json(&results, &report::results(meta, tables))?;
+    out.push(report);
+    out.push(results);
+    Ok(out)
+}

@@ -13,6 +13,7 @@ mod export;
 mod list;
 mod plan;
 mod plot;
+mod reproduce;
 mod run;
 mod shared;
 mod sweep;
@@ -54,6 +55,9 @@ enum Command {
     Plan(plan::PlanArgs),
     /// Every registered method on the embedded scene along a short orbit: CSV + plots.
     Demo(demo::DemoArgs),
+    /// Regenerate the papers' tables from `paper/specs/`: ours beside the paper's numbers,
+    /// a verdict per table, the report in OUT/report.md (and with --publish in paper/).
+    Reproduce(reproduce::ReproduceArgs),
 }
 
 fn main() {
@@ -74,5 +78,6 @@ fn real_main() -> anyhow::Result<()> {
         Command::Export(a) => export::main(&a),
         Command::Plan(a) => plan::main(&a),
         Command::Demo(a) => demo::main(&a),
+        Command::Reproduce(a) => reproduce::main(&a),
     }
 }

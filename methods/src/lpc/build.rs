@@ -52,8 +52,9 @@
 //! clouds are read back in repository order in batches, encoded ([`cloud::encode`]) and
 //! LZO-compressed in parallel, then appended in order.
 //!
-//! **Input spacing** `r` (when not given): `2 ×` the [`SPACING_QUANTILE`] of the distance to
-//! the [`crate::leaf::LEAF_K`]-th nearest neighbour over a seeded probe (each sample with
+//! **Input spacing** `r` (when not given): from the distance to the
+//! [`crate::leaf::LEAF_K`]-th nearest neighbour by the `spacing_rule` ([`spacing_estimates`]:
+//! the paper's average spacing by default) over a seeded probe (each sample with
 //! probability `min(1, 16 384 / N)`), each probe measured against the full-density samples of
 //! the in-core subtree that contains it when that subtree is loaded ([`probe_knn`]). Probes
 //! that end up in the cloud of an out-of-core node are not measured.
@@ -72,7 +73,7 @@ use scenes::{Aabb, PointCloud, Progress};
 
 use super::cloud::{self, Sample};
 use super::index::{self, NONE, Node};
-use super::{INDEX_FILE, INFO_FILE, Info, LpcParams, REPO_FILE};
+use super::{INDEX_FILE, INFO_FILE, Info, LpcParams, REPO_FILE, SpacingRule};
 use crate::leaf::LEAF_K;
 use crate::store::{self, RepoWriter};
 use crate::{BuildStats, MethodError};
@@ -164,7 +165,7 @@ pub fn build_with_budget(
     let n = cloud.len() as u64;
     let bounds = cloud.bounds();
     let probe_count = probes.len() as u64;
-    let (r_est, nn_est) = spacing_estimates(&mut probes);
+    let (r_est, nn_est) = spacing_estimates(&mut probes, params.spacing_rule);
     let r = match params.spacing {
         Some(r) => r,
         None => {
@@ -311,6 +312,10 @@ pub fn build_with_budget(
     };
     put("m", params.m.into());
     put("k", (params.k as f64).into());
+    put(
+        "spacing_rule",
+        serde_json::to_value(params.spacing_rule).unwrap_or_default(),
+    );
     put("input_spacing", (r as f64).into());
     put("nn_spacing", (nn as f64).into());
     put("input_spacing_probes", probe_count.into());
@@ -1292,21 +1297,36 @@ pub fn probe_knn(s: &[Sample], bbox: Aabb, k: usize) -> Vec<[f32; 2]> {
     out
 }
 
-/// Quantile of the `LEAF_K`-th-neighbour distance that sets the splat spacing.
+/// Quantile of the `LEAF_K`-th-neighbour distance that sets the splat spacing of
+/// [`SpacingRule::Cover90`].
 pub const SPACING_QUANTILE: f64 = 0.9;
 
-/// `(r, r_nn)` from the probes' `[nearest, LEAF_K-th]` distances: `r = 2 ×` the
-/// [`SPACING_QUANTILE`] of the `LEAF_K`-th-neighbour distance (the splat diameter that covers
-/// 90 % of the samples' own reference disks), `r_nn` = the mean nearest-neighbour distance.
-/// NaN when there are no probes.
-pub fn spacing_estimates(probes: &mut [[f32; 2]]) -> (f32, f32) {
+/// `c_k = √π · Γ(k) / Γ(k + ½)` for `k = LEAF_K` (= 6): for samples placed uniformly at
+/// random on a surface with `λ` samples per unit area, the `k`-th-neighbour distance has
+/// mean `Γ(k + ½) / (Γ(k) √(πλ))`, so `c_k · mean d_k = 1/√λ = √(A/N)` exactly.
+/// `Γ(6) = 120`, `Γ(6.5) = 10395 √π / 64`, so `c_6 = 120 · 64 / 10395 = 0.73882`.
+pub const MEAN_SPACING_FACTOR: f64 = 120.0 * 64.0 / 10395.0;
+
+/// `(r, r_nn)` from the probes' `[nearest, LEAF_K-th]` distances. `r` by `rule`:
+/// [`SpacingRule::Mean`] `= MEAN_SPACING_FACTOR × mean d_k` (the paper's average spacing
+/// `√(A/N)`), [`SpacingRule::Cover90`] `= 2 ×` the [`SPACING_QUANTILE`] of `d_k` (the splat
+/// diameter that covers 90 % of the samples' own reference discs). `r_nn` = the mean
+/// nearest-neighbour distance (quantisation). NaN when there are no probes.
+pub fn spacing_estimates(probes: &mut [[f32; 2]], rule: SpacingRule) -> (f32, f32) {
     if probes.is_empty() {
         return (f32::NAN, f32::NAN);
     }
-    let nn = probes.iter().map(|p| p[0] as f64).sum::<f64>() / probes.len() as f64;
-    probes.sort_unstable_by(|a, b| a[1].total_cmp(&b[1]));
-    let at = ((probes.len() - 1) as f64 * SPACING_QUANTILE).round() as usize;
-    (2.0 * probes[at][1], nn as f32)
+    let mean = |i: usize| probes.iter().map(|p| p[i] as f64).sum::<f64>() / probes.len() as f64;
+    let nn = mean(0);
+    let r = match rule {
+        SpacingRule::Mean => (MEAN_SPACING_FACTOR * mean(1)) as f32,
+        SpacingRule::Cover90 => {
+            probes.sort_unstable_by(|a, b| a[1].total_cmp(&b[1]));
+            let at = ((probes.len() - 1) as f64 * SPACING_QUANTILE).round() as usize;
+            2.0 * probes[at][1]
+        }
+    };
+    (r, nn as f32)
 }
 
 #[cfg(test)]

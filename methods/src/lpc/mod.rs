@@ -65,6 +65,20 @@ pub const RUNTIME_PARAMS: &[&str] = &[
     "occlusion_threshold",
 ];
 
+/// How the input spacing `r` of eqs. (1)–(2) is estimated from the samples (README,
+/// "Spacings").
+#[derive(Debug, Clone, Copy, PartialEq, Eq, serde::Deserialize, serde::Serialize)]
+#[serde(rename_all = "lowercase")]
+pub enum SpacingRule {
+    /// The paper's "average spacing between samples": `r = √(A/N)`, the side of the square
+    /// each sample owns on the surface, estimated from the mean `LEAF_K`-th-neighbour
+    /// distance (`r = c_k · mean d_k`, unbiased for uniformly random samples).
+    Mean,
+    /// `2 ×` the 90th percentile of the `LEAF_K`-th-neighbour distance: the diameter that
+    /// covers 90 % of the reference renderer's per-sample discs.
+    Cover90,
+}
+
 /// Parameters of `lpc` (`--param key=value`).
 #[derive(Debug, Clone, serde::Deserialize)]
 #[serde(deny_unknown_fields, default)]
@@ -79,9 +93,13 @@ pub struct LpcParams {
     /// Working memory of the build, MiB: subtrees larger than this are partitioned through
     /// temporary files, smaller ones in memory.
     pub mem_mb: u64,
-    /// Splat spacing `r` of eqs. (1)–(2) (object units): the diameter that covers the
-    /// surface at full density; estimated from the samples when absent.
+    /// Input spacing `r` of eqs. (1)–(2) (object units); estimated from the samples by
+    /// `spacing_rule` when absent.
     pub spacing: Option<f32>,
+    /// How `r` is estimated when `spacing` is not given: `mean` (default, the paper's
+    /// "average spacing between samples") or `cover90` (the departure: the splat diameter
+    /// that covers 90 % of the reference's per-sample discs; fewer holes, more points).
+    pub spacing_rule: SpacingRule,
     /// Average sample spacing (mean nearest-neighbour distance) that bounds the position
     /// quantisation error (< half of it); estimated when absent.
     pub nn_spacing: Option<f32>,
@@ -106,6 +124,7 @@ impl Default for LpcParams {
             seed: 1,
             mem_mb: 256,
             spacing: None,
+            spacing_rule: SpacingRule::Mean,
             nn_spacing: None,
             fetch_per_frame: 32,
             core_mb: 64,

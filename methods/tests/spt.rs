@@ -528,9 +528,12 @@ fn measure_1m() {
     }
 }
 
-/// The registry contract (`tests/contract.rs`) applied to `spt` before it is registered:
-/// tolerance 0 sends every visible sample, monotone in tolerance and budget, budgets
-/// respected, bad targets rejected, chunks decode with the scene's attributes.
+/// The registry contract (`tests/contract.rs` runs it on `spt` with the default parameters)
+/// here also with split mode and normal clusters: tolerance 0 draws every visible sample, the
+/// splats drawn (`drawn_points`: those passing the interval test) and the prefixes sent are
+/// monotone in the tolerance, budgets are respected and monotone, bad targets rejected, chunks
+/// decode with the scene's attributes. `drawn_points` (SPT's CPU mirror) equals the generic
+/// count through the chunks (`methods::method::count_drawn`).
 #[test]
 fn obeys_the_registry_contract() {
     for (cloud, params) in [
@@ -569,10 +572,16 @@ fn obeys_the_registry_contract() {
             let all = m
                 .frame(view, Target::Tolerance(0.0), &Feedback::default())
                 .unwrap();
+            let drawn = |m: &Spt, l: &methods::DrawList| {
+                let d = m.drawn_points(view, l).unwrap();
+                assert_eq!(d, methods::method::count_drawn(m, view, l).unwrap());
+                assert!(d <= l.points());
+                d
+            };
             assert!(
-                all.points() >= visible,
+                drawn(&m, &all) >= visible,
                 "{params:?}: {} < {visible}",
-                all.points()
+                drawn(&m, &all)
             );
             for item in &all.items {
                 let DrawItem::Sequential { id, prefix, .. } = item else {
@@ -585,13 +594,17 @@ fn obeys_the_registry_contract() {
                 assert_eq!(c.attributes().colors, cloud.attributes().colors);
                 assert!(c.radii.is_some() && c.lod.is_some());
             }
-            let mut last = 0;
+            let (mut last, mut last_drawn) = (0, 0);
             for eps in [32.0, 16.0, 8.0, 4.0, 2.0, 1.0, 0.5, 0.0] {
                 let l = m
                     .frame(view, Target::Tolerance(eps), &Feedback::default())
                     .unwrap();
-                assert!(l.points() >= last);
-                last = l.points();
+                let d = drawn(&m, &l);
+                assert!(
+                    l.points() >= last && d >= last_drawn,
+                    "{params:?} eps {eps}"
+                );
+                (last, last_drawn) = (l.points(), d);
             }
             let mut last = 0;
             for b in [1u64, 100, 1_000, 5_000, 15_000, 50_000] {

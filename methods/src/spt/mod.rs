@@ -844,6 +844,11 @@ impl LodMethod for Spt {
     fn interval_tested(&self) -> bool {
         true
     }
+    /// The splats passing the interval test ([`Spt::cpu_passed_in`]; equals
+    /// [`crate::method::count_drawn`], without copying chunks).
+    fn drawn_points(&self, view: &View, list: &DrawList) -> Result<u64, MethodError> {
+        Ok(self.cpu_passed_in(view, list).len() as u64)
+    }
     fn gpu_resident_bytes(&self) -> Option<u64> {
         Some(self.index.nodes * gpu_bytes_per_node(self.attrs))
     }

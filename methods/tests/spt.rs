@@ -173,6 +173,72 @@ fn list_is_sorted_and_prefix_holds_every_passing_node() {
     }
 }
 
+/// `bound=box` (a departure, see the README): `r_lo` also from the box of each cluster's node
+/// centres. It must stay conservative (every passing node inside the prefix), never send more
+/// than the default sphere bound (it takes the larger of the two bounds), draw the same
+/// splats, and keep budgets.
+#[test]
+fn box_bound_is_conservative_and_never_longer_than_the_sphere() {
+    let cloud = statue(50_000);
+    let tmp = tempfile::tempdir().unwrap();
+    for (k, extra) in [&[][..], &["normal_clusters=true"][..], &["mode=split"][..]]
+        .into_iter()
+        .enumerate()
+    {
+        let with = |b: &str| {
+            let mut p: Vec<&str> = extra.to_vec();
+            p.push(b);
+            build_open(&cloud, &p, &tmp.path().join(format!("{k}-{b}"))).unwrap()
+        };
+        let (mut sphere, mut boxed) = (with("bound=sphere"), with("bound=box"));
+        let (mut sent_s, mut sent_b) = (0u64, 0u64);
+        for view in views(&cloud) {
+            for eps in [0.5f32, 1.0, 4.0] {
+                let t = Target::Tolerance(eps);
+                let ls = sphere.frame(&view, t, &Feedback::default()).unwrap();
+                let lb = boxed.frame(&view, t, &Feedback::default()).unwrap();
+                let sel = boxed.select(&view, t).unwrap();
+                // Every passing node lies in its cluster's prefix (skipped clusters aside).
+                for i in boxed.cpu_select(&view, eps) {
+                    let i = i as u64;
+                    let ci = boxed
+                        .index()
+                        .clusters
+                        .iter()
+                        .position(|c| i >= c.start && i < c.start + c.count)
+                        .unwrap();
+                    let c = &boxed.index().clusters[ci];
+                    assert!(
+                        i < c.start + sel.prefixes[ci]
+                            || (sel.prefixes[ci] == 0 && sel.clusters_skipped > 0),
+                        "{extra:?} eps {eps}: node {i} passes beyond the box prefix"
+                    );
+                }
+                assert!(lb.points() <= ls.points(), "{extra:?} eps {eps}");
+                assert_eq!(
+                    boxed.drawn_points(&view, &lb).unwrap(),
+                    sphere.drawn_points(&view, &ls).unwrap(),
+                    "{extra:?} eps {eps}: both bounds must draw the same splats"
+                );
+                sent_s += ls.points();
+                sent_b += lb.points();
+                let lb = boxed
+                    .frame(&view, Target::Budget(5_000), &Feedback::default())
+                    .unwrap();
+                assert!(lb.points() <= 5_000);
+            }
+        }
+        println!(
+            "{extra:?}: box sends {:.1} % fewer splats than the sphere over 7 views × 3 tolerances",
+            100.0 * (1.0 - sent_b as f64 / sent_s as f64)
+        );
+        assert!(
+            sent_b < sent_s,
+            "{extra:?}: the box bound should cut something"
+        );
+    }
+}
+
 /// Per leaf: how many nodes of its ancestor chain pass (`same_r`: every node evaluated at
 /// the leaf's position and normal, i.e. the ideal recursive test with one view per chain).
 fn chain_counts(

@@ -278,6 +278,23 @@ fn chain_counts(
         .collect()
 }
 
+/// Along every leaf's ancestor chain: the ideal test (one distance per chain) draws exactly
+/// one node; the real test (each node at its own distance) with overlap 1 leaves no hole.
+///
+/// Overdraw (chains with ≥ 2 nodes drawn): the paper (§3.6) accepts that with the overlap
+/// "for some nodes both, the node and some of its children are selected", at the cost of
+/// "slightly reduced performance". The band is `o·δ` wide in view distance, so its share of
+/// the chains grows with `s = ε/k`; the bounds are per tolerance, the maximum over these 7
+/// views that this test prints plus 25 % (statue 50 k, 640×480; deterministic):
+///
+/// | | ε = 1 px: measured max → bound | ε = 4 px |
+/// |-|------:|------:|
+/// | unified, overlap 1 | 0.51 % → 0.64 % | 1.44 % → 1.80 % |
+/// | split, overlap 1 (angular slack) | 11.06 % → 13.8 % | 16.34 % → 20.4 % |
+///
+/// The margin is below what doubling the band adds, and the test checks it: with `o = 2` the
+/// largest shares are 0.83 % / 2.96 % (unified) and 17.61 % / 23.99 % (split), all over the
+/// bounds.
 #[test]
 fn chains_have_no_holes_and_little_overlap() {
     let cloud = statue(50_000);
@@ -285,6 +302,9 @@ fn chains_have_no_holes_and_little_overlap() {
     let tree = spt::build::build_tree(&cloud, &radii, 40.0);
     let lod = spt::lod_entries(&tree.nodes);
     let n = cloud.len() as f64;
+    // Largest share of chains with ≥ 2 nodes drawn (unified, split), at ε = 1 and 4 px.
+    const BOUNDS: [(f64, f64); 2] = [(0.0064, 0.138), (0.0180, 0.204)];
+    let mut doubled = [(0f64, 0f64); 2];
     for (vi, view) in views(&cloud).iter().enumerate() {
         for eps in [1.0f32, 4.0] {
             let s = eps / view.proj_scale();
@@ -325,8 +345,31 @@ fn chains_have_no_holes_and_little_overlap() {
                 "view {vi} eps {eps}: split-mode holes with overlap 1"
             );
             assert!(dbl0 <= dbl1, "overlap 0 must not add double draws");
-            assert!((dbl1 as f64) < 0.5 * n, "overlap band too wide: {dbl1}");
+            let e = (eps == 4.0) as usize;
+            let (max_unified, max_split) = BOUNDS[e];
+            // The same with the band doubled, to check below that the bounds would notice.
+            let share2 = |mode| {
+                let c = chain_counts(&tree, &lod, view, &t(mode, 2.0), false);
+                c.iter().filter(|&&c| c >= 2).count() as f64 / n
+            };
+            doubled[e].0 = doubled[e].0.max(share2(select::MODE_UNIFIED));
+            doubled[e].1 = doubled[e].1.max(share2(select::MODE_SPLIT));
+            assert!(
+                dbl1 as f64 <= max_unified * n,
+                "view {vi} eps {eps}: {dbl1} chains draw ≥ 2 nodes (unified, overlap 1)"
+            );
+            assert!(
+                dbl_s as f64 <= max_split * n,
+                "view {vi} eps {eps}: {dbl_s} chains draw ≥ 2 nodes (split, overlap 1)"
+            );
         }
+    }
+    println!("overlap 2, largest shares with ≥ 2 drawn (unified, split) at eps 1, 4: {doubled:?}");
+    for (d, b) in doubled.iter().zip(BOUNDS) {
+        assert!(
+            d.0 > b.0 && d.1 > b.1,
+            "a doubled band ({d:?}) must exceed the bounds ({b:?})"
+        );
     }
 }
 
@@ -471,6 +514,21 @@ fn scenes_without_normals_use_the_unified_fallback() {
     assert_eq!(m.cpu_select(&view, 0.0).len(), cloud.len());
 }
 
+/// Normal clusters on a closed object (statue 50 k, the four orbit views at 640×480). The
+/// paper (§3.7): skipping the lists whose normals face away leaves "about 50 %" of the points.
+/// Bounds, each from the values this test prints (measured once, then a stated margin):
+///
+/// - ε = 0 (the whole list is the prefix): the share of the nodes skipped is at most the
+///   share facing away, exactly (the skip is conservative: every front-facing node is sent,
+///   checked node by node). That share is 54.3–56.1 % here, a little over half: a closed
+///   surface seen from 2.5 R shows less than half of itself. Skipped: 37.8, 41.1, 33.3,
+///   39.8 %, below the paper's ≈ 50 % because clusters straddling the silhouette are kept (a
+///   cone covers every node normal of its cluster). Lower bound 30 %: the measured minimum
+///   33.3 % less 10 % of itself.
+/// - ε = 1 px, the paper's measure (points sent with clusters against the same build
+///   without): 41.4, 44.9, 38.2, 43.6 % fewer (44–47 % at 1 M, 1024², issue-4 measurements),
+///   again below the paper's ≈ 50 % for the reason above. Lower bound 34 %: the measured
+///   minimum 38.2 % less 10 % of itself.
 #[test]
 fn normal_clusters_skip_about_half_of_a_closed_statue() {
     let cloud = statue(50_000);
@@ -478,9 +536,10 @@ fn normal_clusters_skip_about_half_of_a_closed_statue() {
     let mut m = build_open(
         &cloud,
         &["normal_clusters=true", "cpu_mirror=true"],
-        tmp.path(),
+        &tmp.path().join("c"),
     )
     .unwrap();
+    let mut plain = build_open(&cloud, &[], &tmp.path().join("p")).unwrap();
     assert_eq!(m.index().clusters.len(), select::CLUSTERS);
     let total = m.lod().len() as f64;
     for (vi, view) in views(&cloud).iter().enumerate().take(4) {
@@ -488,17 +547,32 @@ fn normal_clusters_skip_about_half_of_a_closed_statue() {
             .frame(view, Target::Tolerance(0.0), &Feedback::default())
             .unwrap();
         let skipped_frac = 1.0 - l.points() as f64 / total;
+        let eye = view.camera.position;
+        let sent_at = |m: &mut Spt, eps| {
+            m.frame(view, Target::Tolerance(eps), &Feedback::default())
+                .unwrap()
+                .points() as f64
+        };
+        let fewer = 1.0 - sent_at(&mut m, 1.0) / sent_at(&mut plain, 1.0);
+        let facing = |i: usize| m.gpu_normal(i).dot(eye - Vec3::from(m.positions()[i])) > 1e-3;
+        let back = (0..m.lod().len()).filter(|&i| !facing(i)).count() as f64 / total;
         println!(
-            "view {vi}: clusters skipped {}, {:.1} % of the nodes skipped",
+            "view {vi}: clusters skipped {}, {:.1} % of the nodes skipped at eps 0, {:.1} % \
+             back-facing; {:.1} % fewer splats sent at eps 1",
             l.counters[2],
-            100.0 * skipped_frac
+            100.0 * skipped_frac,
+            100.0 * back,
+            100.0 * fewer
         );
         assert!(
-            (0.2..0.8).contains(&skipped_frac),
-            "view {vi}: {skipped_frac}"
+            skipped_frac >= 0.30 && skipped_frac <= back,
+            "view {vi}: {skipped_frac} of the nodes skipped ({back} face away)"
+        );
+        assert!(
+            fewer >= 0.34,
+            "view {vi}: clusters send only {fewer} fewer at eps 1"
         );
         // Conservative: every node facing the eye is sent.
-        let eye = view.camera.position;
         let sent: std::collections::HashSet<u32> = l
             .items
             .iter()
@@ -510,9 +584,8 @@ fn normal_clusters_skip_about_half_of_a_closed_statue() {
                 _ => 0..0,
             })
             .collect();
-        for (i, p) in m.positions().iter().enumerate() {
-            let n = m.gpu_normal(i);
-            if n.dot(eye - Vec3::from(*p)) > 1e-3 {
+        for i in 0..m.positions().len() {
+            if facing(i) {
                 assert!(sent.contains(&(i as u32)), "front-facing node {i} skipped");
             }
         }

@@ -38,6 +38,15 @@ pub trait LodMethod: Send {
     fn interval_tested(&self) -> bool {
         false
     }
+    /// Splats of `list` that are drawn for `view`: what `frames.csv` calls `points_drawn`.
+    /// Without a vertex-stage test that is [`DrawList::points`]; for
+    /// [`crate::DrawItem::Sequential`] items it is the splats of the prefix that pass the
+    /// interval test, counted by its CPU mirror ([`crate::IntervalTest::passes`], the function
+    /// the renderer's tests compare with the GPU counter). The default counts through
+    /// [`LodMethod::chunk`] ([`count_drawn`]); a method may answer faster from its own data.
+    fn drawn_points(&self, view: &View, list: &DrawList) -> Result<u64, MethodError> {
+        count_drawn(self, view, list)
+    }
     /// True if the method's draw lists may carry an [`crate::OcclusionPass`]: the runner then
     /// appends `clouds_queried,clouds_occluded` (counted by the renderer's queries).
     fn occlusion_culled(&self) -> bool {
@@ -49,6 +58,41 @@ pub trait LodMethod: Send {
     fn gpu_resident_bytes(&self) -> Option<u64> {
         None
     }
+}
+
+/// [`LodMethod::drawn_points`] computed from the chunks: every item's
+/// [`crate::DrawItem::points`], except that of a `Sequential` item's prefix only the splats
+/// passing its interval test count (normals decoded as the GPU sees them; `Vec3::Z` without
+/// normals, as the renderer's CPU mirror). Decodes only the chunks of `Sequential` items.
+pub fn count_drawn<M: LodMethod + ?Sized>(
+    method: &M,
+    view: &View,
+    list: &DrawList,
+) -> Result<u64, MethodError> {
+    let eye = view.camera.position;
+    let mut drawn = 0;
+    for item in &list.items {
+        drawn += match item {
+            crate::DrawItem::Sequential {
+                id, prefix, test, ..
+            } => {
+                let c = method.chunk(*id)?;
+                let lod = c.lod.as_deref().unwrap_or(&[]);
+                (0..(*prefix as usize).min(c.len()))
+                    .filter(|&i| {
+                        let n = c
+                            .normals
+                            .as_ref()
+                            .map_or(glam::Vec3::Z, |n| crate::octnormal::decode(n[i]));
+                        let l = lod.get(i).copied().unwrap_or([0.0; 4]);
+                        test.passes(glam::Vec3::from(c.positions[i]), n, l, eye)
+                    })
+                    .count() as u64
+            }
+            other => other.points(),
+        };
+    }
+    Ok(drawn)
 }
 
 /// What `build` reports (written as `build.json`).

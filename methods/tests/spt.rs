@@ -173,6 +173,72 @@ fn list_is_sorted_and_prefix_holds_every_passing_node() {
     }
 }
 
+/// `bound=box` (a departure, see the README): `r_lo` also from the box of each cluster's node
+/// centres. It must stay conservative (every passing node inside the prefix), never send more
+/// than the default sphere bound (it takes the larger of the two bounds), draw the same
+/// splats, and keep budgets.
+#[test]
+fn box_bound_is_conservative_and_never_longer_than_the_sphere() {
+    let cloud = statue(50_000);
+    let tmp = tempfile::tempdir().unwrap();
+    for (k, extra) in [&[][..], &["normal_clusters=true"][..], &["mode=split"][..]]
+        .into_iter()
+        .enumerate()
+    {
+        let with = |b: &str| {
+            let mut p: Vec<&str> = extra.to_vec();
+            p.push(b);
+            build_open(&cloud, &p, &tmp.path().join(format!("{k}-{b}"))).unwrap()
+        };
+        let (mut sphere, mut boxed) = (with("bound=sphere"), with("bound=box"));
+        let (mut sent_s, mut sent_b) = (0u64, 0u64);
+        for view in views(&cloud) {
+            for eps in [0.5f32, 1.0, 4.0] {
+                let t = Target::Tolerance(eps);
+                let ls = sphere.frame(&view, t, &Feedback::default()).unwrap();
+                let lb = boxed.frame(&view, t, &Feedback::default()).unwrap();
+                let sel = boxed.select(&view, t).unwrap();
+                // Every passing node lies in its cluster's prefix (skipped clusters aside).
+                for i in boxed.cpu_select(&view, eps) {
+                    let i = i as u64;
+                    let ci = boxed
+                        .index()
+                        .clusters
+                        .iter()
+                        .position(|c| i >= c.start && i < c.start + c.count)
+                        .unwrap();
+                    let c = &boxed.index().clusters[ci];
+                    assert!(
+                        i < c.start + sel.prefixes[ci]
+                            || (sel.prefixes[ci] == 0 && sel.clusters_skipped > 0),
+                        "{extra:?} eps {eps}: node {i} passes beyond the box prefix"
+                    );
+                }
+                assert!(lb.points() <= ls.points(), "{extra:?} eps {eps}");
+                assert_eq!(
+                    boxed.drawn_points(&view, &lb).unwrap(),
+                    sphere.drawn_points(&view, &ls).unwrap(),
+                    "{extra:?} eps {eps}: both bounds must draw the same splats"
+                );
+                sent_s += ls.points();
+                sent_b += lb.points();
+                let lb = boxed
+                    .frame(&view, Target::Budget(5_000), &Feedback::default())
+                    .unwrap();
+                assert!(lb.points() <= 5_000);
+            }
+        }
+        println!(
+            "{extra:?}: box sends {:.1} % fewer splats than the sphere over 7 views × 3 tolerances",
+            100.0 * (1.0 - sent_b as f64 / sent_s as f64)
+        );
+        assert!(
+            sent_b < sent_s,
+            "{extra:?}: the box bound should cut something"
+        );
+    }
+}
+
 /// Per leaf: how many nodes of its ancestor chain pass (`same_r`: every node evaluated at
 /// the leaf's position and normal, i.e. the ideal recursive test with one view per chain).
 fn chain_counts(
@@ -212,6 +278,23 @@ fn chain_counts(
         .collect()
 }
 
+/// Along every leaf's ancestor chain: the ideal test (one distance per chain) draws exactly
+/// one node; the real test (each node at its own distance) with overlap 1 leaves no hole.
+///
+/// Overdraw (chains with ≥ 2 nodes drawn): the paper (§3.6) accepts that with the overlap
+/// "for some nodes both, the node and some of its children are selected", at the cost of
+/// "slightly reduced performance". The band is `o·δ` wide in view distance, so its share of
+/// the chains grows with `s = ε/k`; the bounds are per tolerance, the maximum over these 7
+/// views that this test prints plus 25 % (statue 50 k, 640×480; deterministic):
+///
+/// | | ε = 1 px: measured max → bound | ε = 4 px |
+/// |-|------:|------:|
+/// | unified, overlap 1 | 0.51 % → 0.64 % | 1.44 % → 1.80 % |
+/// | split, overlap 1 (angular slack) | 11.06 % → 13.8 % | 16.34 % → 20.4 % |
+///
+/// The margin is below what doubling the band adds, and the test checks it: with `o = 2` the
+/// largest shares are 0.83 % / 2.96 % (unified) and 17.61 % / 23.99 % (split), all over the
+/// bounds.
 #[test]
 fn chains_have_no_holes_and_little_overlap() {
     let cloud = statue(50_000);
@@ -219,6 +302,9 @@ fn chains_have_no_holes_and_little_overlap() {
     let tree = spt::build::build_tree(&cloud, &radii, 40.0);
     let lod = spt::lod_entries(&tree.nodes);
     let n = cloud.len() as f64;
+    // Largest share of chains with ≥ 2 nodes drawn (unified, split), at ε = 1 and 4 px.
+    const BOUNDS: [(f64, f64); 2] = [(0.0064, 0.138), (0.0180, 0.204)];
+    let mut doubled = [(0f64, 0f64); 2];
     for (vi, view) in views(&cloud).iter().enumerate() {
         for eps in [1.0f32, 4.0] {
             let s = eps / view.proj_scale();
@@ -259,8 +345,31 @@ fn chains_have_no_holes_and_little_overlap() {
                 "view {vi} eps {eps}: split-mode holes with overlap 1"
             );
             assert!(dbl0 <= dbl1, "overlap 0 must not add double draws");
-            assert!((dbl1 as f64) < 0.5 * n, "overlap band too wide: {dbl1}");
+            let e = (eps == 4.0) as usize;
+            let (max_unified, max_split) = BOUNDS[e];
+            // The same with the band doubled, to check below that the bounds would notice.
+            let share2 = |mode| {
+                let c = chain_counts(&tree, &lod, view, &t(mode, 2.0), false);
+                c.iter().filter(|&&c| c >= 2).count() as f64 / n
+            };
+            doubled[e].0 = doubled[e].0.max(share2(select::MODE_UNIFIED));
+            doubled[e].1 = doubled[e].1.max(share2(select::MODE_SPLIT));
+            assert!(
+                dbl1 as f64 <= max_unified * n,
+                "view {vi} eps {eps}: {dbl1} chains draw ≥ 2 nodes (unified, overlap 1)"
+            );
+            assert!(
+                dbl_s as f64 <= max_split * n,
+                "view {vi} eps {eps}: {dbl_s} chains draw ≥ 2 nodes (split, overlap 1)"
+            );
         }
+    }
+    println!("overlap 2, largest shares with ≥ 2 drawn (unified, split) at eps 1, 4: {doubled:?}");
+    for (d, b) in doubled.iter().zip(BOUNDS) {
+        assert!(
+            d.0 > b.0 && d.1 > b.1,
+            "a doubled band ({d:?}) must exceed the bounds ({b:?})"
+        );
     }
 }
 
@@ -405,6 +514,21 @@ fn scenes_without_normals_use_the_unified_fallback() {
     assert_eq!(m.cpu_select(&view, 0.0).len(), cloud.len());
 }
 
+/// Normal clusters on a closed object (statue 50 k, the four orbit views at 640×480). The
+/// paper (§3.7): skipping the lists whose normals face away leaves "about 50 %" of the points.
+/// Bounds, each from the values this test prints (measured once, then a stated margin):
+///
+/// - ε = 0 (the whole list is the prefix): the share of the nodes skipped is at most the
+///   share facing away, exactly (the skip is conservative: every front-facing node is sent,
+///   checked node by node). That share is 54.3–56.1 % here, a little over half: a closed
+///   surface seen from 2.5 R shows less than half of itself. Skipped: 37.8, 41.1, 33.3,
+///   39.8 %, below the paper's ≈ 50 % because clusters straddling the silhouette are kept (a
+///   cone covers every node normal of its cluster). Lower bound 30 %: the measured minimum
+///   33.3 % less 10 % of itself.
+/// - ε = 1 px, the paper's measure (points sent with clusters against the same build
+///   without): 41.4, 44.9, 38.2, 43.6 % fewer (44–47 % at 1 M, 1024², issue-4 measurements),
+///   again below the paper's ≈ 50 % for the reason above. Lower bound 34 %: the measured
+///   minimum 38.2 % less 10 % of itself.
 #[test]
 fn normal_clusters_skip_about_half_of_a_closed_statue() {
     let cloud = statue(50_000);
@@ -412,9 +536,10 @@ fn normal_clusters_skip_about_half_of_a_closed_statue() {
     let mut m = build_open(
         &cloud,
         &["normal_clusters=true", "cpu_mirror=true"],
-        tmp.path(),
+        &tmp.path().join("c"),
     )
     .unwrap();
+    let mut plain = build_open(&cloud, &[], &tmp.path().join("p")).unwrap();
     assert_eq!(m.index().clusters.len(), select::CLUSTERS);
     let total = m.lod().len() as f64;
     for (vi, view) in views(&cloud).iter().enumerate().take(4) {
@@ -422,17 +547,32 @@ fn normal_clusters_skip_about_half_of_a_closed_statue() {
             .frame(view, Target::Tolerance(0.0), &Feedback::default())
             .unwrap();
         let skipped_frac = 1.0 - l.points() as f64 / total;
+        let eye = view.camera.position;
+        let sent_at = |m: &mut Spt, eps| {
+            m.frame(view, Target::Tolerance(eps), &Feedback::default())
+                .unwrap()
+                .points() as f64
+        };
+        let fewer = 1.0 - sent_at(&mut m, 1.0) / sent_at(&mut plain, 1.0);
+        let facing = |i: usize| m.gpu_normal(i).dot(eye - Vec3::from(m.positions()[i])) > 1e-3;
+        let back = (0..m.lod().len()).filter(|&i| !facing(i)).count() as f64 / total;
         println!(
-            "view {vi}: clusters skipped {}, {:.1} % of the nodes skipped",
+            "view {vi}: clusters skipped {}, {:.1} % of the nodes skipped at eps 0, {:.1} % \
+             back-facing; {:.1} % fewer splats sent at eps 1",
             l.counters[2],
-            100.0 * skipped_frac
+            100.0 * skipped_frac,
+            100.0 * back,
+            100.0 * fewer
         );
         assert!(
-            (0.2..0.8).contains(&skipped_frac),
-            "view {vi}: {skipped_frac}"
+            skipped_frac >= 0.30 && skipped_frac <= back,
+            "view {vi}: {skipped_frac} of the nodes skipped ({back} face away)"
+        );
+        assert!(
+            fewer >= 0.34,
+            "view {vi}: clusters send only {fewer} fewer at eps 1"
         );
         // Conservative: every node facing the eye is sent.
-        let eye = view.camera.position;
         let sent: std::collections::HashSet<u32> = l
             .items
             .iter()
@@ -444,9 +584,8 @@ fn normal_clusters_skip_about_half_of_a_closed_statue() {
                 _ => 0..0,
             })
             .collect();
-        for (i, p) in m.positions().iter().enumerate() {
-            let n = m.gpu_normal(i);
-            if n.dot(eye - Vec3::from(*p)) > 1e-3 {
+        for i in 0..m.positions().len() {
+            if facing(i) {
                 assert!(sent.contains(&(i as u32)), "front-facing node {i} skipped");
             }
         }
@@ -528,9 +667,12 @@ fn measure_1m() {
     }
 }
 
-/// The registry contract (`tests/contract.rs`) applied to `spt` before it is registered:
-/// tolerance 0 sends every visible sample, monotone in tolerance and budget, budgets
-/// respected, bad targets rejected, chunks decode with the scene's attributes.
+/// The registry contract (`tests/contract.rs` runs it on `spt` with the default parameters)
+/// here also with split mode and normal clusters: tolerance 0 draws every visible sample, the
+/// splats drawn (`drawn_points`: those passing the interval test) and the prefixes sent are
+/// monotone in the tolerance, budgets are respected and monotone, bad targets rejected, chunks
+/// decode with the scene's attributes. `drawn_points` (SPT's CPU mirror) equals the generic
+/// count through the chunks (`methods::method::count_drawn`).
 #[test]
 fn obeys_the_registry_contract() {
     for (cloud, params) in [
@@ -569,10 +711,16 @@ fn obeys_the_registry_contract() {
             let all = m
                 .frame(view, Target::Tolerance(0.0), &Feedback::default())
                 .unwrap();
+            let drawn = |m: &Spt, l: &methods::DrawList| {
+                let d = m.drawn_points(view, l).unwrap();
+                assert_eq!(d, methods::method::count_drawn(m, view, l).unwrap());
+                assert!(d <= l.points());
+                d
+            };
             assert!(
-                all.points() >= visible,
+                drawn(&m, &all) >= visible,
                 "{params:?}: {} < {visible}",
-                all.points()
+                drawn(&m, &all)
             );
             for item in &all.items {
                 let DrawItem::Sequential { id, prefix, .. } = item else {
@@ -585,13 +733,17 @@ fn obeys_the_registry_contract() {
                 assert_eq!(c.attributes().colors, cloud.attributes().colors);
                 assert!(c.radii.is_some() && c.lod.is_some());
             }
-            let mut last = 0;
+            let (mut last, mut last_drawn) = (0, 0);
             for eps in [32.0, 16.0, 8.0, 4.0, 2.0, 1.0, 0.5, 0.0] {
                 let l = m
                     .frame(view, Target::Tolerance(eps), &Feedback::default())
                     .unwrap();
-                assert!(l.points() >= last);
-                last = l.points();
+                let d = drawn(&m, &l);
+                assert!(
+                    l.points() >= last && d >= last_drawn,
+                    "{params:?} eps {eps}"
+                );
+                (last, last_drawn) = (l.points(), d);
             }
             let mut last = 0;
             for b in [1u64, 100, 1_000, 5_000, 15_000, 50_000] {

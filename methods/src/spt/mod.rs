@@ -11,7 +11,7 @@
 //!   [`CHUNK_NODES`] consecutive nodes of one cluster, with max `e_par` and a bounding sphere).
 //!
 //! Frame ([`Spt`]): per cluster, `r_lo` = lower bound of the eye distance over its bounding
-//! sphere; binary search of the prefix that can pass ([`select::prefix_len`]); one
+//! sphere (with `bound=box`, also its box of node centres: [`Spt::r_lo`]); binary search of the prefix that can pass ([`select::prefix_len`]); one
 //! [`DrawItem::Sequential`] per chunk with a non-empty prefix, the test `IntervalTest { mode,
 //! scale: ε/k, overlap }` for the vertex stage ([`select::interval_pass`] is its CPU mirror),
 //! splat size `2·(d/2)·k/z`. CPU work is O(clusters · log n).
@@ -65,6 +65,19 @@ pub enum SptMode {
     Split,
 }
 
+/// Which bounding volume of a cluster's node centres gives the per-frame lower bound `r_lo`
+/// of the view distance (the prefix search's only view input).
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Default, serde::Deserialize, serde::Serialize)]
+#[serde(rename_all = "lowercase")]
+pub enum SptBound {
+    /// The cluster's bounding sphere (`index.json`): the nearest point of the sphere.
+    #[default]
+    Sphere,
+    /// The larger of the sphere's bound and the distance to the axis-aligned box of the
+    /// cluster's node centres (computed at `open`). A departure: tighter on elongated objects.
+    Box,
+}
+
 /// Parameters of `spt`.
 #[derive(Debug, Clone, serde::Deserialize)]
 #[serde(deny_unknown_fields, default)]
@@ -83,6 +96,8 @@ pub struct SptParams {
     pub gpu_limit_mb: u64,
     /// Compute the `cpu_passed` counter (O(prefix) per frame); NaN otherwise.
     pub cpu_mirror: bool,
+    /// Bounding volume of the per-frame lower bound `r_lo` (`sphere`, the default, or `box`).
+    pub bound: SptBound,
 }
 
 impl Default for SptParams {
@@ -94,6 +109,7 @@ impl Default for SptParams {
             color_threshold: 40.0,
             gpu_limit_mb: 4096,
             cpu_mirror: false,
+            bound: SptBound::Sphere,
         }
     }
 }
@@ -464,6 +480,8 @@ pub struct Spt {
     d_suffix: Vec<f32>,
     /// `lod[i][1]` as a contiguous column (for the prefix search).
     e_par: Vec<f32>,
+    /// Per cluster, the axis-aligned box `(min, max)` of its node centres (`bound=box`).
+    boxes: Vec<(Vec3, Vec3)>,
     input_points: u64,
 }
 
@@ -579,6 +597,18 @@ impl Spt {
                 }
             }
         }
+        let boxes = index
+            .clusters
+            .iter()
+            .map(|c| {
+                cloud.positions()[c.start as usize..(c.start + c.count) as usize]
+                    .iter()
+                    .fold(
+                        (Vec3::splat(f32::INFINITY), Vec3::splat(f32::NEG_INFINITY)),
+                        |(lo, hi), &p| (lo.min(Vec3::from(p)), hi.max(Vec3::from(p))),
+                    )
+            })
+            .collect();
         Ok(Self {
             attrs: cloud.attributes(),
             cloud,
@@ -587,6 +617,7 @@ impl Spt {
             lod,
             d_suffix,
             e_par,
+            boxes,
             input_points: manifest.points,
         })
     }
@@ -688,17 +719,32 @@ impl Spt {
             .collect()
     }
 
+    /// The lower bound `r_lo` of the view distance over cluster `ci`'s node centres that the
+    /// prefix search uses (`bound` parameter).
+    pub fn r_lo(&self, ci: usize, eye: Vec3) -> f64 {
+        let c = &self.index.clusters[ci];
+        let sphere = select::sphere_distance_lower_bound(eye, Vec3::from(c.center), c.radius);
+        match self.params.bound {
+            SptBound::Sphere => sphere,
+            SptBound::Box => {
+                let (lo, hi) = self.boxes[ci];
+                sphere.max(select::box_distance_lower_bound(eye, lo, hi))
+            }
+        }
+    }
+
     fn prefixes(&self, s: f32, eye: Vec3, skipped: &[bool]) -> Vec<u64> {
         self.index
             .clusters
             .iter()
             .zip(skipped)
-            .map(|(c, &skip)| {
+            .enumerate()
+            .map(|(ci, (c, &skip))| {
                 if skip {
                     return 0;
                 }
                 let r = c.start as usize..(c.start + c.count) as usize;
-                let r_lo = select::sphere_distance_lower_bound(eye, Vec3::from(c.center), c.radius);
+                let r_lo = self.r_lo(ci, eye);
                 select::prefix_len(
                     &self.e_par[r.clone()],
                     &self.d_suffix[r],
@@ -843,6 +889,11 @@ impl LodMethod for Spt {
     }
     fn interval_tested(&self) -> bool {
         true
+    }
+    /// The splats passing the interval test ([`Spt::cpu_passed_in`]; equals
+    /// [`crate::method::count_drawn`], without copying chunks).
+    fn drawn_points(&self, view: &View, list: &DrawList) -> Result<u64, MethodError> {
+        Ok(self.cpu_passed_in(view, list).len() as u64)
     }
     fn gpu_resident_bytes(&self) -> Option<u64> {
         Some(self.index.nodes * gpu_bytes_per_node(self.attrs))

@@ -43,7 +43,8 @@
 //!
 //! Nodes are sorted by `e_par` descending inside each cluster. A node can pass only if
 //! `e_par + s·o·D_i > s·r_lo`, where `r_lo` is a lower bound of the view distance over the
-//! cluster's bounding sphere and `D_i = max_{j ≥ i} δ_j` (suffix maximum within the cluster);
+//! cluster's bounding sphere ([`sphere_distance_lower_bound`]; with `bound=box` the larger of
+//! that and [`box_distance_lower_bound`] of the box of the cluster's node centres) and `D_i = max_{j ≥ i} δ_j` (suffix maximum within the cluster);
 //! the left side is non-increasing in `i`, so the candidates are a prefix found by binary
 //! search (a relative slack of 1e-5 keeps it conservative in f32).
 
@@ -192,6 +193,14 @@ fn partition(n: usize, pred: impl Fn(usize) -> bool) -> usize {
 pub fn sphere_distance_lower_bound(eye: Vec3, center: Vec3, radius: f32) -> f64 {
     let l = eye.as_dvec3().distance(center.as_dvec3());
     (l * (1.0 - 1e-5) - radius as f64 * (1.0 + 1e-5)).max(0.0)
+}
+
+/// Lower bound of the distance from `eye` to the axis-aligned box `[lo, hi]` (0 inside),
+/// slackened by 1e-5 relative.
+pub fn box_distance_lower_bound(eye: Vec3, lo: Vec3, hi: Vec3) -> f64 {
+    let (e, lo, hi) = (eye.as_dvec3(), lo.as_dvec3(), hi.as_dvec3());
+    let d = (lo - e).max(e - hi).max(glam::DVec3::ZERO);
+    d.length() * (1.0 - 1e-5)
 }
 
 #[cfg(test)]

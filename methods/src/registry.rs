@@ -116,7 +116,8 @@ impl MethodKind {
     /// an existing build may change these and no others.
     pub fn runtime_params(self) -> &'static [&'static str] {
         match self {
-            MethodKind::Full | MethodKind::Qsplat | MethodKind::Spt => &[],
+            MethodKind::Full | MethodKind::Qsplat => &[],
+            MethodKind::Spt => spt::RUNTIME_PARAMS,
             MethodKind::Lpc => lpc::RUNTIME_PARAMS,
             MethodKind::Mwkd => mwkd::RUNTIME_PARAMS,
         }

@@ -619,7 +619,7 @@ impl Checker<'_> {
             ));
         }
         let method = MethodKind::from_name(&m.method)
-            .map_err(|e| self.err(field("method"), e.to_string()))?;
+            .map_err(|e| self.err(field("method"), param_message(&e)))?;
         let is_render = matches!(m.kind, MeasureKind::Run | MeasureKind::Sweep);
         let deny = |name: &str, given: bool| {
             if given {
@@ -648,10 +648,11 @@ impl Checker<'_> {
             };
             pairs.push(format!("{k}={text}"));
         }
-        let all = Params::parse(&pairs).map_err(|e| self.err(field("params"), e.to_string()))?;
+        let all =
+            Params::parse(&pairs).map_err(|e| self.err(field("params"), param_message(&e)))?;
         method
             .check_params(&all)
-            .map_err(|e| self.err(field("params"), e.to_string()))?;
+            .map_err(|e| self.err(field("params"), param_message(&e)))?;
         let (mut build_params, mut runtime_params) = (Params::default(), Params::default());
         for (k, v) in all.0 {
             if method.runtime_params().contains(&k.as_str()) {
@@ -962,6 +963,14 @@ impl Checker<'_> {
             check_sweep_args(e, measures).map_err(|m| self.err(field(which), m))?;
         }
         Ok(row)
+    }
+}
+
+/// A method error's message without the CLI's `--param:` prefix (a spec has no flags).
+fn param_message(e: &methods::MethodError) -> String {
+    match e {
+        methods::MethodError::Param(m) => m.clone(),
+        e => e.to_string(),
     }
 }
 

@@ -47,6 +47,9 @@ use select::{MODE_SPLIT, MODE_UNIFIED, ROOT_PARENT_ERROR};
 pub const NAME: &str = "spt";
 /// Largest chunk (nodes): 3 MiB of positions fit every storage binding.
 pub const CHUNK_NODES: usize = 1 << 18;
+/// Parameters read at `open` only (a run of an existing build may change them): the
+/// bounding volume of `r_lo` is computed from the index when the build is opened.
+pub const RUNTIME_PARAMS: &[&str] = &["bound"];
 /// Version of the on-disk layout.
 pub const FORMAT_VERSION: u32 = 1;
 const NODES_FILE: &str = "nodes.sbc";

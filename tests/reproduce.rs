@@ -1,0 +1,399 @@
+//! `splatbench reproduce`: every committed spec loads for both profiles; bad specs are errors
+//! naming the spec file and the field; end to end, a quick reproduction of small tables
+//! writes a report holding their rows with numbers, and a tiny spec of our own exercises
+//! builds shared across measures, runs, sweeps, an isolated run and a figure.
+#![allow(clippy::unwrap_used)]
+
+use std::path::{Path, PathBuf};
+
+use assert_cmd::Command;
+use harness::reproduce::spec::{self, Profile};
+
+fn root() -> PathBuf {
+    PathBuf::from(env!("CARGO_MANIFEST_DIR"))
+}
+
+fn bin() -> Command {
+    let mut c = Command::cargo_bin("splatbench").unwrap();
+    c.current_dir(root()).env("NODEVICE_SELECT", "1");
+    c
+}
+
+#[test]
+fn every_committed_spec_loads_for_both_profiles() {
+    let dir = root().join("paper/specs");
+    for p in Profile::ALL {
+        let specs = spec::load_dir(&dir, &root(), p).unwrap_or_else(|e| panic!("{e}"));
+        let ids: Vec<&str> = specs.iter().map(|s| s.id.as_str()).collect();
+        // The tables issue 11 names, at least.
+        for want in [
+            "qsplat-fig6",
+            "qsplat-fig1",
+            "spt-culled",
+            "lpc-table1",
+            "lpc-vs-qsplat",
+            "lpc-occlusion",
+            "lpc-walkthrough",
+            "mwkd-table1",
+            "mwkd-table2",
+            "mwkd-table3",
+            "mwkd-table4",
+            "cross-method",
+        ] {
+            assert!(ids.contains(&want), "{p}: no spec {want} in {ids:?}");
+        }
+        // GPU figures are marked so (SPT's rate, MWKD Table III).
+        for id in ["spt-culled", "mwkd-table3"] {
+            let s = specs.iter().find(|s| s.id == id).unwrap();
+            assert!(s.rows.iter().any(|r| r.needs_gpu), "{id}: a GPU row");
+        }
+    }
+}
+
+const GOOD: &str = r#"
+id = "t"
+paper = "P"
+title = "T"
+source = "S"
+
+[scenes.s]
+generator = "statue"
+points = { quick = 2000, full = 3000 }
+
+[[measure]]
+id = "b"
+kind = "build"
+method = "qsplat"
+scene = "s"
+
+[[row]]
+what = "w"
+paper = 4
+ours = "b.bytes_per_node"
+rule = "exact"
+"#;
+
+/// Loads `text` as `dir/t.toml`; the error as text.
+fn load_err(text: &str) -> String {
+    let d = tempfile::tempdir().unwrap();
+    let f = d.path().join("t.toml");
+    std::fs::write(&f, text).unwrap();
+    let e = spec::load(&f, &root(), Profile::Quick).unwrap_err();
+    assert_eq!(e.file, f, "the error names the file");
+    e.to_string()
+}
+
+fn with(old: &str, new: &str) -> String {
+    assert!(GOOD.contains(old), "{old}");
+    GOOD.replacen(old, new, 1)
+}
+
+#[test]
+fn bad_specs_name_the_file_and_the_field() {
+    let d = tempfile::tempdir().unwrap();
+    let f = d.path().join("t.toml");
+    std::fs::write(&f, GOOD).unwrap();
+    let s = spec::load(&f, &root(), Profile::Full).unwrap();
+    assert_eq!(
+        s.scenes["s"].text, "statue:3000:1",
+        "the full profile's size"
+    );
+    let cases: &[(String, &str)] = &[
+        (with("title = \"T\"", "title = \"T\"\ncolour = 1"), "unknown field `colour`"),
+        (with("kind = \"build\"", "kind = \"build\"\nframez = 3"), "unknown field `framez`"),
+        (with("scene = \"s\"", "scene = \"nope\""), "measure 'b': scene: 'nope' is not defined in [scenes] (defined: s)"),
+        (with("method = \"qsplat\"", "method = \"qsplatt\""), "measure 'b': method: unknown method 'qsplatt'"),
+        (with("scene = \"s\"", "scene = \"s\"\nparams = { kernal = \"circle\" }"), "measure 'b': params"),
+        (
+            with("kind = \"build\"", "kind = \"run\"\npath = \"paper/paths/nope.toml\"\nframes = 1\neps = 1"),
+            "measure 'b': path: 'paper/paths/nope.toml' is neither a built-in path",
+        ),
+        (with("id = \"t\"", "id = \"u\""), "id: 'u' must equal the file's name"),
+        (with("points = { quick = 2000, full = 3000 }", "points = { quick = 2000 }"), "scenes.s.points: gives no value for profile 'full'"),
+        (with("generator = \"statue\"", "generator = \"statu\""), "scenes.s.generator: unknown generator 'statu'"),
+        (with("ours = \"b.bytes_per_node\"", "ours = \"c.bytes_per_node\""), "row 1 ('w'): ours: 'c' is not a measure of this spec"),
+        (with("ours = \"b.bytes_per_node\"", "ours = \"b.bytes_per_node +\""), "row 1 ('w'): ours:"),
+        (with("rule = \"exact\"", "rule = \"inside\""), "row 1 ('w'): rule: rule 'inside' cannot take the paper value 4"),
+        (with("rule = \"exact\"", "rule = \"within\""), "row 1 ('w'): rule: rule 'within' needs `tolerance`"),
+        (with("rule = \"exact\"", "rule = \"roughly\""), "unknown variant `roughly`"),
+        (with("rule = \"exact\"", "rule = \"exact\"\nreason = \"x {b.nodes\""), "row 1 ('w'): reason: an unclosed '{'"),
+        (with("kind = \"build\"", "kind = \"build\"\nframes = 3"), "measure 'b': frames: does not apply to a build measure"),
+        (
+            with("kind = \"build\"", "kind = \"sweep\"\nframes = 2\neps = [2, 2]"),
+            "measure 'b': eps: 2 is given twice",
+        ),
+        (GOOD.replace("[[row]]", "[[measure]]\nid = \"x\"\nkind = \"build\"\nmethod = \"lpc\"\nscene = \"s\"\n\n[[row]]"), "measure 'x': no row, reason or figure uses it"),
+    ];
+    for (text, needle) in cases {
+        let e = load_err(text);
+        assert!(e.contains("t.toml"), "{e}");
+        assert!(e.contains(needle), "expected '{needle}' in: {e}");
+    }
+}
+
+/// Runs a CLI command that must fail cleanly, naming `needle`.
+fn fails_with(cmd: &mut Command, needle: &str) {
+    let out = cmd.output().unwrap();
+    let err = String::from_utf8_lossy(&out.stderr);
+    assert!(!out.status.success(), "should fail: {err}");
+    assert!(!err.contains("panicked"), "panicked: {err}");
+    assert!(err.contains(needle), "expected '{needle}' in: {err}");
+}
+
+#[test]
+fn quick_reproduction_of_small_tables_writes_their_rows() {
+    let d = tempfile::tempdir().unwrap();
+    let out = d.path().join("out");
+    bin()
+        .args([
+            "reproduce",
+            "--profile",
+            "quick",
+            "--only",
+            "mwkd-table2,qsplat-fig6",
+            "--out",
+        ])
+        .arg(&out)
+        .arg("--cache")
+        .arg(d.path().join("cache"))
+        .assert()
+        .success();
+    let report = std::fs::read_to_string(out.join("report.md")).unwrap();
+    assert!(
+        report.contains("## Multi-way kd-tree (Goswami et al. 2010) — Table II"),
+        "{report}"
+    );
+    // Table II is exact: every row holds, with the paper's numbers on both sides.
+    for row in [
+        "| N = 6, VBO 4,009: nodes | 55,987 | 55,987 | 1.00 | exact | holds |",
+        "| N = 8, VBO 364,943: levels | 4 | 4 | 1.00 | exact | holds |",
+    ] {
+        assert!(report.contains(row), "missing '{row}' in {report}");
+    }
+    // QSplat Fig. 6 on the quick statue: 4 bytes per node exactly; the verdicts are words.
+    assert!(
+        report.contains("| bytes per node (no colour) | 4 | 4 | 1.00 | exact | holds |"),
+        "{report}"
+    );
+    assert!(report.contains("| interior nodes / leaves |"), "{report}");
+    assert!(report.contains("commit: `"), "{report}");
+    let results: serde_json::Value =
+        serde_json::from_str(&std::fs::read_to_string(out.join("results.json")).unwrap()).unwrap();
+    assert_eq!(results["tables"].as_array().unwrap().len(), 2);
+    assert_eq!(results["tables"][0]["id"], "mwkd-table2");
+    assert_eq!(results["tables"][0]["verdict"]["verdict"], "holds");
+    // A partial run cannot publish, and an unknown id is named.
+    fails_with(
+        bin()
+            .args(["reproduce", "--only", "mwkd-table2", "--publish"])
+            .arg(d.path()),
+        "--publish regenerates the whole report",
+    );
+    fails_with(
+        bin()
+            .args(["reproduce", "--only", "mwkd-tabel2", "--out"])
+            .arg(&out),
+        "--only: no spec 'mwkd-tabel2'",
+    );
+}
+
+const TINY: &str = r#"
+id = "tiny"
+paper = "Test"
+title = "A tiny spec exercising every kind of measure"
+source = "tests/reproduce.rs"
+
+[scenes.s]
+generator = "statue"
+points = 6000
+seed = 3
+
+[[measure]]
+id = "b"
+kind = "build"
+method = "lpc"
+scene = "s"
+params = { m = 512 }
+
+[[measure]]
+id = "r"
+kind = "run"
+method = "lpc"
+scene = "s"
+params = { m = 512, fetch_per_frame = 100000 }
+frames = 3
+skip = 2
+eps = 2
+width = 96
+height = 96
+
+[[measure]]
+id = "iso"
+kind = "run"
+method = "lpc"
+scene = "s"
+params = { m = 512 }
+frames = 2
+eps = 2
+width = 96
+height = 96
+metrics = false
+isolate = true
+
+[[measure]]
+id = "sw"
+kind = "sweep"
+method = "qsplat"
+scene = "s"
+frames = 1
+eps = [8, 1]
+width = 96
+height = 96
+
+[[figure]]
+name = "f"
+title = "FLIP against points"
+sweeps = ["sw"]
+
+[[row]]
+what = "the run and the build count the same input"
+paper = 6000
+ours = "r.build.points_in"
+rule = "exact"
+
+[[row]]
+what = "clouds built"
+ours = "b.clouds"
+rule = "report"
+
+[[row]]
+what = "a finer tolerance draws more"
+paper = [1, 2]
+ours = ["sw.eps_8.median.points_drawn", "sw.eps_1.median.points_drawn"]
+rule = "order"
+
+[[row]]
+what = "isolated run has its own memory figure"
+paper = 1
+ours = "iso.peak_rss_bytes / iso.peak_rss_bytes"
+rule = "exact"
+
+[[row]]
+what = "an impossible rate"
+paper = 1e15
+ours = "r.median.splats_per_s"
+rule = "at_least"
+needs_gpu = true
+"#;
+
+#[test]
+fn a_tiny_spec_runs_every_kind_of_measure() {
+    let Some(_gpu) = harness::gpu::gpu_for_test("a_tiny_spec_runs_every_kind_of_measure") else {
+        return;
+    };
+    let d = tempfile::tempdir().unwrap();
+    let specs = d.path().join("specs");
+    std::fs::create_dir_all(&specs).unwrap();
+    std::fs::write(specs.join("tiny.toml"), TINY).unwrap();
+    let out = d.path().join("out");
+    let run = |out: &Path| {
+        bin()
+            .args(["reproduce", "--specs"])
+            .arg(&specs)
+            .arg("--out")
+            .arg(out)
+            .arg("--cache")
+            .arg(d.path().join("cache"))
+            .arg("--publish")
+            .arg(d.path().join("paper"))
+            .assert()
+            .success();
+    };
+    run(&out);
+    let report = std::fs::read_to_string(out.join("report.md")).unwrap();
+    assert!(
+        report.contains(
+            "| the run and the build count the same input | 6,000 | 6,000 | 1.00 | exact | holds |"
+        ),
+        "{report}"
+    );
+    assert!(
+        report.contains("| a finer tolerance draws more |"),
+        "{report}"
+    );
+    assert!(report.contains("| same ordering | holds |"), "{report}");
+    assert!(
+        report
+            .contains("| isolated run has its own memory figure | 1 | 1 | 1.00 | exact | holds |"),
+        "{report}"
+    );
+    // lavapipe is a CPU: the GPU row is listed, not measured.
+    assert!(
+        report.contains("| an impossible rate |") && report.contains("| needs a GPU |"),
+        "{report}"
+    );
+    assert!(report.contains("Sweep `sw`"), "{report}");
+    assert!(
+        report.contains("![FLIP against points](figures/tiny-f.png)"),
+        "{report}"
+    );
+    for f in [
+        "figures/tiny-f.png",
+        "figures/tiny-f.svg",
+        "results.json",
+        "runs/tiny/r/frames.csv",
+        "runs/tiny/sw/sweep.csv",
+    ] {
+        assert!(out.join(f).is_file(), "{f}");
+    }
+    // One build per (method, build parameters, scene): `b` and `r` share theirs (m = 512;
+    // fetch_per_frame is a runtime parameter), the isolated run too; the sweep has its own.
+    let builds: Vec<_> = std::fs::read_dir(out.join("builds")).unwrap().collect();
+    assert_eq!(builds.len(), 2, "{builds:?}");
+    // Published: the report, results and figures under the profile's names.
+    let paper = d.path().join("paper");
+    for f in [
+        "report-quick.md",
+        "results-quick.json",
+        "figures-quick/tiny-f.png",
+        "figures-quick/tiny-f.svg",
+    ] {
+        assert!(paper.join(f).is_file(), "published {f}");
+    }
+    let published = std::fs::read_to_string(paper.join("report-quick.md")).unwrap();
+    assert!(
+        published.contains("](figures-quick/tiny-f.png)"),
+        "{published}"
+    );
+    // A bad expression at evaluation (a metric that does not exist) fails the table and the
+    // command, and nothing is published.
+    std::fs::write(
+        specs.join("tiny.toml"),
+        TINY.replace("ours = \"b.clouds\"", "ours = \"b.cloudz\""),
+    )
+    .unwrap();
+    std::fs::remove_dir_all(&paper).unwrap();
+    let o = bin()
+        .args(["reproduce", "--specs"])
+        .arg(&specs)
+        .arg("--out")
+        .arg(&out)
+        .arg("--cache")
+        .arg(d.path().join("cache"))
+        .arg("--publish")
+        .arg(&paper)
+        .output()
+        .unwrap();
+    let err = String::from_utf8_lossy(&o.stderr);
+    assert!(!o.status.success());
+    assert!(
+        err.contains("1 table(s) failed: nothing published"),
+        "{err}"
+    );
+    assert!(!paper.join("report-quick.md").exists());
+    let report = std::fs::read_to_string(out.join("report.md")).unwrap();
+    assert!(
+        report.contains("measure 'b' has no metric 'cloudz'"),
+        "{report}"
+    );
+}

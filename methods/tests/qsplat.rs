@@ -115,7 +115,72 @@ fn structure_of_a_100k_statue() {
         t.nodes(),
         t.levels.len()
     );
-    assert!((0.25..=0.6).contains(&ratio), "interior/leaf {ratio}");
+    // The paper's Fig. 6 range (974,114 / 2,000,651 = 0.487 … 50,285,122 / 127,072,827 =
+    // 0.396) for the paper's split (spatial midpoint) and our default combine rule; see
+    // README "Interior nodes and pointers (Fig. 6)".
+    assert!((0.40..=0.49).contains(&ratio), "interior/leaf {ratio}");
+}
+
+/// `split=midpoint|median` and `combine=fewest|pairs` all build valid trees that open and
+/// draw; the values are recorded; a bad value is an error naming its key.
+#[test]
+fn split_and_combine_params() {
+    let n = 20_000u64;
+    let cloud = Generator::Statue.generate(n as usize, 5).unwrap();
+    let other = Generator::Terrain.generate(n as usize, 5).unwrap();
+    let interior = |c: &PointCloud, kv: &[&str]| -> (u64, Vec<u8>) {
+        let dir = tempfile::tempdir().unwrap();
+        let params = Params::parse(kv).unwrap();
+        let stats = MethodKind::Qsplat
+            .build(c, &params, "t", dir.path(), &scenes::NoProgress)
+            .unwrap();
+        let manifest = methods::Manifest::read(dir.path()).unwrap();
+        assert_eq!(manifest.params, params);
+        for p in kv {
+            let (k, v) = p.split_once('=').unwrap();
+            assert_eq!(stats.extra[k], v, "{kv:?}");
+        }
+        let path = dir.path().join(qsplat::TREE_FILE);
+        let t = format::QsFile::open(&path).unwrap().read_tree().unwrap();
+        assert!(
+            t.levels
+                .iter()
+                .flatten()
+                .all(|n| n.children == 0 || (2..=4).contains(&n.children)),
+            "{kv:?}"
+        );
+        assert_eq!(t.leaves(), n, "{kv:?}");
+        let mut m = MethodKind::open(dir.path()).unwrap();
+        let l = m
+            .frame(&view(c, 0, 1), Target::Tolerance(0.0), &Feedback::default())
+            .unwrap();
+        assert!(l.points() > 1000, "{kv:?}: {} splats", l.points());
+        (t.nodes() - t.leaves(), std::fs::read(&path).unwrap())
+    };
+    let mut count = std::collections::BTreeMap::new();
+    for split in ["midpoint", "median"] {
+        for combine in ["fewest", "pairs"] {
+            let (s, c) = (format!("split={split}"), format!("combine={combine}"));
+            count.insert((split, combine), interior(&cloud, &[&s, &c]));
+        }
+    }
+    // The defaults are split=midpoint, combine=fewest.
+    assert_eq!(interior(&cloud, &[]).1, count[&("midpoint", "fewest")].1);
+    // `fewest` never has more interior nodes than `pairs`.
+    for split in ["midpoint", "median"] {
+        assert!(count[&(split, "fewest")].0 <= count[&(split, "pairs")].0);
+    }
+    // Median splits: the shape is a function of n alone (the same on statue and terrain).
+    let median = |c: &PointCloud| interior(c, &["split=median"]).0;
+    assert_eq!(median(&cloud), median(&other));
+    assert_eq!(median(&cloud), count[&("median", "fewest")].0);
+    for (kv, key) in [("split=midpt", "split"), ("combine=min", "combine")] {
+        let e = MethodKind::Qsplat
+            .check_params(&Params::parse(&[kv]).unwrap())
+            .unwrap_err()
+            .to_string();
+        assert!(e.contains(key) && e.contains(kv), "{e}");
+    }
 }
 
 #[test]

@@ -1,15 +1,16 @@
 //! Building QSplat's bounding-sphere hierarchy and quantising it.
 //!
 //! Contract: [`build_tree`] is a deterministic function of the cloud (and its leaf radii):
-//! - a `u32` permutation of the samples is partitioned in place, top-down, at the median
-//!   along the longest axis of each range's bounding box (`select_nth_unstable_by`, ties
-//!   broken by sample index; halves in parallel with `rayon::join` above
-//!   [`PAR_THRESHOLD`]). The binary tree is implicit: range `[lo, hi)` splits at
-//!   `lo + (hi − lo)/2`;
-//! - binary levels are combined: an inner node's children are its binary grandchildren (a
-//!   binary child that is a leaf is taken as is) or, where that gives fewer interior nodes
-//!   (decided per range size, see `Combine`), its binary children; so every inner node has
-//!   2, 3 or 4 children and every leaf is one sample;
+//! - a `u32` permutation of the samples is partitioned in place, top-down, along the longest
+//!   axis of each range's bounding box: at the spatial midpoint of that axis ([`Split`]; the
+//!   paper's rule, the default) or at the median (`select_nth_unstable_by`, ties broken by
+//!   sample index). Halves are split in parallel with `rayon::join` above
+//!   [`PAR_THRESHOLD`]. The binary tree is recorded by split position (`Binary`);
+//! - binary levels are combined ([`Combine`]): an inner node's children are its binary
+//!   grandchildren (a binary child that is a leaf is taken as is) or its binary children,
+//!   per binary node whichever gives fewer interior nodes (default), or always the
+//!   grandchildren; so every inner node has 2, 3 or 4 children and every leaf is one
+//!   sample;
 //! - nodes are numbered breadth-first (level by level), properties computed bottom-up
 //!   (sphere bounding the children's spheres, normalised mean normal, cone covering the
 //!   children's cones, leaf-weighted mean colour) and quantised top-down from the *decoded*
@@ -102,11 +103,80 @@ pub struct Built {
 /// A sphere code and the sphere it decodes to.
 type Encoded = (u16, (Vec3, f32));
 
-/// Partitions `perm` in place into the implicit median-split binary tree.
-fn partition(perm: &mut [u32], pos: &[[f32; 3]]) {
+/// Where a range is split (`--param split=`).
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Default, serde::Deserialize, serde::Serialize)]
+#[serde(rename_all = "lowercase")]
+pub enum Split {
+    /// The paper's rule: the spatial midpoint of the longest axis of the range's bounding
+    /// box (samples below the midpoint go left). §3.2 rejects equal-count splits ("putting an
+    /// equal number of vertices in each subtree can potentially put the splitting planes
+    /// significantly off-center") and calls its trees "axis-aligned bisections" that are not
+    /// "complete and balanced". A split that leaves one side empty (coincident samples, or a
+    /// midpoint that rounds to an end) falls back to the median.
+    #[default]
+    Midpoint,
+    /// The median along the longest axis (equal counts; the tree shape is a function of `n`).
+    Median,
+}
+
+/// How binary levels are combined into 2–4 children (`--param combine=`).
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Default, serde::Deserialize, serde::Serialize)]
+#[serde(rename_all = "lowercase")]
+pub enum Combine {
+    /// Per binary node, its binary grandchildren (a binary child that is a leaf is taken as
+    /// is) or its binary children, whichever gives fewer interior nodes in its subtree
+    /// (dynamic programme, bottom-up; ties take the grandchildren). The paper only says nodes
+    /// are combined "to increase the average branching factor to approximately 4", which
+    /// "reduces the number of interior nodes": this rule serves that stated purpose.
+    #[default]
+    Fewest,
+    /// Pair binary levels from the top: every inner node's children are its binary
+    /// grandchildren (a binary child that is a leaf is taken as is).
+    Pairs,
+}
+
+/// Build options.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Default)]
+pub struct BuildOptions {
+    /// Split rule.
+    pub split: Split,
+    /// Combine rule.
+    pub combine: Combine,
+}
+
+/// The binary partition tree, indexed by split position: the binary node covering
+/// `[lo, hi)` splits at `m` (`lo < m < hi`) into `[lo, m)` and `[m, hi)`; every position
+/// `1..n` is the split of exactly one binary node, so per-node data lives at index `m`.
+struct Binary {
+    /// Split of the left child of the node splitting at `m` (0: the left child is a leaf).
+    left: Vec<u32>,
+    /// Split of the right child (0: a leaf).
+    right: Vec<u32>,
+    /// The node's children in the combined tree are its binary grandchildren.
+    grand: Vec<bool>,
+    /// Split of the root (0 when `n = 1`).
+    root: u32,
+}
+
+/// A binary node's subtree cost: (interior nodes of its combined subtree, the same summed
+/// over its binary children). Leaves cost (0, 0).
+type Cost = (u64, u64);
+
+/// Partitions `perm` (positions `base..base + perm.len()`) in place, records the splits of
+/// its binary nodes in `left`/`right`/`grand` (slices of the same positions) and returns the
+/// range's split (absolute, 0 for a single sample) and cost.
+fn partition(
+    perm: &mut [u32],
+    base: u32,
+    pos: &[[f32; 3]],
+    opt: BuildOptions,
+    left: &mut [u32],
+    right: &mut [u32],
+    grand: &mut [bool],
+) -> (u32, Cost) {
     let n = perm.len();
     if n <= 1 {
-        return;
+        return (0, (0, 0));
     }
     let mut lo = Vec3::splat(f32::INFINITY);
     let mut hi = Vec3::splat(f32::NEG_INFINITY);
@@ -123,71 +193,86 @@ fn partition(perm: &mut [u32], pos: &[[f32; 3]]) {
     } else {
         2
     };
-    let mid = n / 2;
-    perm.select_nth_unstable_by(mid, |&a, &b| {
-        pos[a as usize][axis]
-            .total_cmp(&pos[b as usize][axis])
-            .then(a.cmp(&b))
-    });
-    let (l, r) = perm.split_at_mut(mid);
-    if n >= PAR_THRESHOLD {
-        rayon::join(|| partition(l, pos), || partition(r, pos));
-    } else {
-        partition(l, pos);
-        partition(r, pos);
-    }
-}
-
-/// How binary levels are combined, per range size: `true` = the node's children are its
-/// binary grandchildren (2–4 children), `false` = its binary children (2). Chosen per size by
-/// dynamic programming to minimise the number of interior nodes (so the bottom of the tree
-/// is 4-ary rather than ending in 2-child nodes); sizes at one depth take at most two
-/// values, so the memo stays tiny.
-#[derive(Default)]
-struct Combine {
-    memo: std::collections::HashMap<u32, (u64, bool)>,
-}
-
-impl Combine {
-    /// `(interior nodes of a subtree of n samples, use grandchildren)`.
-    fn plan(&mut self, n: u32) -> (u64, bool) {
-        if n < 2 {
-            return (0, false);
-        }
-        if let Some(&p) = self.memo.get(&n) {
-            return p;
-        }
-        let (a, b) = (n / 2, n - n / 2);
-        let binary = 1 + self.plan(a).0 + self.plan(b).0;
-        let mut grand = 1;
-        for h in [a, b] {
-            if h > 1 {
-                grand += self.plan(h / 2).0 + self.plan(h - h / 2).0;
+    let mut mid = 0;
+    if opt.split == Split::Midpoint {
+        let cut = (lo[axis] as f64 + hi[axis] as f64) * 0.5;
+        // Deterministic two-pointer partition: samples with coordinate < cut first.
+        let (mut a, mut b) = (0, n);
+        while a < b {
+            if (pos[perm[a] as usize][axis] as f64) < cut {
+                a += 1;
+            } else {
+                b -= 1;
+                perm.swap(a, b);
             }
         }
-        let p = if grand <= binary {
-            (grand, true)
-        } else {
-            (binary, false)
-        };
-        self.memo.insert(n, p);
-        p
+        mid = a;
+    }
+    if mid == 0 || mid == n {
+        mid = n / 2;
+        perm.select_nth_unstable_by(mid, |&a, &b| {
+            pos[a as usize][axis]
+                .total_cmp(&pos[b as usize][axis])
+                .then(a.cmp(&b))
+        });
+    }
+    let (pl, pr) = perm.split_at_mut(mid);
+    let (ll, lr) = left.split_at_mut(mid);
+    let (rl, rr) = right.split_at_mut(mid);
+    let (gl, gr) = grand.split_at_mut(mid);
+    let m = base + mid as u32;
+    let ((sl, cl), (sr, cr)) = if n >= PAR_THRESHOLD {
+        rayon::join(
+            || partition(pl, base, pos, opt, ll, rl, gl),
+            || partition(pr, m, pos, opt, lr, rr, gr),
+        )
+    } else {
+        (
+            partition(pl, base, pos, opt, ll, rl, gl),
+            partition(pr, m, pos, opt, lr, rr, gr),
+        )
+    };
+    lr[0] = sl;
+    rr[0] = sr;
+    let binary = cl.0 + cr.0;
+    let grandkids = cl.1 + cr.1;
+    let g = match opt.combine {
+        Combine::Pairs => true,
+        Combine::Fewest => grandkids <= binary,
+    };
+    gr[0] = g;
+    (m, (1 + if g { grandkids } else { binary }, binary))
+}
+
+impl Binary {
+    /// Partitions `perm` and records the binary tree.
+    fn build(perm: &mut [u32], pos: &[[f32; 3]], opt: BuildOptions) -> Self {
+        let n = perm.len();
+        let mut left = vec![0u32; n];
+        let mut right = vec![0u32; n];
+        let mut grand = vec![false; n];
+        let (root, _) = partition(perm, 0, pos, opt, &mut left, &mut right, &mut grand);
+        Self {
+            left,
+            right,
+            grand,
+            root,
+        }
     }
 
-    /// Children of range `[lo, hi)` in the combined tree.
-    fn children(&mut self, lo: u32, hi: u32, out: &mut Vec<(u32, u32)>) {
+    /// Children of the node `(lo, hi, m)` in the combined tree, as `(lo, hi, split)`.
+    fn children(&self, (lo, hi, m): (u32, u32, u32), out: &mut Vec<(u32, u32, u32)>) {
         if hi - lo < 2 {
             return;
         }
-        let mid = lo + (hi - lo) / 2;
-        let grand = self.plan(hi - lo).1;
-        for (a, b) in [(lo, mid), (mid, hi)] {
-            if b - a == 1 || !grand {
-                out.push((a, b));
+        let i = m as usize;
+        for (a, b, s) in [(lo, m, self.left[i]), (m, hi, self.right[i])] {
+            if b - a == 1 || !self.grand[i] {
+                out.push((a, b, s));
             } else {
-                let m = a + (b - a) / 2;
-                out.push((a, m));
-                out.push((m, b));
+                let j = s as usize;
+                out.push((a, s, self.left[j]));
+                out.push((s, b, self.right[j]));
             }
         }
     }
@@ -266,6 +351,15 @@ pub fn quantise_normal(n: Vec3, cone: f64, has_normals: bool) -> (u16, u8) {
 
 /// Builds and quantises the hierarchy of `cloud` with leaf radii `radii`.
 pub fn build_tree(cloud: &PointCloud, radii: &[f32]) -> Result<Built, MethodError> {
+    build_tree_with(cloud, radii, BuildOptions::default())
+}
+
+/// [`build_tree`] with explicit split and combine rules.
+pub fn build_tree_with(
+    cloud: &PointCloud,
+    radii: &[f32],
+    opt: BuildOptions,
+) -> Result<Built, MethodError> {
     let n = cloud.len();
     if n == 0 {
         return Err(MethodError::Limit(
@@ -279,18 +373,17 @@ pub fn build_tree(cloud: &PointCloud, radii: &[f32]) -> Result<Built, MethodErro
     }
     let pos = cloud.positions();
     let mut perm: Vec<u32> = (0..n as u32).collect();
-    partition(&mut perm, pos);
+    let tree = Binary::build(&mut perm, pos, opt);
 
-    // Levels of ranges, breadth-first; child_start[l][i] indexes level l + 1.
-    let mut ranges: Vec<Vec<(u32, u32)>> = vec![vec![(0, n as u32)]];
+    // Levels of ranges `(lo, hi, split)`, breadth-first; child_start[l][i] indexes level l + 1.
+    let mut ranges: Vec<Vec<(u32, u32, u32)>> = vec![vec![(0, n as u32, tree.root)]];
     let mut child_start: Vec<Vec<u32>> = Vec::new();
-    let mut combine_plan = Combine::default();
     while let Some(cur) = ranges.last() {
         let mut next = Vec::new();
         let mut starts = Vec::with_capacity(cur.len() + 1);
-        for &(lo, hi) in cur {
+        for &r in cur {
             starts.push(next.len() as u32);
-            combine_plan.children(lo, hi, &mut next);
+            tree.children(r, &mut next);
         }
         starts.push(next.len() as u32);
         child_start.push(starts);
@@ -299,6 +392,8 @@ pub fn build_tree(cloud: &PointCloud, radii: &[f32]) -> Result<Built, MethodErro
         }
         ranges.push(next);
     }
+
+    drop(tree);
 
     // Bottom-up true properties.
     let normals = cloud.normals();
@@ -314,7 +409,7 @@ pub fn build_tree(cloud: &PointCloud, radii: &[f32]) -> Result<Built, MethodErro
         *this = ranges[l]
             .par_iter()
             .enumerate()
-            .map(|(i, &(lo, hi))| {
+            .map(|(i, &(lo, hi, _))| {
                 if hi - lo == 1 {
                     let s = perm[lo as usize] as usize;
                     let nrm = normals
@@ -470,6 +565,33 @@ mod tests {
             assert!(quant::angle(qa, t.n.as_dvec3()) + t.cone <= q_angle + 1e-12);
             for k in &kids {
                 assert!(quant::angle(qa, k.n.as_dvec3()) + k.cone <= q_angle + 1e-9);
+            }
+        }
+    }
+
+    #[test]
+    fn degenerate_midpoint_splits_fall_back_to_the_median() {
+        // Coincident samples (zero extent) and two adjacent floats (the midpoint rounds to
+        // an end): a midpoint split would leave one side empty; the median is taken instead.
+        let a = 1.0f32;
+        let b = a.next_up();
+        let mut pos = vec![[0.5f32, 0.5, 0.5]; 300];
+        pos.extend((0..200).map(|i| [if i % 2 == 0 { a } else { b }, 0.0, 0.0]));
+        pos.extend((0..7).map(|i| [i as f32, 2.0, 0.0]));
+        let cloud = PointCloud::new(DVec3::ZERO, pos.into(), None, None, None).unwrap();
+        let radii = vec![0.01f32; cloud.len()];
+        for split in [Split::Midpoint, Split::Median] {
+            for combine in [Combine::Fewest, Combine::Pairs] {
+                let opt = BuildOptions { split, combine };
+                let t = build_tree_with(&cloud, &radii, opt).unwrap().tree;
+                assert_eq!(t.leaves(), 507, "{opt:?}");
+                assert!(
+                    t.levels
+                        .iter()
+                        .flatten()
+                        .all(|n| n.children == 0 || (2..=4).contains(&n.children)),
+                    "{opt:?}"
+                );
             }
         }
     }

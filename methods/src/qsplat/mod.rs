@@ -54,12 +54,33 @@ pub struct QsplatParams {
     pub kernel: Option<SplatShape>,
     /// Desired frame time in ms: turns on frame-rate control and progressive refinement.
     pub target_ms: Option<f64>,
+    /// Split rule of the build (`midpoint`, the paper's; or `median`).
+    pub split: build::Split,
+    /// Combine rule of the build (`pairs`, the paper's; or `fewest`).
+    pub combine: build::Combine,
 }
 
 impl QsplatParams {
-    /// Parses and validates.
+    /// Parses and validates. A value that does not parse is an error naming its key
+    /// (serde's own message names only the value, e.g. "unknown variant `midpt`").
     pub fn from_params(params: &Params) -> Result<Self, MethodError> {
-        let p: Self = params.to_typed(NAME)?;
+        let p: Self = params.to_typed(NAME).map_err(|e| {
+            params
+                .0
+                .iter()
+                .find_map(|(k, v)| {
+                    let one = Params([(k.clone(), v.clone())].into_iter().collect());
+                    match one.to_typed::<Self>(NAME) {
+                        Err(MethodError::Param(m)) => Some(MethodError::Param(m.replacen(
+                            &format!("method '{NAME}': "),
+                            &format!("method '{NAME}': {k}={v}: "),
+                            1,
+                        ))),
+                        _ => None,
+                    }
+                })
+                .unwrap_or(e)
+        })?;
         if let Some(t) = p.target_ms
             && !(t.is_finite() && t > 0.0)
         {
@@ -79,14 +100,18 @@ pub fn build(
     dir: &Path,
     progress: &dyn Progress,
 ) -> Result<BuildStats, MethodError> {
-    QsplatParams::from_params(params)?;
+    let p = QsplatParams::from_params(params)?;
+    let opt = build::BuildOptions {
+        split: p.split,
+        combine: p.combine,
+    };
     let t0 = Instant::now();
     let n = cloud.len();
     progress.start("qsplat: leaf radii", n as u64);
     let radii = crate::leaf::leaf_radii(cloud);
     progress.finish();
     progress.start("qsplat: hierarchy", n as u64);
-    let built = build::build_tree(cloud, &radii)?;
+    let built = build::build_tree_with(cloud, &radii, opt)?;
     progress.finish();
     let path = dir.join(TREE_FILE);
     let fs = format::write(&path, &built.tree)?;
@@ -111,6 +136,11 @@ pub fn build(
     let mut put = |k: &str, v: serde_json::Value| {
         extra.insert(k.into(), v);
     };
+    put("split", serde_json::to_value(opt.split).unwrap_or_default());
+    put(
+        "combine",
+        serde_json::to_value(opt.combine).unwrap_or_default(),
+    );
     put("leaves", leaves.into());
     put("interior", interior.into());
     put(

@@ -1,6 +1,5 @@
-//! QSplat: file layout, structure and traversal invariants (issue 3). The Fig. 6 figures of
-//! the README come from the ignored `fig6_statue_1m` test:
-//! `cargo test -p methods --release --test qsplat fig6 -- --ignored --nocapture`.
+//! QSplat: file layout, structure and traversal invariants (issue 3). The Fig. 6 figures
+//! come from `splatbench reproduce --only qsplat-fig6` (`paper/specs/qsplat-fig6.toml`).
 #![allow(clippy::unwrap_used)]
 
 use std::path::Path;
@@ -421,49 +420,6 @@ fn corrupt_files_are_errors_never_panics() {
     }
     eprintln!("{opened} of {} bit flips still opened", 2 * good.len());
 }
-
-/// Fig. 6 on `statue` 1 M points (release build recommended).
-#[test]
-#[ignore]
-fn fig6_statue_1m() {
-    let cloud = Generator::Statue.generate(1_000_000, 1).unwrap();
-    let dir = tempfile::tempdir().unwrap();
-    let stats = MethodKind::Qsplat
-        .build(
-            &cloud,
-            &Params::default(),
-            "statue 1M",
-            dir.path(),
-            &scenes::NoProgress,
-        )
-        .unwrap();
-    eprintln!("{}", serde_json::to_string_pretty(&stats).unwrap());
-    let t0 = std::time::Instant::now();
-    let radii = methods::leaf::leaf_radii(&cloud);
-    eprintln!("leaf radii alone: {:.2} s", t0.elapsed().as_secs_f64());
-    drop(radii);
-    let mut m = MethodKind::open(dir.path()).unwrap();
-    let v = View {
-        width: 1024,
-        height: 1024,
-        ..view(&cloud, 0, 1)
-    };
-    for eps in [0.0f32, 1.0, 2.0, 4.0] {
-        let t0 = std::time::Instant::now();
-        let l = m
-            .frame(&v, Target::Tolerance(eps), &Feedback::default())
-            .unwrap();
-        let s = t0.elapsed().as_secs_f64();
-        eprintln!(
-            "eps {eps}: {} splats, {} nodes visited, {:.1} ms, {:.1} M nodes/s",
-            l.points(),
-            l.counters[0],
-            s * 1e3,
-            l.counters[0] / s / 1e6
-        );
-    }
-}
-
 #[test]
 fn tiny_and_normal_less_clouds() {
     // 1..=9 samples (root alone, 2–4 leaf children, mixed) and a cloud without normals
@@ -500,34 +456,6 @@ fn tiny_and_normal_less_clouds() {
         assert_eq!(one.points(), 1);
     }
 }
-
-/// Fixed work for `perf stat` comparisons of the traversal (timing is never asserted).
-#[test]
-#[ignore]
-fn traversal_fixed_work() {
-    let cloud = Generator::Statue.generate(200_000, 1).unwrap();
-    let dir = tempfile::tempdir().unwrap();
-    let mut m = build(&cloud, dir.path(), &[]);
-    let v = View {
-        width: 1024,
-        height: 1024,
-        ..view(&cloud, 0, 1)
-    };
-    let t0 = std::time::Instant::now();
-    let mut visited = 0.0;
-    for _ in 0..300 {
-        visited += m
-            .frame(&v, Target::Tolerance(1.0), &Feedback::default())
-            .unwrap()
-            .counters[0];
-    }
-    let s = t0.elapsed().as_secs_f64();
-    eprintln!(
-        "{visited} nodes in {s:.3} s: {:.1} M nodes/s",
-        visited / s / 1e6
-    );
-}
-
 #[test]
 fn budget_is_monotone_at_every_step() {
     // Dense budgets on views that cut the model (zoom path): refinements whose children are

@@ -268,39 +268,3 @@ fn content_hash_depends_on_size_and_bytes() {
     });
     assert_eq!(empty, expected);
 }
-
-/// Not a pass/fail test (timings never are): prints how long `compare` takes on a 1024²
-/// pair. Run with
-/// `cargo test -p harness --release --test metrics -- --ignored --nocapture compare_timing`.
-#[test]
-#[ignore = "timing report, run on demand in release"]
-fn compare_timing_1024() {
-    let reference = blocks(1024, 1024, 5, 13);
-    let test = noisy(&shifted_right(&reference, 2), 10, 14);
-    let _ = metrics::compare(&reference, &test).unwrap();
-    let time = |f: &dyn Fn()| {
-        let runs = 5;
-        let start = std::time::Instant::now();
-        for _ in 0..runs {
-            f();
-        }
-        start.elapsed().as_secs_f64() * 1e3 / f64::from(runs)
-    };
-    let compare_ms = time(&|| {
-        std::hint::black_box(metrics::compare(&reference, &test).unwrap());
-    });
-    let ssim_ms = time(&|| {
-        std::hint::black_box(metrics::ssim(&reference, &test).unwrap());
-    });
-    let flip_ms = time(&|| {
-        std::hint::black_box(metrics::flip_mean(&reference, &test).unwrap());
-    });
-    let psnr_ms = time(&|| {
-        std::hint::black_box(metrics::psnr_db(&reference, &test).unwrap());
-    });
-    println!(
-        "1024x1024, {} threads: compare {compare_ms:.1} ms, ssim {ssim_ms:.1} ms, \
-         flip {flip_ms:.1} ms, psnr {psnr_ms:.2} ms",
-        rayon::current_num_threads()
-    );
-}

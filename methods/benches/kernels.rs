@@ -3,7 +3,8 @@
 //! (throughput = nodes visited), and the chunk store's LZO + checksum on one chunk. Timing is
 //! reported, never asserted.
 //! Run: `cargo bench -p methods --bench kernels` (QSplat only: `... -- qsplat/`; store only:
-//! `... -- store/`; MWKD only: `... -- mwkd/`).
+//! `... -- store/`; MWKD only: `... -- mwkd/`; generation and k-NN: `... -- kernels/`; PLY
+//! reading: `... -- scene_io/`).
 #![allow(missing_docs, clippy::unwrap_used)]
 
 use criterion::{Criterion, Throughput, criterion_group, criterion_main};
@@ -220,5 +221,23 @@ fn mwkd(c: &mut Criterion) {
     g.finish();
 }
 
-criterion_group!(benches, kernels, store, mwkd);
+/// Reading a binary little-endian PLY (positions, normals, no faces) of 1 M vertices as our
+/// writer writes it (`double` positions), per byte of the file.
+fn scene_io(c: &mut Criterion) {
+    let n = 1_000_000;
+    let cloud = Generator::Statue.generate(n, 1).unwrap();
+    let dir = tempfile::tempdir().unwrap();
+    let path = dir.path().join("statue.ply");
+    let bytes =
+        scenes::ply::write(&path, &cloud, scenes::ply::PlyFormat::BinaryLittleEndian).unwrap();
+    let mut g = c.benchmark_group("scene_io");
+    g.sample_size(10);
+    g.throughput(Throughput::Bytes(bytes));
+    g.bench_function("ply_read_binary_1m", |b| {
+        b.iter(|| scenes::ply::read(&path, &scenes::ply::PlyOptions::default()).unwrap())
+    });
+    g.finish();
+}
+
+criterion_group!(benches, kernels, store, mwkd, scene_io);
 criterion_main!(benches);

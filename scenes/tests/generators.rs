@@ -332,29 +332,3 @@ fn generate_to_file_equals_generate() {
         assert!(bytes(&reopened) == bytes(&m));
     }
 }
-
-/// Generation speed, release build only:
-/// `cargo test --release -p scenes --test generators -- --ignored --nocapture speed`
-#[test]
-#[ignore = "timing report; run in release with --ignored --nocapture"]
-fn speed() {
-    let n = 1_000_000;
-    for &g in Generator::ALL {
-        let t = std::time::Instant::now();
-        let c = g.generate(n, 1).unwrap();
-        let s = t.elapsed().as_secs_f64();
-        println!(
-            "{:>10}: {n} points in {s:.2} s = {:.2} M points/s",
-            g.name(),
-            n as f64 / s / 1e6
-        );
-        let t = std::time::Instant::now();
-        let d = spacing::knn_spacing(c.positions(), 8);
-        let s = t.elapsed().as_secs_f64();
-        println!(
-            "{:>10}: knn_spacing k = 8 in {s:.2} s ({} values)",
-            g.name(),
-            d.len()
-        );
-    }
-}

@@ -121,7 +121,15 @@ impl Outcome {
 
 /// Loads the specs and keeps those `only` names (an unknown id is an error listing them).
 pub fn select(opts: &Options) -> anyhow::Result<Vec<Spec>> {
-    let specs = spec::load_dir(&opts.specs, &opts.root, opts.profile)?;
+    let mut specs = spec::load_dir(&opts.specs, &opts.root, opts.profile)?;
+    // The papers in order of publication, then our own tables; by id within each.
+    let rank = |id: &str| {
+        ["qsplat-", "spt-", "lpc-", "mwkd-"]
+            .iter()
+            .position(|p| id.starts_with(p))
+            .unwrap_or(4)
+    };
+    specs.sort_by(|a, b| (rank(&a.id), &a.id).cmp(&(rank(&b.id), &b.id)));
     let Some(only) = &opts.only else {
         return Ok(specs);
     };

@@ -94,6 +94,10 @@ pub fn markdown(meta: &Meta, tables: &[TableResult], figures: &str) -> String {
              error) do not depend on the adapter.\n"
         );
     }
+    let _ = writeln!(
+        o,
+        "A table's time includes the builds it was the first to need (later tables reuse them).\n"
+    );
     let _ = writeln!(o, "| table | paper | verdict | rows | time |");
     let _ = writeln!(o, "|---|---|---|---|---|");
     for t in tables {
@@ -126,10 +130,10 @@ pub fn markdown(meta: &Meta, tables: &[TableResult], figures: &str) -> String {
         );
         let _ = writeln!(
             o,
-            "Spec `{}` ({}). Verdict: **{}**. Took {:.1} s. Regenerate: `splatbench reproduce \
-             --profile {} --only {}`.\n",
+            "Source: {}. Spec `{}`. Verdict: **{}**. Took {:.1} s. Regenerate: `splatbench \
+             reproduce --profile {} --only {}`.\n",
+            t.source.trim_end_matches('.'),
             t.file,
-            t.source,
             t.verdict.word(),
             t.seconds,
             meta.profile,

@@ -226,21 +226,12 @@ pub fn describe(spec: &Spec, m: &Measure, root: &Path) -> String {
             "{} {} on {}",
             format!("{k:?}").to_lowercase(),
             m.method,
-            m.scene
-                .as_ref()
-                .and_then(|n| spec.scenes.get(n))
-                .map_or("?".into(), |s| s.label())
+            scene_label(spec, m)
         ),
     };
-    let params: Vec<String> = m
-        .build_params
-        .0
-        .iter()
-        .chain(&m.runtime_params.0)
-        .map(|(k, v)| format!("{k}={v}"))
-        .collect();
+    let params = params_text(m);
     if !params.is_empty() {
-        let _ = write!(s, ", {}", params.join(" "));
+        let _ = write!(s, ", {params}");
     }
     if matches!(m.kind, MeasureKind::Run | MeasureKind::Sweep) {
         let path = m.path_text.as_deref().unwrap_or("orbit");
@@ -277,23 +268,32 @@ pub fn describe(spec: &Spec, m: &Measure, root: &Path) -> String {
 
 /// A sweep's label: method, parameters, scene.
 pub fn label(spec: &Spec, m: &Measure) -> String {
-    let params: Vec<String> = m
-        .build_params
+    let params = params_text(m);
+    let scene = scene_label(spec, m);
+    if params.is_empty() {
+        format!("{} on {scene}", m.method)
+    } else {
+        format!("{} {params} on {scene}", m.method)
+    }
+}
+
+/// A measure's build and runtime parameters as `key=value` separated by spaces.
+fn params_text(m: &Measure) -> String {
+    m.build_params
         .0
         .iter()
         .chain(&m.runtime_params.0)
         .map(|(k, v)| format!("{k}={v}"))
-        .collect();
-    let scene = m
-        .scene
+        .collect::<Vec<_>>()
+        .join(" ")
+}
+
+/// The label of a measure's scene (`?` for plans, which have none).
+fn scene_label(spec: &Spec, m: &Measure) -> String {
+    m.scene
         .as_ref()
         .and_then(|n| spec.scenes.get(n))
-        .map_or("?".into(), |s| s.label());
-    if params.is_empty() {
-        format!("{} on {scene}", m.method)
-    } else {
-        format!("{} {} on {scene}", m.method, params.join(" "))
-    }
+        .map_or("?".into(), |s| s.label())
 }
 
 /// The current UTC date and time, `YYYY-MM-DD HH:MM UTC`.

@@ -89,6 +89,9 @@ pub fn build(
         bytes_in: cloud.column_bytes(),
         bytes_out,
         seconds: t0.elapsed().as_secs_f64(),
+        extra: [("leaf_radii_capped".to_string(), radii.capped.into())]
+            .into_iter()
+            .collect(),
         ..Default::default()
     }
     .finish())

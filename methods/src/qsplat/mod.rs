@@ -137,6 +137,7 @@ pub fn build(
         extra.insert(k.into(), v);
     };
     put("split", serde_json::to_value(opt.split).unwrap_or_default());
+    put("leaf_radii_capped", radii.capped.into());
     put(
         "combine",
         serde_json::to_value(opt.combine).unwrap_or_default(),

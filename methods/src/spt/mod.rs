@@ -404,6 +404,7 @@ pub fn build(
     extra.insert("clusters".into(), index.clusters.len().into());
     extra.insert("chunks".into(), index.chunks.len().into());
     extra.insert("tree_seconds".into(), t_tree.into());
+    extra.insert("leaf_radii_capped".into(), radii.capped.into());
     Ok(BuildStats {
         points_in: n as u64,
         nodes: order.len() as u64,

@@ -16,7 +16,8 @@ pub struct MethodArgs {
 
 #[derive(Args, Clone)]
 pub struct SceneArgs {
-    /// Scene: `generator:points[:seed]` (e.g. statue:200000), or a .ply/.las/.laz/.sbc/.toml file.
+    /// Scene: `generator:points[:seed]` (e.g. statue:200000), or a
+    /// .ply/.las/.laz/.e57/.pcd/.sbc/.toml file.
     #[arg(long)]
     pub scene: String,
     /// Resample a PLY mesh surface to this many points.
@@ -25,6 +26,29 @@ pub struct SceneArgs {
     /// Seed for generators and resampling that do not name their own.
     #[arg(long, default_value_t = 1)]
     pub seed: u64,
+    /// Keep colour and normal columns that hold one value for every sample (by default they
+    /// are dropped with a warning: e.g. LAS RGB left at 0 by the scanner).
+    #[arg(long)]
+    pub keep_attributes: bool,
+    /// The file's up axis (x, y, z, -x, -y, -z), turned to splatbench's +Z at load; Stanford
+    /// and most graphics PLY data are Y-up. Default: a scene file's `up`, else z.
+    #[arg(long, value_parser = parse_up)]
+    pub up: Option<scenes::Up>,
+}
+
+fn parse_up(s: &str) -> Result<scenes::Up, String> {
+    s.parse()
+}
+
+impl SceneArgs {
+    /// The scene spec these arguments name.
+    pub fn spec(&self) -> Result<scenes::SceneSpec, scenes::SceneError> {
+        Ok(
+            scenes::SceneSpec::parse(&self.scene, self.sample, self.seed)?
+                .with_keep_attributes(self.keep_attributes)
+                .with_up(self.up),
+        )
+    }
 }
 
 #[derive(Args, Clone)]

@@ -5,7 +5,6 @@ use std::path::{Path, PathBuf};
 use anyhow::Context as _;
 use clap::Args;
 use methods::Params;
-use scenes::SceneSpec;
 
 use crate::args::{MethodArgs, SceneArgs};
 
@@ -19,7 +18,7 @@ pub struct BuildArgs {
     #[arg(long)]
     pub out: PathBuf,
     /// Cache directory for large generated scenes.
-    #[arg(long, default_value = "results/cache")]
+    #[arg(long, default_value_os_t = crate::shared::default_cache())]
     pub cache: PathBuf,
 }
 
@@ -39,10 +38,11 @@ pub fn build(
 ) -> anyhow::Result<methods::BuildStats> {
     let params = Params::parse(&m.params)?;
     m.method.check_params(&params)?;
-    let spec = SceneSpec::parse(&s.scene, s.sample, s.seed)?;
+    let spec = s.spec()?;
     let bar = harness::progress::Bar::new();
     let cloud = spec
         .load(Some(cache), &bar)
-        .with_context(|| format!("loading scene '{}'", s.scene))?;
+        .with_context(|| format!("loading scene '{}'", s.scene))?
+        .warn();
     Ok(m.method.build(&cloud, &params, &spec.label(), out, &bar)?)
 }

@@ -4,7 +4,6 @@ use std::path::{Path, PathBuf};
 
 use anyhow::{Context as _, bail};
 use clap::Args;
-use scenes::SceneSpec;
 
 use crate::args::SceneArgs;
 
@@ -16,7 +15,7 @@ pub struct ExportArgs {
     #[arg(long)]
     pub out: PathBuf,
     /// Cache directory for large generated scenes.
-    #[arg(long, default_value = "results/cache")]
+    #[arg(long, default_value_os_t = crate::shared::default_cache())]
     pub cache: PathBuf,
 }
 
@@ -37,10 +36,11 @@ fn export(s: &SceneArgs, out: &Path, cache: &Path) -> anyhow::Result<()> {
             out.display()
         );
     }
-    let spec = SceneSpec::parse(&s.scene, s.sample, s.seed)?;
+    let spec = s.spec()?;
     let cloud = spec
         .load(Some(cache), &harness::progress::Bar::new())
-        .with_context(|| format!("loading scene '{}'", s.scene))?;
+        .with_context(|| format!("loading scene '{}'", s.scene))?
+        .warn();
     let bytes = match ext.as_str() {
         "las" | "laz" => scenes::las::write(out, &cloud)?,
         "ply" => scenes::ply::write(out, &cloud, scenes::ply::PlyFormat::BinaryLittleEndian)?,

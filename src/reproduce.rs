@@ -38,7 +38,7 @@ pub struct ReproduceArgs {
     #[arg(long)]
     pub publish: Option<PathBuf>,
     /// Cache directory (large scenes, reference builds and images).
-    #[arg(long, default_value = "results/cache")]
+    #[arg(long, default_value_os_t = crate::shared::default_cache())]
     pub cache: PathBuf,
     /// Load and check every spec for both profiles, list them, and run nothing.
     #[arg(long)]

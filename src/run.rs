@@ -8,7 +8,6 @@ use clap::Args;
 use harness::render::RenderSettings;
 use harness::runner::RunConfig;
 use methods::{Params, Target};
-use scenes::SceneSpec;
 use scenes::paths::PathSpec;
 
 use crate::args::{MethodArgs, RenderArgs, SceneArgs, TargetArgs};
@@ -40,7 +39,7 @@ pub struct RunArgs {
     #[arg(long)]
     pub out: PathBuf,
     /// Cache directory (large scenes, reference builds and images).
-    #[arg(long, default_value = "results/cache")]
+    #[arg(long, default_value_os_t = crate::shared::default_cache())]
     pub cache: PathBuf,
     /// Run an existing build (a `splatbench build --out` directory of the same method and
     /// scene) instead of building: the run's memory is then the method's alone. `--param`
@@ -60,7 +59,7 @@ pub fn run_config(a: &RunArgs) -> anyhow::Result<RunConfig> {
     Ok(RunConfig {
         method: a.method.method,
         params,
-        scene: SceneSpec::parse(&a.scene.scene, a.scene.sample, a.scene.seed)?,
+        scene: a.scene.spec()?,
         path: PathSpec::parse(&a.path)?,
         frames: a.frames,
         target,

@@ -1,8 +1,24 @@
-//! Helpers several subcommands use: opening the GPU and printing a run's summary line.
+//! Helpers several subcommands use: the cache directory, opening the GPU and printing a
+//! run's summary line.
+
+use std::path::PathBuf;
 
 use anyhow::bail;
 use harness::gpu::Gpu;
 use harness::runner::Summary;
+
+/// The default `--cache`: `$SPLATBENCH_CACHE` when set, else `splatbench/` in the platform's
+/// user cache directory (`$XDG_CACHE_HOME` or `~/.cache` on Linux, `~/Library/Caches` on
+/// macOS, `%LOCALAPPDATA%` on Windows), else `splatbench-cache/` in the temporary directory
+/// (a machine with no home directory).
+pub fn default_cache() -> PathBuf {
+    match std::env::var_os("SPLATBENCH_CACHE") {
+        Some(p) if !p.is_empty() => PathBuf::from(p),
+        _ => dirs::cache_dir()
+            .map(|d| d.join("splatbench"))
+            .unwrap_or_else(|| std::env::temp_dir().join("splatbench-cache")),
+    }
+}
 
 pub fn open_gpu() -> anyhow::Result<Gpu> {
     match Gpu::new()? {

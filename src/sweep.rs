@@ -37,7 +37,7 @@ pub struct SweepArgs {
     #[arg(long)]
     pub out: PathBuf,
     /// Cache directory (large scenes, reference builds and images).
-    #[arg(long, default_value = "results/cache")]
+    #[arg(long, default_value_os_t = crate::shared::default_cache())]
     pub cache: PathBuf,
     /// Run every target on an existing build (as `run --build-dir`) instead of building into
     /// OUT/build; `--param` may then change only runtime parameters.

@@ -330,3 +330,92 @@ fn mwkd_with_a_delayed_loader_has_no_more_holes_than_fully_loaded() {
         );
     }
 }
+
+/// A real scan's stray sample: the statue with one point added 6,000 km away. Without a
+/// robust reference and framing, the stray's k-NN splat covers the reference image and the
+/// bounds frame an empty sky (hole ratios of 0.92–1.0 for LPC and MWKD). With them, the
+/// camera frames exactly the clean statue's box, the summary counts the stray, and no
+/// method's hole ratio in any frame exceeds its value on the clean statue by more than 1
+/// percentage point (the stray is one sample of 20,001, outside every frame's view) — except
+/// for the two methods that partition the bounding box itself, whose margins are measured
+/// values with margin. LPC splits at the midpoint of the box, so the stray's 6,000 km box
+/// puts it alone on one side of the root and the statue one level down, with the spacings of
+/// eqs. (1)–(2) of that level (measured: +1.05 points in frame 2, −2.8 in frame 0; not the
+/// random draw of the clouds: five seeds of the clean statue move frame 2 by 0.1 point):
+/// margin 2 points. MWKD quantises positions to 16 bits per axis in each node's box
+/// (paper §III-C), and the leaf that holds the stray spans 6,000 km: its statue samples
+/// collapse onto a 92 m grid (measured: +2.3 points of holes in frame 1 from 0, FLIP 0.061
+/// against 0.020 in frame 0): margin 4 points. That is a defect of the paper's codec on real
+/// scans, left open (noted on issue 12); a stray may move such figures, it must not ruin the
+/// image.
+#[test]
+fn a_far_stray_changes_neither_the_framing_nor_the_holes() {
+    let Some(gpu) =
+        harness::gpu::gpu_for_test("a_far_stray_changes_neither_the_framing_nor_the_holes")
+    else {
+        return;
+    };
+    let tmp = tempfile::tempdir().unwrap();
+    let clean = scenes::generators::Generator::Statue
+        .generate(20_000, 4)
+        .unwrap();
+    let (origin, p, n, c, _) = clean.clone().into_columns();
+    let mut p = p.to_vec();
+    p.push([6.0e6, 1.0e5, -2.0e5]);
+    let n = n.map(|n| [n.to_vec(), vec![[0.0, 0.0, 1.0]]].concat());
+    let c = c.map(|c| [c.to_vec(), vec![[255, 0, 0]]].concat());
+    let stray =
+        scenes::PointCloud::new(origin, p.into(), n.map(Into::into), c.map(Into::into), None)
+            .unwrap();
+    let (clean_file, stray_file) = (tmp.path().join("clean.sbc"), tmp.path().join("stray.sbc"));
+    scenes::colfile::write(&clean_file, &clean).unwrap();
+    scenes::colfile::write(&stray_file, &stray).unwrap();
+    let run_on = |method: MethodKind, params: &[&str], scene: &std::path::Path, out: &str| {
+        let cfg = config(
+            method,
+            params,
+            scene.to_str().unwrap(),
+            "orbit",
+            3,
+            128,
+            tmp.path(),
+            out,
+        );
+        let s = run(&cfg, &gpu, &scenes::NoProgress)
+            .unwrap_or_else(|e| panic!("{method} {params:?} on {}: {e:#}", scene.display()));
+        let holes = column(&tmp.path().join(out), "hole_ratio");
+        (s.scene.framed_bounds, s.scene.outside_frame, holes)
+    };
+    for method in [
+        MethodKind::Full,
+        MethodKind::Qsplat,
+        MethodKind::Lpc,
+        MethodKind::Mwkd,
+    ] {
+        let margin = match method {
+            MethodKind::Lpc => 0.02,
+            MethodKind::Mwkd => 0.04,
+            _ => 0.01,
+        };
+        let (framed, outside, before) =
+            run_on(method, &[], &clean_file, &format!("{method}-clean"));
+        assert_eq!(
+            (framed, outside),
+            (clean.bounds(), 0),
+            "{method}: the clean statue is framed whole"
+        );
+        let (framed, outside, after) = run_on(method, &[], &stray_file, &format!("{method}-stray"));
+        assert_eq!(
+            (framed, outside),
+            (clean.bounds(), 1),
+            "{method}: the stray is counted, not framed"
+        );
+        for (i, (a, b)) in before.iter().zip(&after).enumerate() {
+            assert!(
+                b - a <= margin,
+                "{method} frame {i}: hole ratio {b:.4} with the stray, {a:.4} without \
+                 (margin {margin})"
+            );
+        }
+    }
+}

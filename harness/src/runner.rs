@@ -207,12 +207,22 @@ pub struct SceneStats {
     pub points: u64,
     /// Attributes.
     pub attributes: String,
-    /// Local bounds.
+    /// Local bounds of every sample.
     pub bounds: Aabb,
+    /// What the camera paths frame: the bounds without far outliers ([`scenes::framing`]).
+    pub framed_bounds: Aabb,
+    /// Samples outside the framed box (still drawn, not framed).
+    pub outside_frame: u64,
+    /// Samples of the reference whose k-NN leaf radius was capped as isolated
+    /// ([`methods::leaf`]); `None` without metrics.
+    pub reference_radii_capped: Option<u64>,
     /// World origin.
     pub origin: [f64; 3],
     /// Content hash (hex).
     pub content_hash: String,
+    /// What the reader dropped or ignored (attributes, invalid points) and what the framing
+    /// left out, one sentence each (also printed as warnings).
+    pub warnings: Vec<String>,
 }
 
 /// Medians over a run's frames.
@@ -305,6 +315,22 @@ impl<'g> Reference<'g> {
         }
     }
 
+    fn full_dir(&self) -> PathBuf {
+        self.cache
+            .join("full")
+            .join(format!("{:016x}", self.scene_hash))
+    }
+
+    /// How many leaf radii the reference build capped as isolated (`None` before the first
+    /// image was rendered or when its build records none).
+    pub fn radii_capped(&self) -> Option<u64> {
+        BuildStats::read(&self.full_dir())
+            .ok()?
+            .extra
+            .get("leaf_radii_capped")?
+            .as_u64()
+    }
+
     fn key(&self, view: &View) -> String {
         let mut h = scenes::hash::Fnv64::default();
         h.write(&self.scene_hash.to_le_bytes())
@@ -329,10 +355,7 @@ impl<'g> Reference<'g> {
             return Ok(img);
         }
         if self.full.is_none() {
-            let dir = self
-                .cache
-                .join("full")
-                .join(format!("{:016x}", self.scene_hash));
+            let dir = self.full_dir();
             if methods::Manifest::read(&dir).is_err() {
                 MethodKind::Full
                     .build(
@@ -375,10 +398,24 @@ pub fn run(cfg: &RunConfig, gpu: &Gpu, progress: &dyn Progress) -> anyhow::Resul
     cfg.method.check_params(&cfg.params)?;
     std::fs::create_dir_all(&cfg.out)
         .with_context(|| format!("creating output directory {}", cfg.out.display()))?;
-    let cloud = cfg
+    let loaded = cfg
         .scene
         .load(Some(&cfg.cache), progress)
         .with_context(|| format!("loading scene '{}'", cfg.scene.text))?;
+    let mut scene_warnings = loaded.warnings.clone();
+    let cloud = loaded.warn();
+    let framing = scenes::framing::framing(&cloud);
+    if framing.outside > 0 {
+        let w = format!(
+            "{}: {} of {} samples lie far outside the rest (beyond half the robust extent of \
+             the 0.1–99.9 % quantile box): drawn, but the camera paths frame the others",
+            cfg.scene.text,
+            framing.outside,
+            cloud.len()
+        );
+        eprintln!("warning: {w}");
+        scene_warnings.push(w);
+    }
     let scene_hash = cfg.scene.content_hash()?;
     let label = cfg.scene.label();
     let (build_dir, build, params) = match &cfg.build_dir {
@@ -438,7 +475,7 @@ pub fn run(cfg: &RunConfig, gpu: &Gpu, progress: &dyn Progress) -> anyhow::Resul
             cfg.render,
         )
     });
-    let bounds = cloud.bounds();
+    let bounds = framing.framed;
     let mut summary = Summary {
         complete: false,
         adapter: gpu.adapter.clone(),
@@ -458,9 +495,13 @@ pub fn run(cfg: &RunConfig, gpu: &Gpu, progress: &dyn Progress) -> anyhow::Resul
             spec: cfg.scene.text.clone(),
             points: cloud.len() as u64,
             attributes: cloud.attributes().to_string(),
-            bounds,
+            bounds: cloud.bounds(),
+            framed_bounds: bounds,
+            outside_frame: framing.outside,
+            reference_radii_capped: None,
             origin: cloud.origin().to_array(),
             content_hash: format!("{scene_hash:016x}"),
+            warnings: scene_warnings,
         },
         build,
         splats_per_s_basis: if gpu.timestamps { "gpu_ms" } else { "wall_ms" },
@@ -549,6 +590,18 @@ pub fn run(cfg: &RunConfig, gpu: &Gpu, progress: &dyn Progress) -> anyhow::Resul
         progress.inc(1);
     }
     progress.finish();
+    summary.scene.reference_radii_capped = reference.as_ref().and_then(Reference::radii_capped);
+    if let Some(n) = summary.scene.reference_radii_capped.filter(|&n| n > 0) {
+        let w = format!(
+            "{}: the reference capped the splat radius of {n} isolated samples (k-NN radius \
+             above {} × its {} quantile)",
+            cfg.scene.text,
+            methods::leaf::OUTLIER_CAP,
+            methods::leaf::OUTLIER_QUANTILE
+        );
+        eprintln!("warning: {w}");
+        summary.scene.warnings.push(w);
+    }
     summary.medians = Medians::of(&rows);
     summary.peak_rss_bytes = crate::rss::peak_bytes();
     summary.run_seconds = t_run.elapsed().as_secs_f64();

@@ -105,7 +105,10 @@ fn median(mut v: Vec<f64>) -> f64 {
 fn main() {
     let a = args();
     let spec = SceneSpec::parse(&a.scene, None, 1).unwrap();
-    let cloud = spec.load(a.cache.as_deref(), &scenes::NoProgress).unwrap();
+    let cloud = spec
+        .load(a.cache.as_deref(), &scenes::NoProgress)
+        .unwrap()
+        .warn();
     let tmp;
     let dir = match &a.build {
         Some(d) => d.clone(),

@@ -381,6 +381,30 @@ impl PointCloud {
         self.radii = Some(Column::Owned(radii));
         Ok(self)
     }
+    /// Returns this cloud turned so that the file's `up` axis is +Z ([`crate::Up`]): origin,
+    /// positions and normals rotated (exactly: a signed axis permutation); the bounds follow.
+    pub fn with_up(self, up: crate::Up) -> Result<Self, SceneError> {
+        if up == crate::Up::Z {
+            return Ok(self);
+        }
+        let turn = |c: &Column<[f32; 3]>| -> Column<[f32; 3]> {
+            c.iter().map(|v| up.to_z_up(*v)).collect::<Vec<_>>().into()
+        };
+        let positions = turn(&self.positions);
+        let normals = self.normals.as_ref().map(turn);
+        let origin = DVec3::from(up.to_z_up(self.origin.to_array()));
+        PointCloud::new(origin, positions, normals, self.colors, self.radii)
+    }
+    /// Returns this cloud without its colour column.
+    pub fn without_colors(mut self) -> Self {
+        self.colors = None;
+        self
+    }
+    /// Returns this cloud without its normal column.
+    pub fn without_normals(mut self) -> Self {
+        self.normals = None;
+        self
+    }
     /// Splits into columns (origin, positions, normals, colours, radii).
     #[expect(
         clippy::type_complexity,
@@ -403,6 +427,22 @@ impl PointCloud {
             self.radii,
         )
     }
+}
+
+/// World positions as `f32` offsets from the centre of their bounds, and that centre: how
+/// the readers that decode `f64` coordinates keep georeferenced data precise.
+pub(crate) fn centred(world: &[[f64; 3]]) -> (DVec3, Vec<[f32; 3]>) {
+    let (lo, hi) = world
+        .iter()
+        .fold((DVec3::INFINITY, DVec3::NEG_INFINITY), |(lo, hi), p| {
+            (lo.min(DVec3::from(*p)), hi.max(DVec3::from(*p)))
+        });
+    let origin = (lo + hi) * 0.5;
+    let local = world
+        .iter()
+        .map(|p| (DVec3::from(*p) - origin).as_vec3().to_array())
+        .collect();
+    (origin, local)
 }
 
 fn bounds_parallel(p: &[[f32; 3]]) -> Aabb {

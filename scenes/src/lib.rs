@@ -8,27 +8,33 @@
 //! - Columns are either owned vectors or views into a memory-mapped column file
 //!   ([`colfile`]), so a cloud larger than RAM streams through the page cache.
 //! - Generators ([`generators`]) are seeded and deterministic: same seed and count ⇒ identical bytes.
-//! - Readers ([`ply`], [`las`]) return a clear [`SceneError`] naming the file and the field for
+//! - Readers ([`ply`], [`las`], [`e57`], [`pcd`]) return a clear [`SceneError`] naming the file and the field for
 //!   malformed input, never a panic.
 //! - [`camera`] holds `Camera`/`View` (frustum planes, projection scale) and [`paths`] the
 //!   scripted camera paths.
 
+pub mod axis;
 pub mod camera;
 pub mod cloud;
 pub mod colfile;
+pub mod e57;
 pub mod error;
+pub mod framing;
 pub mod generators;
 pub mod hash;
 pub mod las;
 pub mod paths;
+pub mod pcd;
 pub mod ply;
 pub mod progress;
 pub mod rng;
+pub mod screen;
 pub mod spacing;
 pub mod spec;
 
+pub use axis::Up;
 pub use camera::{Camera, Containment, Frustum, View};
 pub use cloud::{Aabb, Attributes, Column, PointCloud};
 pub use error::SceneError;
 pub use progress::{NoProgress, Progress};
-pub use spec::SceneSpec;
+pub use spec::{Loaded, SceneSpec};

@@ -61,11 +61,9 @@
 //! # Speed
 //! The body is streamed through a 4 MiB buffer (no memory map: the workspace denies `unsafe`).
 //! A binary vertex element without list properties is decoded record by record from a
-//! precomputed `(offset, type)` layout, monomorphised per endianness. Measured on a 2-core VM
-//! shared with other builds (release, file in the page cache): 10 M vertices with `float`
-//! x,y,z + normals + colours (270 MB) in 0.93–1.3 s ≈ 210–290 MB/s; the same points as written
-//! by [`write()`] (`double` positions, 390 MB) ≈ 310–450 MB/s — see the ignored
-//! `ply_read_speed` test in `tests/readers.rs`.
+//! precomputed `(offset, type)` layout, monomorphised per endianness. Measured by criterion
+//! (`cargo bench -p methods --bench kernels -- scene_io/`, figures in
+//! `results/measurements/issue-2-spine.md`).
 //!
 //! # Writing
 //! [`write()`] writes a cloud (world `double x,y,z`; `float nx,ny,nz`, `uchar red,green,blue`,

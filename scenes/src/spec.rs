@@ -2,8 +2,8 @@
 //!
 //! - `generator:points[:seed]`, e.g. `statue:200000` or `terrain:1000000:7` (seed defaults to
 //!   the run's `--seed`);
-//! - a file: `.ply` (with `--sample N` to resample a mesh), `.las`, `.laz`, or a splatbench
-//!   column file `.sbc`;
+//! - a file: `.ply` (with `--sample N` to resample a mesh), `.las`, `.laz`, `.e57`, `.pcd`, or
+//!   a splatbench column file `.sbc`;
 //! - a scene file `.toml` (fields below, unknown keys are errors); relative `file` paths are
 //!   relative to the TOML file:
 //!   ```toml
@@ -11,6 +11,8 @@
 //!   points = 200000        # generators only
 //!   seed = 1               # optional
 //!   sample = 100000        # optional, meshes only
+//!   keep_attributes = true # optional: keep constant colour/normal columns (see screen)
+//!   up = "y"               # optional: the file's up axis, turned to +Z (see axis)
 //!   ```
 //!
 //! Generated scenes of more than [`CACHE_MIN_POINTS`] points are written once to a column file
@@ -54,11 +56,50 @@ pub enum SceneSource {
         /// The file.
         path: PathBuf,
     },
+    /// An E57 file (every scan, posed).
+    E57 {
+        /// The file.
+        path: PathBuf,
+    },
+    /// A PCD file (PCL's format).
+    Pcd {
+        /// The file.
+        path: PathBuf,
+    },
     /// A splatbench column file.
     Columns {
         /// The file.
         path: PathBuf,
     },
+}
+
+/// The file extensions a scene can have, as the error for any other lists them.
+pub const FILE_EXTENSIONS: &str = ".ply .las .laz .e57 .pcd .sbc .toml";
+
+/// A loaded scene, and what the reader dropped or ignored on the way.
+#[derive(Debug)]
+pub struct Loaded {
+    /// The samples.
+    pub cloud: PointCloud,
+    /// One sentence per thing dropped or ignored (an attribute, invalid points), naming the
+    /// file: a run records them in its summary, the CLI prints them as warnings.
+    pub warnings: Vec<String>,
+}
+
+impl Loaded {
+    fn quiet(cloud: PointCloud) -> Self {
+        Self {
+            cloud,
+            warnings: Vec::new(),
+        }
+    }
+    /// Prints each warning to stderr (`warning: …`) and returns the cloud.
+    pub fn warn(self) -> PointCloud {
+        for w in &self.warnings {
+            eprintln!("warning: {w}");
+        }
+        self.cloud
+    }
 }
 
 /// A parsed `--scene` value.
@@ -68,6 +109,11 @@ pub struct SceneSpec {
     pub text: String,
     /// What it resolves to.
     pub source: SceneSource,
+    /// Keep colour and normal columns that hold one value for every sample
+    /// ([`crate::screen`]); `--keep-attributes`, or `keep_attributes = true` in a scene file.
+    pub keep_attributes: bool,
+    /// The file's up axis, turned to +Z at load (`--up`, `up = "y"` in a scene file).
+    pub up: crate::Up,
 }
 
 #[derive(Debug, serde::Deserialize)]
@@ -78,6 +124,8 @@ struct SceneFile {
     points: Option<usize>,
     seed: Option<u64>,
     sample: Option<usize>,
+    keep_attributes: Option<bool>,
+    up: Option<String>,
 }
 
 impl SceneSpec {
@@ -101,13 +149,21 @@ impl SceneSpec {
             SceneSource::Las { path: text.into() }
         } else if ext(".sbc") {
             SceneSource::Columns { path: text.into() }
+        } else if ext(".e57") {
+            SceneSource::E57 { path: text.into() }
+        } else if ext(".pcd") {
+            SceneSource::Pcd { path: text.into() }
+        } else if let Some(e) = file_extension(text) {
+            return Err(err(format!(
+                "'.{e}' files are not read (supported: {FILE_EXTENSIONS})"
+            )));
         } else {
             let mut parts = text.split(':');
             let name = parts.next().unwrap_or_default();
             let generator = Generator::from_name(name).ok_or_else(|| {
                 let known: Vec<_> = Generator::ALL.iter().map(|g| g.name()).collect();
                 err(format!(
-                    "not a file (.ply .las .laz .sbc .toml) nor a generator (known: {}); \
+                    "not a file ({FILE_EXTENSIONS}) nor a generator (known: {}); \
                      generators are written generator:points[:seed]",
                     known.join(", ")
                 ))
@@ -137,7 +193,24 @@ impl SceneSpec {
         Ok(Self {
             text: text.to_string(),
             source,
+            keep_attributes: false,
+            up: crate::Up::Z,
         })
+    }
+
+    /// This spec with the file's up axis set (`--up`); `None` keeps a scene file's `up`.
+    pub fn with_up(mut self, up: Option<crate::Up>) -> Self {
+        if let Some(u) = up {
+            self.up = u;
+        }
+        self
+    }
+
+    /// This spec with [`SceneSpec::keep_attributes`] set (`--keep-attributes`); a scene file's
+    /// `keep_attributes = true` stays set.
+    pub fn with_keep_attributes(mut self, keep: bool) -> Self {
+        self.keep_attributes |= keep;
+        self
     }
 
     fn parse_file(path: &Path, sample: Option<usize>, seed: u64) -> Result<Self, SceneError> {
@@ -178,8 +251,16 @@ impl SceneSpec {
             SceneError::Spec { msg, .. } => SceneError::format(path, msg),
             e => e,
         })?;
+        let up = match f.up {
+            Some(u) => u
+                .parse()
+                .map_err(|m: String| SceneError::format(path, format!("up: {m}")))?,
+            None => crate::Up::Z,
+        };
         Ok(Self {
             text: path.to_string_lossy().into_owned(),
+            keep_attributes: f.keep_attributes.unwrap_or(false),
+            up,
             ..spec
         })
     }
@@ -199,7 +280,10 @@ impl SceneSpec {
                     None => name,
                 }
             }
-            SceneSource::Las { path } | SceneSource::Columns { path } => file_name(path),
+            SceneSource::Las { path }
+            | SceneSource::E57 { path }
+            | SceneSource::Pcd { path }
+            | SceneSource::Columns { path } => file_name(path),
         }
     }
 
@@ -224,7 +308,17 @@ impl SceneSpec {
                     h.write(&n.to_le_bytes()).write(&seed.to_le_bytes());
                 }
             }
-            SceneSource::Las { path } | SceneSource::Columns { path } => hash_file(&mut h, path)?,
+            SceneSource::Las { path }
+            | SceneSource::E57 { path }
+            | SceneSource::Pcd { path }
+            | SceneSource::Columns { path } => hash_file(&mut h, path)?,
+        }
+        if self.keep_attributes && !matches!(self.source, SceneSource::Generator { .. }) {
+            // The same file gives another cloud when its constant columns are kept.
+            h.write_str("keep_attributes");
+        }
+        if self.up != crate::Up::Z {
+            h.write_str("up").write_str(&self.up.to_string());
         }
         Ok(h.finish())
     }
@@ -235,8 +329,26 @@ impl SceneSpec {
         &self,
         cache_dir: Option<&Path>,
         progress: &dyn Progress,
-    ) -> Result<PointCloud, SceneError> {
-        match &self.source {
+    ) -> Result<Loaded, SceneError> {
+        let mut loaded = self.read(cache_dir, progress)?;
+        loaded.cloud = loaded.cloud.with_up(self.up)?;
+        if self.keep_attributes || matches!(self.source, SceneSource::Generator { .. }) {
+            // Generators fill every column they declare.
+            return Ok(loaded);
+        }
+        let (cloud, mut dropped) = crate::screen::drop_constant_columns(loaded.cloud, &self.text);
+        let mut warnings = loaded.warnings;
+        warnings.append(&mut dropped);
+        Ok(Loaded { cloud, warnings })
+    }
+
+    /// Reads the scene as its source holds it.
+    fn read(
+        &self,
+        cache_dir: Option<&Path>,
+        progress: &dyn Progress,
+    ) -> Result<Loaded, SceneError> {
+        let plain = match &self.source {
             SceneSource::Generator {
                 generator,
                 points,
@@ -266,8 +378,57 @@ impl SceneSpec {
             ),
             SceneSource::Las { path } => crate::las::read(path),
             SceneSource::Columns { path } => crate::colfile::open(path),
-        }
+            SceneSource::E57 { path } => {
+                let e = crate::e57::read(path)?;
+                let mut warnings = e.warnings;
+                if e.dropped > 0 {
+                    warnings.push(format!(
+                        "{}: points dropped: {} of {} in {} scans (invalid or direction-only \
+                         coordinate)",
+                        path.display(),
+                        e.dropped,
+                        e.dropped + e.cloud.len(),
+                        e.scans
+                    ));
+                }
+                return Ok(Loaded {
+                    cloud: e.cloud,
+                    warnings,
+                });
+            }
+            SceneSource::Pcd { path } => {
+                let p = crate::pcd::read(path)?;
+                let mut warnings = p.warnings;
+                if p.dropped > 0 {
+                    warnings.push(format!(
+                        "{}: points dropped: {} of {} (non-finite coordinate: the holes of an \
+                         organised cloud)",
+                        path.display(),
+                        p.dropped,
+                        p.dropped + p.cloud.len()
+                    ));
+                }
+                return Ok(Loaded {
+                    cloud: p.cloud,
+                    warnings,
+                });
+            }
+        };
+        plain.map(Loaded::quiet)
     }
+}
+
+/// The extension of a `--scene` value that names a file (`scan.xyz` → `xyz`), if it has one
+/// and is not a generator spec (`statue:1000` has no extension; `a.b:7` is not a file either).
+fn file_extension(text: &str) -> Option<&str> {
+    let name = text.rsplit(['/', '\\']).next().unwrap_or(text);
+    let (stem, ext) = name.rsplit_once('.')?;
+    let plausible = !name.contains(':')
+        && !stem.is_empty()
+        && !ext.is_empty()
+        && ext.len() <= 8
+        && ext.chars().all(|c| c.is_ascii_alphanumeric());
+    plausible.then_some(ext)
 }
 
 fn file_name(p: &Path) -> String {

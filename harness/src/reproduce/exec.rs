@@ -252,7 +252,8 @@ impl<'a> Context<'a> {
                 }
                 let cloud = scene
                     .load(Some(&self.cache), self.progress)
-                    .with_context(|| format!("loading scene '{}'", scene.text))?;
+                    .with_context(|| format!("loading scene '{}'", scene.text))?
+                    .warn();
                 let stats = m
                     .method
                     .build(&cloud, &m.build_params, &scene.label(), &dir, self.progress)

@@ -1,0 +1,131 @@
+//! The extent a camera frames: the cloud's bounds without its far outliers.
+//!
+//! Camera paths are defined relative to a bounding box ([`crate::paths`]). The plain bounds
+//! of a real scan are set by its strays: one point 6,000 km from a 1 km tile makes the box
+//! thousands of times too large, and every path then looks at an empty sky. [`framing`]
+//! returns the bounds of the *inliers*, the samples inside the box
+//!
+//! `[q₀.₁ − m, q₉₉.₉ + m]` per axis, with `m = ½ · max over axes of (q₉₉.₉ − q₀.₁)`,
+//!
+//! where `q₀.₁`, `q₉₉.₉` are the 0.1 % and 99.9 % quantiles of each coordinate (estimated
+//! from at most 2²⁰ evenly strided samples). The margin is half the largest robust extent,
+//! the same on every axis, so a flat terrain's trees and towers (far outside the quantiles of
+//! its thin z range, but not far from the tile) stay inliers, and a cloud without strays keeps
+//! exactly its bounds: every sample is within its own extent of the quantile box. The
+//! outliers are still drawn, by every method and by the reference; they are only not framed.
+
+use crate::{Aabb, PointCloud};
+
+/// Quantiles that bound the robust extent.
+pub const QUANTILES: (f64, f64) = (0.001, 0.999);
+
+/// The margin around the quantile box, as a fraction of its largest extent.
+pub const MARGIN: f32 = 0.5;
+
+/// At most this many samples estimate the quantiles.
+const QUANTILE_SAMPLES: usize = 1 << 20;
+
+/// What the camera frames.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct Framing {
+    /// Bounds of the inliers (the cloud's bounds when it has no outlier).
+    pub framed: Aabb,
+    /// Samples outside the inlier box.
+    pub outside: u64,
+}
+
+/// The inlier bounds of `cloud` (see the module docs).
+pub fn framing(cloud: &PointCloud) -> Framing {
+    let p = cloud.positions();
+    let all = Framing {
+        framed: cloud.bounds(),
+        outside: 0,
+    };
+    if p.len() < 3 {
+        return all;
+    }
+    let stride = p.len().div_ceil(QUANTILE_SAMPLES);
+    let mut lo = [0f32; 3];
+    let mut hi = [0f32; 3];
+    let mut axis: Vec<f32> = Vec::with_capacity(p.len() / stride + 1);
+    for a in 0..3 {
+        axis.clear();
+        axis.extend(p.iter().step_by(stride).map(|v| v[a]));
+        let last = (axis.len() - 1) as f64;
+        let i_lo = (last * QUANTILES.0).floor() as usize;
+        let i_hi = (last * QUANTILES.1).ceil() as usize;
+        lo[a] = *axis.select_nth_unstable_by(i_lo, f32::total_cmp).1;
+        hi[a] = *axis.select_nth_unstable_by(i_hi, f32::total_cmp).1;
+    }
+    let (lo, hi) = (glam::Vec3::from(lo), glam::Vec3::from(hi));
+    let m = (hi - lo).max_element() * MARGIN;
+    let inlier = Aabb {
+        min: lo - m,
+        max: hi + m,
+    };
+    let b = cloud.bounds();
+    if inlier.min.cmple(b.min).all() && inlier.max.cmpge(b.max).all() {
+        return all;
+    }
+    use rayon::prelude::*;
+    const BLOCK: usize = 1 << 20;
+    let (framed, outside) = (0..p.len().div_ceil(BLOCK))
+        .into_par_iter()
+        .map(|k| {
+            let r = k * BLOCK..((k + 1) * BLOCK).min(p.len());
+            let mut acc = (Aabb::EMPTY, 0u64);
+            for v in &p[r.clone()] {
+                let v = glam::Vec3::from(*v);
+                if v.cmpge(inlier.min).all() && v.cmple(inlier.max).all() {
+                    acc.0 = acc.0.grow(v);
+                } else {
+                    acc.1 += 1;
+                }
+            }
+            cloud.release_pages(r);
+            acc
+        })
+        .reduce(|| (Aabb::EMPTY, 0), |a, b| (a.0.union(b.0), a.1 + b.1));
+    Framing { framed, outside }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use glam::DVec3;
+
+    fn cloud(p: Vec<[f32; 3]>) -> PointCloud {
+        PointCloud::new(DVec3::ZERO, p.into(), None, None, None).unwrap()
+    }
+
+    fn grid(n: usize) -> Vec<[f32; 3]> {
+        (0..n)
+            .map(|i| [(i % 50) as f32, (i / 50) as f32, 0.01 * (i % 3) as f32])
+            .collect()
+    }
+
+    #[test]
+    fn a_far_stray_is_not_framed() {
+        let mut p = grid(5000);
+        let clean = framing(&cloud(p.clone()));
+        assert_eq!(clean.outside, 0);
+        assert_eq!(clean.framed, cloud(p.clone()).bounds());
+        p.push([6.0e6, -3.0e6, 1.0e5]);
+        let f = framing(&cloud(p));
+        assert_eq!(f.outside, 1);
+        assert_eq!(f.framed, clean.framed);
+    }
+
+    #[test]
+    fn a_terrain_s_towers_stay_framed() {
+        // A flat tile 50 × 100 with 1 % of its samples on 30-unit towers: far beyond the
+        // z quantiles, within the margin (half the largest robust extent).
+        let mut p = grid(10_000);
+        for (i, v) in p.iter_mut().enumerate().filter(|(i, _)| i % 100 == 0) {
+            v[2] = 30.0 + (i % 7) as f32;
+        }
+        let c = cloud(p);
+        let f = framing(&c);
+        assert_eq!((f.outside, f.framed), (0, c.bounds()));
+    }
+}

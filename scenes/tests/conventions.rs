@@ -1,0 +1,123 @@
+//! Scanner conventions at load: constant attribute columns dropped with a warning (kept on
+//! request), and the file's up axis turned to +Z.
+#![allow(clippy::unwrap_used)]
+
+use glam::DVec3;
+use scenes::{PointCloud, SceneSpec};
+
+/// A LAS tile as many scanners write it: point format with RGB, every channel 0.
+fn black_las(dir: &std::path::Path) -> std::path::PathBuf {
+    let n = 500;
+    let p: Vec<[f32; 3]> = (0..n)
+        .map(|i| [(i % 25) as f32, (i / 25) as f32, 0.1 * (i % 7) as f32])
+        .collect();
+    let cloud = PointCloud::new(
+        DVec3::new(500_000.0, 4_100_000.0, 0.0),
+        p.into(),
+        None,
+        Some(vec![[0, 0, 0]; n].into()),
+        None,
+    )
+    .unwrap();
+    let path = dir.join("tile.las");
+    scenes::las::write(&path, &cloud).unwrap();
+    path
+}
+
+#[test]
+fn all_zero_las_colour_is_dropped_with_a_warning_and_kept_on_request() {
+    let dir = tempfile::tempdir().unwrap();
+    let path = black_las(dir.path());
+    let text = path.to_str().unwrap();
+    // The reader itself keeps what the file holds.
+    assert!(scenes::las::read(&path).unwrap().colors().is_some());
+    let spec = SceneSpec::parse(text, None, 1).unwrap();
+    let loaded = spec.load(None, &scenes::NoProgress).unwrap();
+    assert!(loaded.cloud.colors().is_none());
+    assert_eq!(loaded.cloud.len(), 500);
+    assert_eq!(loaded.warnings.len(), 1, "{:?}", loaded.warnings);
+    let w = &loaded.warnings[0];
+    assert!(
+        w.contains("tile.las") && w.contains("colour dropped") && w.contains("(0, 0, 0)"),
+        "{w}"
+    );
+    let keep = spec.clone().with_keep_attributes(true);
+    let kept = keep.load(None, &scenes::NoProgress).unwrap();
+    assert!(kept.cloud.colors().is_some() && kept.warnings.is_empty());
+    // The two are different scenes: cached builds and references must not be shared.
+    assert_ne!(spec.content_hash().unwrap(), keep.content_hash().unwrap());
+    // A scene file says the same with `keep_attributes = true`.
+    let toml = dir.path().join("tile.toml");
+    std::fs::write(&toml, "file = \"tile.las\"\nkeep_attributes = true\n").unwrap();
+    let s = SceneSpec::parse(toml.to_str().unwrap(), None, 1).unwrap();
+    assert!(s.keep_attributes);
+    assert!(
+        s.load(None, &scenes::NoProgress)
+            .unwrap()
+            .cloud
+            .colors()
+            .is_some()
+    );
+}
+
+#[test]
+fn generated_scenes_are_never_screened() {
+    // A generator fills every column it declares; screening them would only cost a pass.
+    let s = SceneSpec::parse("statue:2000:3", None, 1).unwrap();
+    let l = s.load(None, &scenes::NoProgress).unwrap();
+    assert!(l.warnings.is_empty());
+    assert_eq!(
+        l.cloud.attributes(),
+        scenes::generators::Generator::Statue
+            .generate(2000, 3)
+            .unwrap()
+            .attributes()
+    );
+}
+
+#[test]
+fn a_y_up_ply_stands_on_z_after_up_y() {
+    // A tall thin object along +Y, as Stanford's scans are stored, with normals.
+    let n = 64;
+    let p: Vec<[f32; 3]> = (0..n)
+        .map(|i| [0.25 * (i % 4) as f32, 2.0 * i as f32, -0.5 * (i % 3) as f32])
+        .collect();
+    let normals: Vec<[f32; 3]> = (0..n)
+        .map(|i| [[0.0, 1.0, 0.0], [1.0, 0.0, 0.0]][i % 2])
+        .collect();
+    let cloud = PointCloud::new(
+        DVec3::new(1.0, 2.0, 3.0),
+        p.clone().into(),
+        Some(normals.clone().into()),
+        None,
+        None,
+    )
+    .unwrap();
+    let dir = tempfile::tempdir().unwrap();
+    let path = dir.path().join("bunny.ply");
+    scenes::ply::write(&path, &cloud, scenes::ply::PlyFormat::BinaryLittleEndian).unwrap();
+    let plain = SceneSpec::parse(path.to_str().unwrap(), None, 1).unwrap();
+    let y_up = plain.clone().with_up(Some(scenes::Up::Y));
+    assert_ne!(plain.content_hash().unwrap(), y_up.content_hash().unwrap());
+    let turned = y_up.load(None, &scenes::NoProgress).unwrap().cloud;
+    let orig = plain.load(None, &scenes::NoProgress).unwrap().cloud;
+    // The long axis is z now, and every point and normal is the exact rotation (x, −z, y).
+    let (so, st) = (orig.bounds().size(), turned.bounds().size());
+    assert_eq!((st.x, st.y, st.z), (so.x, so.z, so.y));
+    for i in 0..n {
+        let (w, t) = (orig.world_position(i), turned.world_position(i));
+        assert_eq!(t, DVec3::new(w.x, -w.z, w.y), "point {i}");
+        let (a, b) = (orig.normals().unwrap()[i], turned.normals().unwrap()[i]);
+        assert_eq!(b, [a[0], -a[2], a[1]], "normal {i}");
+    }
+    // The same through a scene file, and a bad axis names the key.
+    let toml = dir.path().join("bunny.toml");
+    std::fs::write(&toml, "file = \"bunny.ply\"\nup = \"y\"\n").unwrap();
+    let s = SceneSpec::parse(toml.to_str().unwrap(), None, 1).unwrap();
+    assert_eq!(s.up, scenes::Up::Y);
+    std::fs::write(&toml, "file = \"bunny.ply\"\nup = \"w\"\n").unwrap();
+    let e = SceneSpec::parse(toml.to_str().unwrap(), None, 1)
+        .unwrap_err()
+        .to_string();
+    assert!(e.contains("bunny.toml") && e.contains("up: 'w'"), "{e}");
+}

@@ -8,6 +8,7 @@
 
 mod args;
 mod build;
+mod cache;
 mod demo;
 mod export;
 mod list;
@@ -58,6 +59,8 @@ enum Command {
     /// Regenerate the papers' tables from `paper/specs/`: ours beside the paper's numbers,
     /// a verdict per table, the report in OUT/report.md (and with --publish in paper/).
     Reproduce(reproduce::ReproduceArgs),
+    /// Where the cache is (scenes, reference images and builds), its size, and --clear.
+    Cache(cache::CacheArgs),
 }
 
 fn main() {
@@ -78,6 +81,7 @@ fn real_main() -> anyhow::Result<()> {
         Command::Export(a) => export::main(&a),
         Command::Plan(a) => plan::main(&a),
         Command::Demo(a) => demo::main(&a),
+        Command::Cache(a) => cache::main(&a),
         Command::Reproduce(a) => reproduce::main(&a),
     }
 }

@@ -798,3 +798,76 @@ fn sweep_errors_are_clear() {
         "no sweep.csv",
     );
 }
+
+/// `splatbench cache`: the directory comes from `--cache`, else `$SPLATBENCH_CACHE`; the sizes
+/// of what splatbench put there are reported; `--clear` removes exactly those folders and
+/// nothing else a mistyped `--cache` might point at.
+#[test]
+fn cache_reports_its_size_and_clears_only_its_own_folders() {
+    let tmp = tempfile::tempdir().unwrap();
+    let cache = tmp.path().join("c");
+    std::fs::create_dir_all(cache.join("scenes")).unwrap();
+    std::fs::create_dir_all(cache.join("refs/x")).unwrap();
+    std::fs::write(cache.join("scenes/a.sbc"), vec![0u8; 3 << 20]).unwrap();
+    std::fs::write(cache.join("refs/x/b.png"), vec![0u8; 1 << 20]).unwrap();
+    std::fs::write(cache.join("mine.txt"), b"not splatbench's").unwrap();
+    let out = bin()
+        .arg("cache")
+        .env("SPLATBENCH_CACHE", &cache)
+        .output()
+        .unwrap();
+    assert!(out.status.success());
+    let text = String::from_utf8_lossy(&out.stdout);
+    assert!(text.contains(&cache.display().to_string()), "{text}");
+    assert!(
+        text.contains("3.0 MiB") && text.contains("1.0 MiB"),
+        "{text}"
+    );
+    assert!(text.contains("total") && text.contains("4.0 MiB"), "{text}");
+    let out = bin()
+        .args(["cache", "--clear", "--cache"])
+        .arg(&cache)
+        .output()
+        .unwrap();
+    assert!(out.status.success());
+    assert!(!cache.join("scenes").exists() && !cache.join("refs").exists());
+    assert!(
+        cache.join("mine.txt").exists(),
+        "only splatbench's folders are removed"
+    );
+}
+
+/// Scene files the readers do not know are named with the supported list; a PCD scene goes
+/// through `export` like any other, with the reader's warnings on stderr.
+#[test]
+fn scene_formats_through_the_cli() {
+    let tmp = tempfile::tempdir().unwrap();
+    fails_with(
+        &["export", "--scene", "scan.xyz", "--out", "x.ply"],
+        "'.xyz' files are not read (supported: .ply .las .laz .e57 .pcd",
+    );
+    let pcd = tmp.path().join("grid.pcd");
+    std::fs::write(
+        &pcd,
+        "FIELDS x y z\nSIZE 4 4 4\nTYPE F F F\nWIDTH 2\nHEIGHT 2\nPOINTS 4\nDATA ascii\n\
+         0 0 0\nnan nan nan\n1 0 0\n0 1 0\n",
+    )
+    .unwrap();
+    let out_file = tmp.path().join("grid.ply");
+    let out = bin()
+        .args(["export", "--scene"])
+        .arg(&pcd)
+        .arg("--out")
+        .arg(&out_file)
+        .output()
+        .unwrap();
+    let err = String::from_utf8_lossy(&out.stderr);
+    assert!(out.status.success(), "{err}");
+    assert!(
+        err.contains("warning:") && err.contains("points dropped: 1 of 4"),
+        "{err}"
+    );
+    assert!(String::from_utf8_lossy(&out.stdout).contains("3 points"));
+    let cloud = scenes::ply::read(&out_file, &Default::default()).unwrap();
+    assert_eq!(cloud.len(), 3);
+}

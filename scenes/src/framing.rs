@@ -117,6 +117,16 @@ mod tests {
     }
 
     #[test]
+    fn every_generator_is_framed_whole() {
+        // Paths over generated scenes must not move: every figure in paper/ depends on them.
+        for g in crate::generators::Generator::ALL {
+            let c = g.generate(100_000, 1).unwrap();
+            let f = framing(&c);
+            assert_eq!((f.outside, f.framed), (0, c.bounds()), "{}", g.name());
+        }
+    }
+
+    #[test]
     fn a_terrain_s_towers_stay_framed() {
         // A flat tile 50 × 100 with 1 % of its samples on 30-unit towers: far beyond the
         // z quantiles, within the margin (half the largest robust extent).

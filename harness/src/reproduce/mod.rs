@@ -15,8 +15,10 @@
 //! Rows marked `needs_gpu` are listed as "needs a GPU" when the adapter is a CPU rasteriser
 //! (lavapipe), and measured when a real GPU is present.
 
+mod check;
 pub mod exec;
 pub mod expr;
+mod raw;
 pub mod report;
 pub mod spec;
 pub mod verdict;

@@ -1,0 +1,644 @@
+//! Checking a spec as written ([`super::raw`]) and resolving it for one profile: every
+//! scene, camera path, method, parameter, expression and rule is validated before anything
+//! runs, and an error names the spec file and the field.
+
+use std::collections::{BTreeMap, BTreeSet};
+use std::path::Path;
+
+use methods::{MethodKind, Params};
+use scenes::SceneSpec;
+use scenes::generators::Generator;
+use scenes::paths::PathSpec;
+
+use super::expr::Expr;
+use super::raw::{RawMeasure, RawRow, RawScene, RawSpec};
+use super::spec::{Figure, Format, Measure, MeasureKind, Piece, Profile, Row, Spec, SpecError};
+use super::verdict::{Paper, Rule, check_shape};
+use crate::render::Kernel;
+use crate::sweep::SweepTarget;
+
+pub(super) struct Checker<'a> {
+    pub(super) file: &'a Path,
+    pub(super) root: &'a Path,
+    pub(super) profile: Profile,
+}
+
+impl Checker<'_> {
+    fn err(&self, field: impl Into<String>, message: impl Into<String>) -> SpecError {
+        let message = message.into();
+        SpecError {
+            file: self.file.to_path_buf(),
+            field: field.into(),
+            message: message.replace("{profile}", self.profile.name()),
+        }
+    }
+
+    pub(super) fn spec(&self, raw: &RawSpec) -> Result<Spec, SpecError> {
+        let stem = self
+            .file
+            .file_stem()
+            .and_then(|s| s.to_str())
+            .unwrap_or_default();
+        if raw.id != stem {
+            return Err(self.err(
+                "id",
+                format!(
+                    "'{}' must equal the file's name without .toml ('{stem}')",
+                    raw.id
+                ),
+            ));
+        }
+        for (field, v) in [
+            ("paper", &raw.paper),
+            ("title", &raw.title),
+            ("source", &raw.source),
+        ] {
+            if v.trim().is_empty() {
+                return Err(self.err(field, "must not be empty"));
+            }
+        }
+        let mut scenes = BTreeMap::new();
+        for (name, s) in &raw.scenes {
+            scenes.insert(name.clone(), self.scene(name, s)?);
+        }
+        let mut measures: Vec<Measure> = Vec::new();
+        for m in &raw.measures {
+            let checked = self.measure(m, &scenes)?;
+            if measures.iter().any(|o| o.id == checked.id) {
+                return Err(self.err(format!("measure '{}'", m.id), "id given twice"));
+            }
+            measures.push(checked);
+        }
+        if raw.rows.is_empty() {
+            return Err(self.err("row", "a spec needs at least one [[row]]"));
+        }
+        let rows = raw
+            .rows
+            .iter()
+            .enumerate()
+            .map(|(i, r)| self.row(i, r, &measures))
+            .collect::<Result<Vec<_>, _>>()?;
+        let mut figures = Vec::new();
+        for f in &raw.figures {
+            let field = format!("figure '{}'", f.name);
+            if f.name.is_empty()
+                || !f
+                    .name
+                    .chars()
+                    .all(|c| c.is_ascii_alphanumeric() || c == '-')
+            {
+                return Err(self.err(field, "name: letters, digits and '-' only"));
+            }
+            if f.sweeps.is_empty() {
+                return Err(self.err(field, "sweeps: name at least one sweep measure"));
+            }
+            for s in &f.sweeps {
+                match measures.iter().find(|m| &m.id == s) {
+                    Some(m) if m.kind == MeasureKind::Sweep => {}
+                    Some(_) => return Err(self.err(field, format!("sweeps: '{s}' is not a sweep"))),
+                    None => {
+                        return Err(self.err(field, format!("sweeps: no measure '{s}'")));
+                    }
+                }
+            }
+            figures.push(Figure {
+                name: f.name.clone(),
+                title: f.title.clone(),
+                sweeps: f.sweeps.clone(),
+            });
+        }
+        let spec = Spec {
+            file: self.file.to_path_buf(),
+            id: raw.id.clone(),
+            paper: raw.paper.clone(),
+            title: raw.title.clone(),
+            source: raw.source.clone(),
+            notes: raw.notes.clone(),
+            scenes,
+            measures,
+            rows,
+            figures,
+        };
+        let used = spec.measure_uses();
+        if let Some(m) = spec
+            .measures
+            .iter()
+            .find(|m| !used.contains_key(m.id.as_str()))
+        {
+            return Err(self.err(
+                format!("measure '{}'", m.id),
+                "no row, reason or figure uses it (remove it, or add a row)",
+            ));
+        }
+        Ok(spec)
+    }
+
+    /// An integer that may differ by profile: `N` or `{ quick = N, full = M }`.
+    fn count(&self, field: &str, v: &toml::Value) -> Result<u64, SpecError> {
+        let int = |v: &toml::Value, what: &str| match v {
+            toml::Value::Integer(i) if *i >= 0 => Ok(*i as u64),
+            _ => Err(self.err(
+                field,
+                format!(
+                    "{what}must be a non-negative integer or {{ quick = N, full = M }}, not {v}"
+                ),
+            )),
+        };
+        match v {
+            toml::Value::Table(t) => {
+                if let Some(k) = t.keys().find(|k| *k != "quick" && *k != "full") {
+                    return Err(self.err(field, format!("unknown profile '{k}' (quick, full)")));
+                }
+                let Some(v) = t.get(self.profile.name()) else {
+                    return Err(self.err(field, "gives no value for profile '{profile}'"));
+                };
+                int(v, &format!("{}: ", self.profile))
+            }
+            v => int(v, ""),
+        }
+    }
+
+    fn scene(&self, name: &str, s: &RawScene) -> Result<SceneSpec, SpecError> {
+        let field = format!("scenes.{name}");
+        let sample = s
+            .sample
+            .as_ref()
+            .map(|v| self.count(&format!("{field}.sample"), v))
+            .transpose()?
+            .map(|v| v as usize);
+        let seed = s.seed.unwrap_or(1);
+        let text = match (&s.generator, &s.file) {
+            (Some(g), None) => {
+                let generator = Generator::ALL
+                    .iter()
+                    .find(|x| x.name() == g)
+                    .ok_or_else(|| {
+                        let known: Vec<_> = Generator::ALL.iter().map(|x| x.name()).collect();
+                        self.err(
+                            format!("{field}.generator"),
+                            format!("unknown generator '{g}' (known: {})", known.join(", ")),
+                        )
+                    })?;
+                let Some(points) = &s.points else {
+                    return Err(self.err(format!("{field}.points"), "a generator needs `points`"));
+                };
+                let n = self.count(&format!("{field}.points"), points)?;
+                if n == 0 {
+                    return Err(self.err(format!("{field}.points"), "must be at least 1"));
+                }
+                format!("{}:{n}:{seed}", generator.name())
+            }
+            (None, Some(f)) => {
+                if s.points.is_some() {
+                    return Err(self.err(
+                        format!("{field}.points"),
+                        "a file has its own points (use `sample` to resample a mesh)",
+                    ));
+                }
+                let p = self.root.join(f);
+                if !p.is_file() {
+                    return Err(self.err(
+                        format!("{field}.file"),
+                        format!("{} does not exist", p.display()),
+                    ));
+                }
+                p.to_string_lossy().into_owned()
+            }
+            _ => {
+                return Err(self.err(field, "give exactly one of `generator` and `file`"));
+            }
+        };
+        SceneSpec::parse(&text, sample, seed).map_err(|e| self.err(field, e.to_string()))
+    }
+
+    fn measure(
+        &self,
+        m: &RawMeasure,
+        scenes: &BTreeMap<String, SceneSpec>,
+    ) -> Result<Measure, SpecError> {
+        let field = |f: &str| format!("measure '{}': {f}", m.id);
+        if m.id.is_empty() || !m.id.chars().all(|c| c.is_ascii_alphanumeric() || c == '_') {
+            return Err(self.err(
+                format!("measure '{}'", m.id),
+                "id: letters, digits and '_' only (it is used in expressions)",
+            ));
+        }
+        let method = MethodKind::from_name(&m.method)
+            .map_err(|e| self.err(field("method"), param_message(&e)))?;
+        let is_render = matches!(m.kind, MeasureKind::Run | MeasureKind::Sweep);
+        let deny = |name: &str, given: bool| {
+            if given {
+                Err(self.err(
+                    field(name),
+                    format!("does not apply to a {:?} measure", m.kind).to_lowercase(),
+                ))
+            } else {
+                Ok(())
+            }
+        };
+        // Parameters: TOML values as `--param` text, split into build and runtime keys.
+        let mut pairs = Vec::new();
+        for (k, v) in &m.params {
+            let text = match v {
+                toml::Value::String(s) => s.clone(),
+                toml::Value::Integer(_) | toml::Value::Float(_) | toml::Value::Boolean(_) => {
+                    v.to_string()
+                }
+                _ => {
+                    return Err(self.err(
+                        field(&format!("params.{k}")),
+                        "must be a string, number or boolean",
+                    ));
+                }
+            };
+            pairs.push(format!("{k}={text}"));
+        }
+        let all =
+            Params::parse(&pairs).map_err(|e| self.err(field("params"), param_message(&e)))?;
+        method
+            .check_params(&all)
+            .map_err(|e| self.err(field("params"), param_message(&e)))?;
+        let (mut build_params, mut runtime_params) = (Params::default(), Params::default());
+        for (k, v) in all.0 {
+            if method.runtime_params().contains(&k.as_str()) {
+                runtime_params.0.insert(k, v);
+            } else {
+                build_params.0.insert(k, v);
+            }
+        }
+        if m.kind == MeasureKind::Build && !runtime_params.is_empty() {
+            return Err(self.err(
+                field("params"),
+                format!(
+                    "{} only steer rendering, not a build",
+                    runtime_params
+                        .0
+                        .keys()
+                        .cloned()
+                        .collect::<Vec<_>>()
+                        .join(", ")
+                ),
+            ));
+        }
+        // Scene.
+        let scene = match (&m.scene, m.kind) {
+            (None, MeasureKind::Plan) => None,
+            (Some(_), MeasureKind::Plan) => {
+                return Err(self.err(field("scene"), "a plan has no data: give `points`"));
+            }
+            (None, _) => return Err(self.err(field("scene"), "is required")),
+            (Some(s), _) if !scenes.contains_key(s) => {
+                let known: Vec<_> = scenes.keys().cloned().collect();
+                return Err(self.err(
+                    field("scene"),
+                    format!(
+                        "'{s}' is not defined in [scenes] (defined: {})",
+                        if known.is_empty() {
+                            "none".into()
+                        } else {
+                            known.join(", ")
+                        }
+                    ),
+                ));
+            }
+            (Some(s), _) => Some(s.clone()),
+        };
+        // Plans.
+        let points = match (&m.points, m.kind) {
+            (Some(v), MeasureKind::Plan) => Some(self.count(&field("points"), v)?),
+            (None, MeasureKind::Plan) => {
+                return Err(self.err(field("points"), "a plan needs `points`"));
+            }
+            (Some(_), _) => return Err(self.err(field("points"), "belongs to plan measures")),
+            (None, _) => None,
+        };
+        if m.kind == MeasureKind::Plan && method != MethodKind::Mwkd {
+            return Err(self.err(field("method"), "only mwkd can plan a tree without data"));
+        }
+        if !is_render {
+            for (name, given) in [
+                ("path", m.path.is_some()),
+                ("frames", m.frames.is_some()),
+                ("skip", m.skip.is_some()),
+                ("eps", m.eps.is_some()),
+                ("budget", m.budget.is_some()),
+                ("width", m.width.is_some()),
+                ("height", m.height.is_some()),
+                ("kernel", m.kernel.is_some()),
+                ("gpu_cache_mb", m.gpu_cache_mb.is_some()),
+                ("metrics", m.metrics.is_some()),
+                ("isolate", m.isolate.is_some()),
+            ] {
+                deny(name, given)?;
+            }
+        }
+        // Rendering.
+        let (path, path_text) = if is_render {
+            let text = m.path.as_deref().unwrap_or("orbit");
+            let (spec, resolved) = if PathSpec::builtin(text).is_some() {
+                (PathSpec::parse(text), text.to_string())
+            } else {
+                let p = self.root.join(text);
+                if !p.is_file() {
+                    return Err(self.err(
+                        field("path"),
+                        format!(
+                            "'{text}' is neither a built-in path ({}) nor a file ({} does not exist)",
+                            PathSpec::BUILTIN.iter().map(|b| b.0).collect::<Vec<_>>().join(", "),
+                            p.display()
+                        ),
+                    ));
+                }
+                let resolved = p.to_string_lossy().into_owned();
+                (PathSpec::parse(&resolved), resolved)
+            };
+            (
+                Some(spec.map_err(|e| self.err(field("path"), e.to_string()))?),
+                Some(resolved),
+            )
+        } else {
+            (None, None)
+        };
+        if m.isolate == Some(true) && m.kind != MeasureKind::Run {
+            return Err(self.err(field("isolate"), "only a run measure can be isolated"));
+        }
+        let frames = match &m.frames {
+            Some(v) => self.count(&field("frames"), v)? as usize,
+            None if is_render => return Err(self.err(field("frames"), "is required")),
+            None => 0,
+        };
+        if is_render && frames == 0 {
+            return Err(self.err(field("frames"), "must be at least 1"));
+        }
+        let skip = m.skip.unwrap_or(0) as usize;
+        if is_render && skip >= frames {
+            return Err(self.err(
+                field("skip"),
+                format!("{skip} leaves none of the {frames} frames"),
+            ));
+        }
+        let targets = if is_render {
+            self.targets(m, &field)?
+        } else {
+            Vec::new()
+        };
+        let size = |name: &str, v: &Option<toml::Value>| -> Result<u32, SpecError> {
+            match v {
+                None => Ok(512),
+                Some(v) => {
+                    let n = self.count(&field(name), v)?;
+                    if (1..=16_384).contains(&n) {
+                        Ok(n as u32)
+                    } else {
+                        Err(self.err(field(name), format!("{n} px is outside 1…16384")))
+                    }
+                }
+            }
+        };
+        let kernel = match &m.kernel {
+            None => Kernel::Square,
+            Some(k) => *Kernel::ALL.iter().find(|x| x.name() == k).ok_or_else(|| {
+                let known: Vec<_> = Kernel::ALL.iter().map(|x| x.name()).collect();
+                self.err(
+                    field("kernel"),
+                    format!("unknown kernel '{k}' (known: {})", known.join(", ")),
+                )
+            })?,
+        };
+        Ok(Measure {
+            id: m.id.clone(),
+            kind: m.kind,
+            method,
+            scene,
+            build_params,
+            runtime_params,
+            path,
+            path_text,
+            frames,
+            skip,
+            targets,
+            width: size("width", &m.width)?,
+            height: size("height", &m.height)?,
+            kernel,
+            gpu_cache_mb: m.gpu_cache_mb.unwrap_or(512),
+            metrics: m.metrics.unwrap_or(true),
+            isolate: m.isolate.unwrap_or(false),
+            points,
+        })
+    }
+
+    fn targets(
+        &self,
+        m: &RawMeasure,
+        field: &dyn Fn(&str) -> String,
+    ) -> Result<Vec<SweepTarget>, SpecError> {
+        let (name, v) = match (&m.eps, &m.budget) {
+            (Some(v), None) => ("eps", v),
+            (None, Some(v)) => ("budget", v),
+            _ => {
+                return Err(self.err(
+                    field("eps"),
+                    "give exactly one of `eps` (pixels) and `budget` (points)",
+                ));
+            }
+        };
+        let v = match v {
+            toml::Value::Table(t) if t.keys().all(|k| k == "quick" || k == "full") => t
+                .get(self.profile.name())
+                .ok_or_else(|| self.err(field(name), "gives no value for profile '{profile}'"))?,
+            v => v,
+        };
+        let items: Vec<&toml::Value> = match (v, m.kind) {
+            (toml::Value::Array(a), MeasureKind::Sweep) => a.iter().collect(),
+            (toml::Value::Array(_), _) => {
+                return Err(self.err(field(name), "a run has one target (a sweep takes a list)"));
+            }
+            (v, _) => vec![v],
+        };
+        if items.is_empty() {
+            return Err(self.err(field(name), "the list is empty"));
+        }
+        let mut out: Vec<SweepTarget> = Vec::new();
+        for it in items {
+            let t = if name == "eps" {
+                let px = match it {
+                    toml::Value::Float(f) => *f,
+                    toml::Value::Integer(i) => *i as f64,
+                    _ => {
+                        return Err(
+                            self.err(field(name), format!("{it} is not a number of pixels"))
+                        );
+                    }
+                };
+                SweepTarget::tolerance(px as f32)
+            } else {
+                match it {
+                    toml::Value::Integer(i) if *i > 0 => SweepTarget::budget(*i as u64),
+                    _ => return Err(self.err(field(name), format!("{it} is not a budget ≥ 1"))),
+                }
+            }
+            .map_err(|e| self.err(field(name), e.to_string()))?;
+            if out.iter().any(|o| o.name == t.name) {
+                return Err(self.err(field(name), format!("{} is given twice", t.value)));
+            }
+            out.push(t);
+        }
+        Ok(out)
+    }
+
+    fn row(&self, i: usize, r: &RawRow, measures: &[Measure]) -> Result<Row, SpecError> {
+        let field = |f: &str| format!("row {} ('{}'): {f}", i + 1, r.what);
+        let texts: Vec<&str> = match &r.ours {
+            toml::Value::String(s) => vec![s.as_str()],
+            toml::Value::Array(a) => a
+                .iter()
+                .map(|v| {
+                    v.as_str()
+                        .ok_or_else(|| self.err(field("ours"), "a list of expressions (strings)"))
+                })
+                .collect::<Result<_, _>>()?,
+            _ => return Err(self.err(field("ours"), "an expression or a list of them")),
+        };
+        let ours: Vec<Expr> = texts
+            .iter()
+            .map(|t| Expr::parse(t).map_err(|e| self.err(field("ours"), e)))
+            .collect::<Result<_, _>>()?;
+        let number = |v: &toml::Value| match v {
+            toml::Value::Float(f) => Some(*f),
+            toml::Value::Integer(i) => Some(*i as f64),
+            _ => None,
+        };
+        let paper = match &r.paper {
+            None => None,
+            Some(v) => Some(match (v, r.rule) {
+                (toml::Value::Array(a), rule) => {
+                    let nums: Vec<f64> = a
+                        .iter()
+                        .map(|x| number(x).ok_or_else(|| self.err(field("paper"), "numbers only")))
+                        .collect::<Result<_, _>>()?;
+                    if rule == Rule::Inside && nums.len() == 2 {
+                        Paper::Range(nums[0], nums[1])
+                    } else {
+                        Paper::List(nums)
+                    }
+                }
+                (v, _) => Paper::Value(
+                    number(v).ok_or_else(|| self.err(field("paper"), "a number or a list"))?,
+                ),
+            }),
+        };
+        check_shape(r.rule, paper.as_ref(), ours.len(), r.tolerance)
+            .map_err(|e| self.err(field("rule"), e))?;
+        let reason = r
+            .reason
+            .as_deref()
+            .map(|t| template(t).map_err(|e| self.err(field("reason"), e)))
+            .transpose()?;
+        let row = Row {
+            what: r.what.clone(),
+            paper,
+            paper_text: r.paper_text.clone(),
+            ours,
+            rule: r.rule,
+            tolerance: r.tolerance,
+            format: r.format,
+            reason,
+            needs_gpu: r.needs_gpu,
+        };
+        // Every reference names a measure; points_at_flip names a sweep.
+        let mut exprs: Vec<(&Expr, &str)> = row.ours.iter().map(|e| (e, "ours")).collect();
+        for p in row.reason.iter().flatten() {
+            if let Piece::Value(e, _) = p {
+                exprs.push((e, "reason"));
+            }
+        }
+        for (e, which) in exprs {
+            for id in e.measures() {
+                if !measures.iter().any(|m| m.id == id) {
+                    let known: BTreeSet<&str> = measures.iter().map(|m| m.id.as_str()).collect();
+                    return Err(self.err(
+                        field(which),
+                        format!(
+                            "'{id}' is not a measure of this spec (measures: {})",
+                            known.into_iter().collect::<Vec<_>>().join(", ")
+                        ),
+                    ));
+                }
+            }
+            check_sweep_args(e, measures).map_err(|m| self.err(field(which), m))?;
+        }
+        Ok(row)
+    }
+}
+
+/// A method error's message without the CLI's `--param:` prefix (a spec has no flags).
+fn param_message(e: &methods::MethodError) -> String {
+    match e {
+        methods::MethodError::Param(m) => m.clone(),
+        e => e.to_string(),
+    }
+}
+
+fn check_sweep_args(e: &Expr, measures: &[Measure]) -> Result<(), String> {
+    use super::expr::Func;
+    match e {
+        Expr::Call(Func::PointsAtFlip(m), args) => {
+            if measures
+                .iter()
+                .any(|x| &x.id == m && x.kind != MeasureKind::Sweep)
+            {
+                return Err(format!("points_at_flip: '{m}' is not a sweep measure"));
+            }
+            args.iter().try_for_each(|a| check_sweep_args(a, measures))
+        }
+        Expr::Call(_, args) => args.iter().try_for_each(|a| check_sweep_args(a, measures)),
+        Expr::Neg(a) => check_sweep_args(a, measures),
+        Expr::Bin(a, _, b) => {
+            check_sweep_args(a, measures)?;
+            check_sweep_args(b, measures)
+        }
+        Expr::Num(_) | Expr::Ref { .. } => Ok(()),
+    }
+}
+
+/// Splits a reason into text and `{expr}` / `{expr:%}` values (`{{` and `}}` are braces).
+fn template(text: &str) -> Result<Vec<Piece>, String> {
+    let mut out = Vec::new();
+    let mut lit = String::new();
+    let mut rest = text;
+    while let Some(i) = rest.find(['{', '}']) {
+        lit.push_str(&rest[..i]);
+        let (c, after) = (rest.as_bytes()[i], &rest[i + 1..]);
+        if after.as_bytes().first() == Some(&c) {
+            lit.push(c as char);
+            rest = &after[1..];
+            continue;
+        }
+        if c == b'}' {
+            return Err("an unmatched '}' (write '}}' for a brace)".into());
+        }
+        let end = after
+            .find('}')
+            .ok_or("an unclosed '{' (write '{{' for a brace)")?;
+        let inner = &after[..end];
+        let (expr, format) = match inner.rsplit_once(':') {
+            Some((e, "%")) => (e, Format::Percent),
+            Some((e, "si")) => (e, Format::Si),
+            Some((e, "int")) => (e, Format::Int),
+            Some((_, f)) => {
+                return Err(format!("'{{{inner}}}': unknown format ':{f}' (%, si, int)"));
+            }
+            None => (inner, Format::Auto),
+        };
+        if !lit.is_empty() {
+            out.push(Piece::Text(std::mem::take(&mut lit)));
+        }
+        out.push(Piece::Value(Expr::parse(expr.trim())?, format));
+        rest = &after[end + 1..];
+    }
+    lit.push_str(rest);
+    if !lit.is_empty() {
+        out.push(Piece::Text(lit));
+    }
+    Ok(out)
+}

@@ -429,7 +429,8 @@ impl PointCloud {
     }
 }
 
-/// World positions as `f32` offsets from the centre of their bounds, and that centre: how
+/// World positions as `f32` offsets from the centre of their bounds (of their inliers' when
+/// far outliers would pull it away: [`crate::framing::inlier_origin`]), and that centre: how
 /// the readers that decode `f64` coordinates keep georeferenced data precise.
 pub(crate) fn centred(world: &[[f64; 3]]) -> (DVec3, Vec<[f32; 3]>) {
     let (lo, hi) = world
@@ -437,7 +438,7 @@ pub(crate) fn centred(world: &[[f64; 3]]) -> (DVec3, Vec<[f32; 3]>) {
         .fold((DVec3::INFINITY, DVec3::NEG_INFINITY), |(lo, hi), p| {
             (lo.min(DVec3::from(*p)), hi.max(DVec3::from(*p)))
         });
-    let origin = (lo + hi) * 0.5;
+    let origin = crate::framing::inlier_origin(world, lo, hi).unwrap_or((lo + hi) * 0.5);
     let local = world
         .iter()
         .map(|p| (DVec3::from(*p) - origin).as_vec3().to_array())

@@ -7,7 +7,11 @@
 //!   is the centre of the header bounds. When those bounds are not finite, or do not contain
 //!   every point (within two scale units), the header is wrong: the file is read a second time
 //!   with the origin at the centre of the data's own bounding box, so precision never depends
-//!   on a writer having filled the header correctly.
+//!   on a writer having filled the header correctly. When the file has far outliers (samples
+//!   beyond half the robust extent of the 0.1–99.9 % quantile box, [`crate::framing`]), the
+//!   file is read again with the origin at the centre of that box: two stray points at
+//!   (0, 0, 0) beside a UTM tile would otherwise put the origin 3,000 km from the tile, where
+//!   `f32` keeps 0.25 m.
 //! - Colour column only when the point format has RGB (formats 2, 3, 5, 7, 8, 10). LAS stores
 //!   16-bit channels; if every channel value in the file is ≤ 255 the writer stored 8-bit
 //!   values and they are kept as they are, otherwise the high byte is taken (`v >> 8`, exact
@@ -70,7 +74,13 @@ struct Pass {
     rgb: Option<Vec<[u16; 3]>>,
     lo: DVec3,
     hi: DVec3,
+    /// An even stride of at most [`SAMPLE_MAX`] world positions, for
+    /// [`crate::framing::inlier_origin`].
+    sample: Vec<[f64; 3]>,
 }
+
+/// At most this many world positions are kept per pass to find far outliers.
+const SAMPLE_MAX: u64 = 1 << 16;
 
 /// Reads every point; stores local positions relative to `origin` if `store`.
 fn read_pass(path: &Path, origin: DVec3, store: bool) -> Result<Pass, SceneError> {
@@ -94,6 +104,8 @@ fn read_pass(path: &Path, origin: DVec3, store: bool) -> Result<Pass, SceneError
     let mut rgb = (store && has_color).then(|| Vec::with_capacity(cap));
     let mut lo = DVec3::INFINITY;
     let mut hi = DVec3::NEG_INFINITY;
+    let stride = n.div_ceil(SAMPLE_MAX).max(1);
+    let mut sample = Vec::with_capacity(n.min(SAMPLE_MAX) as usize);
     let mut pd = PointDataBuilder::new().for_header(reader.header()).build();
     let mut done: u64 = 0;
     while done < n {
@@ -122,6 +134,9 @@ fn read_pass(path: &Path, origin: DVec3, store: bool) -> Result<Pass, SceneError
             }
             lo = lo.min(p);
             hi = hi.max(p);
+            if (done + j as u64).is_multiple_of(stride) {
+                sample.push(p.to_array());
+            }
             if store {
                 let l = p - origin;
                 local.push([l.x as f32, l.y as f32, l.z as f32]);
@@ -146,7 +161,13 @@ fn read_pass(path: &Path, origin: DVec3, store: bool) -> Result<Pass, SceneError
             format!("{} colours for {} points", c.len(), local.len()),
         ));
     }
-    Ok(Pass { local, rgb, lo, hi })
+    Ok(Pass {
+        local,
+        rgb,
+        lo,
+        hi,
+        sample,
+    })
 }
 
 /// Reads a LAS or LAZ file into a [`PointCloud`] (see the module docs).
@@ -179,11 +200,15 @@ pub fn read(path: &Path) -> Result<PointCloud, SceneError> {
         let tol = 2.0 * scale + 1e-9 * hlo.abs().max(hhi.abs());
         header_ok && (lo - hlo).cmpge(-tol).all() && (hhi - hi).cmpge(-tol).all()
     };
-    let (origin, pass) = if contains(first.lo, first.hi) {
-        (guess, first)
-    } else {
-        let origin = (first.lo + first.hi) * 0.5;
-        (origin, read_pass(path, origin, true)?)
+    let inliers = crate::framing::inlier_origin(&first.sample, first.lo, first.hi);
+    let (origin, pass) = match inliers {
+        // Far outliers: the origin goes to the inliers' centre, so they keep their precision.
+        Some(origin) => (origin, read_pass(path, origin, true)?),
+        None if contains(first.lo, first.hi) => (guess, first),
+        None => {
+            let origin = (first.lo + first.hi) * 0.5;
+            (origin, read_pass(path, origin, true)?)
+        }
     };
     let colors = pass.rgb.map(|rgb| {
         let eight_bit = rgb.iter().all(|c| c.iter().all(|&v| v <= 255));

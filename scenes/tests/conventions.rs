@@ -121,3 +121,69 @@ fn a_y_up_ply_stands_on_z_after_up_y() {
         .to_string();
     assert!(e.contains("bunny.toml") && e.contains("up: 'w'"), "{e}");
 }
+
+#[test]
+fn far_strays_do_not_cost_the_inliers_their_precision() {
+    // A 1 km UTM tile on a 1 cm grid, and two strays at the world origin (as a buggy writer
+    // leaves them). The origin must stay at the tile: half way to the strays (3,130 km out)
+    // f32 keeps only 0.25 m.
+    let tile = DVec3::new(699_000.0, 6_259_621.0, 0.0);
+    let mut p: Vec<[f32; 3]> = (0..10_000)
+        .map(|i| {
+            let (x, y) = (
+                (i % 100) as f32 * 10.0 - 500.0,
+                (i / 100) as f32 * 7.5 - 375.0,
+            );
+            [
+                x + 0.01 * (i % 7) as f32,
+                y + 0.01 * (i % 5) as f32,
+                0.01 * (i % 11) as f32,
+            ]
+        })
+        .collect();
+    let mut want: Vec<DVec3> = p
+        .iter()
+        .map(|v| tile + glam::Vec3::from(*v).as_dvec3())
+        .collect();
+    want.extend([DVec3::ZERO; 2]);
+    // Written with the las crate at a 1 cm scale (our writer picks its scale from the span).
+    let dir = tempfile::tempdir().unwrap();
+    let path = dir.path().join("strays.las");
+    let mut b = las::Builder::from((1, 2));
+    let t = |offset: f64| las::Transform {
+        scale: 0.01,
+        offset,
+    };
+    b.transforms = las::Vector {
+        x: t(tile.x),
+        y: t(tile.y),
+        z: t(tile.z),
+    };
+    let mut w = las::Writer::from_path(&path, b.into_header().unwrap()).unwrap();
+    for v in &want {
+        w.write_point(las::Point {
+            x: v.x,
+            y: v.y,
+            z: v.z,
+            ..Default::default()
+        })
+        .unwrap();
+    }
+    w.close().unwrap();
+    let read = scenes::las::read(&path).unwrap();
+    assert_eq!(read.len(), 10_002);
+    // Every tile point within half the 1 cm scale, plus f32 at ≤ 1 km from the origin.
+    let worst = want[..10_000]
+        .iter()
+        .enumerate()
+        .map(|(i, w)| (read.world_position(i) - *w).abs().max_element())
+        .fold(0.0, f64::max);
+    assert!(worst <= 0.005 + 1e-4, "worst error {worst} m");
+    // The origin is the centre of the inliers' quantile box: inside the tile.
+    let o = read.origin() - tile;
+    assert!(
+        o.x.abs() < 500.0 && o.y.abs() < 375.0,
+        "origin {}",
+        read.origin()
+    );
+}

@@ -128,7 +128,7 @@ fn far_strays_do_not_cost_the_inliers_their_precision() {
     // leaves them). The origin must stay at the tile: half way to the strays (3,130 km out)
     // f32 keeps only 0.25 m.
     let tile = DVec3::new(699_000.0, 6_259_621.0, 0.0);
-    let mut p: Vec<[f32; 3]> = (0..10_000)
+    let p: Vec<[f32; 3]> = (0..10_000)
         .map(|i| {
             let (x, y) = (
                 (i % 100) as f32 * 10.0 - 500.0,

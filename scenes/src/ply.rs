@@ -9,7 +9,9 @@
 //!   `material`, …) are skipped in all three formats, list properties included; elements after
 //!   the last one needed are not read at all.
 //! - `vertex`: `x`, `y`, `z` (required, any numeric type, read as `f64`); `nx`, `ny`, `nz`
-//!   (optional, renormalised; a zero or non-finite normal is an error naming the vertex);
+//!   (optional, renormalised; if any is zero or not finite the column is dropped with a
+//!   warning naming the count and the first such vertex — with faces, normals are then
+//!   derived from them as below; see [`read_noted`]);
 //!   colour from `red`/`green`/`blue`, else `diffuse_red`/`diffuse_green`/`diffuse_blue`, else
 //!   `r`/`g`/`b` (all three needed, otherwise the file has no colour): 8-bit and 32-bit integer
 //!   values are clamped to 0‥255, 16-bit integer values are divided by 257 (rounded), `float`
@@ -54,7 +56,7 @@
 //! (binary): missing `ply` magic, unknown format, no `end_header`, no `vertex` element or a
 //! count of 0, missing `x`/`y`/`z`, truncated data ("unexpected end of file in vertex 17 of
 //! 100"), too few / too many / non-numeric values on an ascii line, negative or oversized list
-//! counts, face indices out of range, non-finite coordinates, zero normals. Reading never
+//! counts, face indices out of range, non-finite coordinates. Reading never
 //! panics, and no allocation is sized by a header count alone: pre-allocation is capped by
 //! what the remaining file bytes can hold.
 //!
@@ -935,6 +937,10 @@ struct Vertices {
     normals: Option<Vec<[f32; 3]>>,
     colors: Option<Vec<[u8; 3]>>,
     radii: Option<Vec<f32>>,
+    /// Vertices whose normal is zero or not finite (a placeholder stands in their place).
+    bad_normals: u64,
+    /// The first of them: index and normal.
+    first_bad: Option<(u64, [f64; 3])>,
 }
 
 impl Vertices {
@@ -944,12 +950,11 @@ impl Vertices {
             normals: sel.normal.map(|_| Vec::with_capacity(cap)),
             colors: sel.color.map(|_| Vec::with_capacity(cap)),
             radii: sel.radius.map(|_| Vec::with_capacity(cap)),
+            bad_normals: 0,
+            first_bad: None,
         }
     }
 }
-
-/// A zero or non-finite normal (the caller names the vertex).
-struct BadNormal([f64; 3]);
 
 /// Property values of one record, by property index.
 trait Record {
@@ -982,18 +987,24 @@ impl<const BE: bool> Record for Fixed<'_, BE> {
     }
 }
 
-/// Appends one vertex, reading its properties from `rec`.
+/// Appends one vertex, reading its properties from `rec`. A zero or non-finite normal is
+/// counted (the column is dropped at the end) and a placeholder keeps the columns aligned.
 #[inline(always)]
-fn push_vertex(out: &mut Vertices, sel: &VertexSel, rec: &impl Record) -> Result<(), BadNormal> {
+fn push_vertex(out: &mut Vertices, sel: &VertexSel, rec: &impl Record) {
     let get = |k: usize| rec.get(k);
     out.pos.push(sel.xyz.map(get));
     if let (Some(idx), Some(col)) = (sel.normal, out.normals.as_mut()) {
         let n = idx.map(get);
         let l = (n[0] * n[0] + n[1] * n[1] + n[2] * n[2]).sqrt();
-        if !(l.is_finite() && l > 1e-30) {
-            return Err(BadNormal(n));
+        if l.is_finite() && l > 1e-30 {
+            col.push(n.map(|c| (c / l) as f32));
+        } else {
+            out.bad_normals += 1;
+            if out.first_bad.is_none() {
+                out.first_bad = Some((out.pos.len() as u64 - 1, n));
+            }
+            col.push([0.0, 0.0, 1.0]);
         }
-        col.push(n.map(|c| (c / l) as f32));
     }
     if let (Some((idx, ty)), Some(col)) = (sel.color, out.colors.as_mut()) {
         col.push([
@@ -1005,17 +1016,6 @@ fn push_vertex(out: &mut Vertices, sel: &VertexSel, rec: &impl Record) -> Result
     if let (Some(k), Some(col)) = (sel.radius, out.radii.as_mut()) {
         col.push(get(k) as f32);
     }
-    Ok(())
-}
-
-fn bad_normal(path: &Path, i: u64, n: [f64; 3]) -> SceneError {
-    ferr(
-        path,
-        format!(
-            "vertex {i}: normal ({}, {}, {}) is zero or not finite",
-            n[0], n[1], n[2]
-        ),
-    )
 }
 
 fn read_vertices(
@@ -1044,8 +1044,7 @@ fn read_vertices(
                 };
                 parse_ascii_record(line, el, &mut values, None, &mut items)
                     .map_err(|m| ferr(path, format!("line {n} (vertex {i}): {m}")))?;
-                push_vertex(&mut out, sel, &Parsed(&values))
-                    .map_err(|b| bad_normal(path, i, b.0))?;
+                push_vertex(&mut out, sel, &Parsed(&values));
             }
         }
         Encoding::Binary { big_endian } => match (el.fixed_size(), big_endian) {
@@ -1089,12 +1088,12 @@ fn read_fixed<const BE: bool>(
         }
         let avail = input.avail();
         let k = ((avail.len() / rs) as u64).min(count - i) as usize;
-        for (j, rec) in avail[..k * rs].chunks_exact(rs).enumerate() {
+        for rec in avail[..k * rs].chunks_exact(rs) {
             let rec = Fixed::<BE> {
                 rec,
                 layout: &layout,
             };
-            push_vertex(out, sel, &rec).map_err(|b| bad_normal(path, i + j as u64, b.0))?;
+            push_vertex(out, sel, &rec);
         }
         input.consume(k * rs);
         i += k as u64;
@@ -1115,7 +1114,7 @@ fn read_variable<const BE: bool>(
     for i in 0..el.count {
         read_binary_record::<BE>(input, el, &mut values, None, &mut items)
             .map_err(|e| rec_err(path, el, i, e))?;
-        push_vertex(out, sel, &Parsed(&values)).map_err(|b| bad_normal(path, i, b.0))?;
+        push_vertex(out, sel, &Parsed(&values));
     }
     Ok(())
 }
@@ -1269,8 +1268,15 @@ fn skip_element(
 
 /// Reads a PLY file into a [`PointCloud`] (see the module docs for what is read, derived and
 /// rejected). With `opts.sample = Some(N)` the triangle surface is resampled to exactly `N`
-/// points.
+/// points. What was dropped on the way is not reported: use [`read_noted`] where a user
+/// should hear of it.
 pub fn read(path: &Path, opts: &PlyOptions) -> Result<PointCloud, SceneError> {
+    read_noted(path, opts).map(|(cloud, _)| cloud)
+}
+
+/// [`read`], with one warning per column dropped (a normal column with a zero or non-finite
+/// normal), naming the file, the count and the first such vertex.
+pub fn read_noted(path: &Path, opts: &PlyOptions) -> Result<(PointCloud, Vec<String>), SceneError> {
     if opts.sample == Some(0) {
         return Err(ferr(
             path,
@@ -1349,9 +1355,28 @@ pub fn read(path: &Path, opts: &PlyOptions) -> Result<PointCloud, SceneError> {
             skip_element(&mut input, &header, el, &mut line_no, path)?;
         }
     }
-    let verts = verts.ok_or_else(|| ferr(path, "the vertex element could not be read"))?;
+    let mut verts = verts.ok_or_else(|| ferr(path, "the vertex element could not be read"))?;
     let tris = tris.unwrap_or_default();
-    assemble(path, verts, &tris, opts)
+    let mut warnings = Vec::new();
+    if let Some((i, n)) = verts.first_bad {
+        warnings.push(format!(
+            "{}: normals dropped: {} of {} vertices have a zero or non-finite normal (first: \
+             vertex {i}, ({}, {}, {})){}",
+            path.display(),
+            verts.bad_normals,
+            verts.pos.len(),
+            n[0],
+            n[1],
+            n[2],
+            if tris.is_empty() {
+                ""
+            } else {
+                "; normals are derived from the faces instead"
+            }
+        ));
+        verts.normals = None;
+    }
+    Ok((assemble(path, verts, &tris, opts)?, warnings))
 }
 
 /// Maps a [`SceneError::InvalidCloud`] from validation to a format error naming the file.
@@ -1423,6 +1448,7 @@ fn assemble(
         normals,
         colors,
         radii,
+        ..
     } = v;
     let (normals, radii) = if tris.is_empty() {
         (normals, radii)

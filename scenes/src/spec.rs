@@ -369,13 +369,14 @@ impl SceneSpec {
                 }
                 _ => generator.generate(*points, *seed),
             },
-            SceneSource::Ply { path, sample, seed } => crate::ply::read(
-                path,
-                &crate::ply::PlyOptions {
+            SceneSource::Ply { path, sample, seed } => {
+                let opts = crate::ply::PlyOptions {
                     sample: *sample,
                     seed: *seed,
-                },
-            ),
+                };
+                let (cloud, warnings) = crate::ply::read_noted(path, &opts)?;
+                return Ok(Loaded { cloud, warnings });
+            }
             SceneSource::Las { path } => crate::las::read(path),
             SceneSource::Columns { path } => crate::colfile::open(path),
             SceneSource::E57 { path } => {

@@ -619,8 +619,30 @@ fn malformed_ascii_bodies_name_the_line() {
     let nrm = "ply\nformat ascii 1.0\nelement vertex 2\nproperty float x\nproperty float y\n\
                property float z\nproperty float nx\nproperty float ny\nproperty float nz\n\
                end_header\n0 0 0 0 0 1\n1 1 1 0 0 0\n";
-    let m = bad(d, "zero_normal.ply", nrm);
-    assert!(m.contains("vertex 1") && m.contains("normal"), "{m}");
+    // A zero normal is not an error: the column is dropped, with a warning naming the vertex.
+    let zero = d.join("zero_normal.ply");
+    std::fs::write(&zero, nrm).unwrap();
+    let (c, w) = scenes::ply::read_noted(&zero, &Default::default()).unwrap();
+    assert_eq!(c.len(), 2);
+    assert!(c.normals().is_none());
+    assert_eq!(w.len(), 1, "{w:?}");
+    assert!(
+        w[0].contains("zero_normal.ply") && w[0].contains("1 of 2") && w[0].contains("vertex 1"),
+        "{w:?}"
+    );
+    // With faces, the dropped normals are derived from them (+Z for this triangle).
+    let tri = "ply\nformat ascii 1.0\nelement vertex 3\nproperty float x\nproperty float y\n\
+               property float z\nproperty float nx\nproperty float ny\nproperty float nz\n\
+               element face 1\nproperty list uchar int vertex_indices\nend_header\n\
+               0 0 0 0 0 1\n1 0 0 0 0 0\n0 1 0 0 0 1\n3 0 1 2\n";
+    let tri_path = d.join("zero_normal_tri.ply");
+    std::fs::write(&tri_path, tri).unwrap();
+    let (c, w) = scenes::ply::read_noted(&tri_path, &Default::default()).unwrap();
+    assert_eq!(c.normals().unwrap(), &[[0.0, 0.0, 1.0]; 3]);
+    assert!(
+        w.len() == 1 && w[0].contains("derived from the faces"),
+        "{w:?}"
+    );
     let rad = "ply\nformat ascii 1.0\nelement vertex 2\nproperty float x\nproperty float y\n\
                property float z\nproperty float radius\nend_header\n0 0 0 1\n1 1 1 -2\n";
     let m = bad(d, "neg_radius.ply", rad);

@@ -1,0 +1,187 @@
+//! The comparison of several runs: FLIP against points drawn, and median splats per second.
+
+use super::*;
+
+/// One run as the comparison plot sees it.
+pub(super) struct RunSeries {
+    /// Legend label.
+    pub(super) label: String,
+    /// Colour of its points and bar.
+    pub(super) colour: RGBColor,
+    /// (points_drawn, flip_mean) per frame that has a FLIP value.
+    pub(super) flip_vs_points: Vec<(f64, f64)>,
+    /// Median splats per second over all frames.
+    pub(super) median_splats_per_s: f64,
+}
+
+/// The comparison figure of several runs.
+pub(super) struct Comparison {
+    /// One entry per run, in the order given.
+    pub(super) runs: Vec<RunSeries>,
+}
+
+impl Figure for Comparison {
+    fn draw<DB: DrawingBackend>(&self, root: &DrawingArea<DB, Shift>) -> anyhow::Result<()>
+    where
+        DB::ErrorType: 'static,
+    {
+        root.fill(&WHITE)?;
+        let root = root.titled("image error and throughput per run", (FONT, 28))?;
+        let (width, _) = root.dim_in_pixel();
+        let (left, right) = root.split_horizontally(width * 62 / 100);
+
+        let points: Vec<(f64, f64)> = self
+            .runs
+            .iter()
+            .flat_map(|r| r.flip_vs_points.iter().copied())
+            .collect();
+        let y_top = nice_top(points.iter().map(|p| p.1).fold(0.0, f64::max) * 1.05);
+        match PointsAxis::of(points.iter().map(|p| p.0)) {
+            PointsAxis::Log(x) => {
+                let caption = "FLIP mean vs points drawn (log x)";
+                scatter_panel(&left, x.log_scale(), 0.0..y_top, &self.runs, caption)?;
+            }
+            PointsAxis::Linear(x) => {
+                let caption = "FLIP mean vs points drawn";
+                scatter_panel(&left, x, 0.0..y_top, &self.runs, caption)?;
+            }
+            PointsAxis::Empty => {
+                let caption = "FLIP mean vs points drawn (no reference: not recorded)";
+                scatter_panel(&left, 0.0..1.0, 0.0..1.0, &self.runs, caption)?;
+            }
+        }
+        throughput_panel(&right, &self.runs)
+    }
+}
+
+/// Scatter of per-frame FLIP against points drawn, one colour per run, on x axis `x`.
+pub(super) fn scatter_panel<DB, X>(
+    area: &DrawingArea<DB, Shift>,
+    x: X,
+    y: Range<f64>,
+    runs: &[RunSeries],
+    caption: &str,
+) -> anyhow::Result<()>
+where
+    DB: DrawingBackend,
+    DB::ErrorType: 'static,
+    X: AsRangedCoord<Value = f64>,
+    X::CoordDescType: ValueFormatter<f64>,
+{
+    let mut chart = flip_chart(area, (x, y), caption, 12, ("points drawn", "flip_mean"))?;
+    for run in runs {
+        let colour = run.colour;
+        chart
+            .draw_series(
+                run.flip_vs_points
+                    .iter()
+                    .map(|&p| Circle::new(p, 4, colour.mix(0.75).filled())),
+            )?
+            .label(run.label.as_str())
+            .legend(move |(x, y)| Circle::new((x + 10, y), 5, colour.filled()));
+    }
+    chart
+        .configure_series_labels()
+        .position(SeriesLabelPosition::UpperRight)
+        .background_style(WHITE.mix(0.85))
+        .border_style(BLACK.mix(0.4))
+        .label_font((FONT, 15))
+        .draw()?;
+    Ok(())
+}
+
+/// One bar per run: its median splats per second, value written above the bar.
+pub(super) fn throughput_panel<DB: DrawingBackend>(
+    area: &DrawingArea<DB, Shift>,
+    runs: &[RunSeries],
+) -> anyhow::Result<()>
+where
+    DB::ErrorType: 'static,
+{
+    let top = nice_top(
+        runs.iter()
+            .map(|r| r.median_splats_per_s)
+            .fold(0.0, f64::max)
+            * 1.12,
+    );
+    let labels: Vec<&str> = runs.iter().map(|r| r.label.as_str()).collect();
+    let mut chart = ChartBuilder::on(area)
+        .caption("median splats/s", (FONT, 20))
+        .margin(12)
+        .x_label_area_size(50)
+        .y_label_area_size(80)
+        // Integer ranges are inclusive once segmented: 0..n-1 gives exactly n bars.
+        .build_cartesian_2d((0..runs.len().saturating_sub(1)).into_segmented(), 0.0..top)?;
+    chart
+        .configure_mesh()
+        .disable_x_mesh()
+        .x_labels(runs.len())
+        .x_label_formatter(&|v| match v {
+            SegmentValue::CenterOf(i) => labels.get(*i).map_or(String::new(), |l| (*l).to_owned()),
+            _ => String::new(),
+        })
+        .y_label_formatter(&|v| si(*v))
+        .y_desc("splats/s")
+        .label_style((FONT, 14))
+        .axis_desc_style((FONT, 16))
+        .light_line_style(WHITE)
+        .draw()?;
+    // Bars take 60 % of their slot (the y label area and margins take about 110 px).
+    let slot_px = area.dim_in_pixel().0.saturating_sub(110) / runs.len().max(1) as u32;
+    let side_margin = (slot_px / 5).max(4);
+    chart.draw_series(runs.iter().enumerate().map(|(i, run)| {
+        let corners = [
+            (SegmentValue::Exact(i), 0.0),
+            (SegmentValue::Exact(i + 1), run.median_splats_per_s),
+        ];
+        let mut bar = Rectangle::new(corners, run.colour.filled());
+        bar.set_margin(0, 0, side_margin, side_margin);
+        bar
+    }))?;
+    let value_style =
+        TextStyle::from((FONT, 15).into_font()).pos(Pos::new(HPos::Center, VPos::Bottom));
+    chart.draw_series(runs.iter().enumerate().map(|(i, run)| {
+        let at = (SegmentValue::CenterOf(i), run.median_splats_per_s);
+        Text::new(si(run.median_splats_per_s), at, value_style.clone())
+    }))?;
+    Ok(())
+}
+
+/// Legend labels: the method, plus the target when the runs' targets differ, plus the run
+/// folder's name when labels still collide.
+pub(super) fn run_labels(run_dirs: &[PathBuf], runs: &[Vec<FrameRecord>]) -> Vec<String> {
+    let first = |frames: &Vec<FrameRecord>| frames.first().cloned();
+    let targets_differ = runs
+        .iter()
+        .filter_map(|r| first(r).map(|f| f.target))
+        .collect::<std::collections::BTreeSet<_>>()
+        .len()
+        > 1;
+    let mut labels: Vec<String> = runs
+        .iter()
+        .map(|frames| match frames.first() {
+            Some(f) if targets_differ => format!("{} · {}", f.method, f.target),
+            Some(f) => f.method.clone(),
+            None => String::from("?"),
+        })
+        .collect();
+    disambiguate(&mut labels, run_dirs);
+    labels
+}
+
+/// Appends the folder's name to every label that more than one folder has.
+pub(super) fn disambiguate(labels: &mut [String], dirs: &[PathBuf]) {
+    let mut counts: HashMap<String, usize> = HashMap::new();
+    for label in labels.iter() {
+        *counts.entry(label.clone()).or_default() += 1;
+    }
+    for (label, dir) in labels.iter_mut().zip(dirs) {
+        if counts.get(label).copied().unwrap_or(0) > 1 {
+            let name = dir.file_name().map_or_else(
+                || dir.display().to_string(),
+                |n| n.to_string_lossy().into_owned(),
+            );
+            *label = format!("{label} ({name})");
+        }
+    }
+}

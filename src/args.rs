@@ -74,6 +74,6 @@ pub struct TargetArgs {
     #[arg(long, allow_negative_numbers = true)]
     pub eps: Option<f32>,
     /// Point budget per frame.
-    #[arg(long)]
+    #[arg(long, allow_negative_numbers = true)]
     pub budget: Option<u64>,
 }

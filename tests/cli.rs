@@ -871,3 +871,61 @@ fn scene_formats_through_the_cli() {
     let cloud = scenes::ply::read(&out_file, &Default::default()).unwrap();
     assert_eq!(cloud.len(), 3);
 }
+
+/// Counts a user gives are bounded before anything is allocated (issue 13: `--frames 1e11`
+/// panicked on a capacity overflow), negative counts are parsed and refused by the flag, and
+/// an I/O error is said once.
+#[test]
+fn huge_and_negative_counts_and_io_errors_are_clear() {
+    let tmp = tempfile::tempdir().unwrap();
+    let out = tmp.path().join("o");
+    let out = out.to_str().unwrap();
+    let run = |extra: &[&str]| {
+        let mut v = vec![
+            "run",
+            "--method",
+            "full",
+            "--scene",
+            "statue:1000",
+            "--out",
+            out,
+        ];
+        v.extend(extra);
+        v.into_iter().map(String::from).collect::<Vec<_>>()
+    };
+    let check = |args: Vec<String>, needle: &str| {
+        let a: Vec<&str> = args.iter().map(String::as_str).collect();
+        fails_with(&a, needle);
+    };
+    if have_gpu("huge_and_negative_counts_and_io_errors_are_clear") {
+        check(
+            run(&["--frames", "100000000000", "--no-metrics"]),
+            "--frames 100000000000 is more than the limit 1000000",
+        );
+    }
+    check(run(&["--budget", "-5"]), "invalid value '-5' for '--budget");
+    fails_with(
+        &[
+            "export",
+            "--scene",
+            "mesh.ply",
+            "--sample",
+            "10000000000",
+            "--out",
+            "x.ply",
+        ],
+        "--sample 10000000000 is more than the limit 500000000",
+    );
+    let o = bin()
+        .args(["export", "--scene", "/nonexistent/scan.ply", "--out"])
+        .arg(tmp.path().join("x.ply"))
+        .output()
+        .unwrap();
+    let err = String::from_utf8_lossy(&o.stderr);
+    assert!(!o.status.success());
+    assert_eq!(
+        err.matches("No such file or directory").count(),
+        1,
+        "said once: {err}"
+    );
+}

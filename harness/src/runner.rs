@@ -390,10 +390,19 @@ impl<'g> Reference<'g> {
     }
 }
 
+/// The most frames one run may have: a run keeps a row (≈ 300 bytes) per frame, and a
+/// million frames at 60 fps are already 4.6 hours of camera path.
+pub const MAX_FRAMES: usize = 1_000_000;
+
 /// Runs one configuration; returns the summary (also written to `out/summary.json`).
 pub fn run(cfg: &RunConfig, gpu: &Gpu, progress: &dyn Progress) -> anyhow::Result<Summary> {
     let t_run = Instant::now();
     anyhow::ensure!(cfg.frames >= 1, "--frames must be at least 1");
+    anyhow::ensure!(
+        cfg.frames <= MAX_FRAMES,
+        "--frames {} is more than the limit {MAX_FRAMES} (a run keeps a row per frame in memory)",
+        cfg.frames
+    );
     let target = cfg.target.validate()?;
     cfg.method.check_params(&cfg.params)?;
     std::fs::create_dir_all(&cfg.out)

@@ -6,12 +6,14 @@ use std::path::PathBuf;
 #[derive(Debug, thiserror::Error)]
 pub enum MethodError {
     /// I/O on a named file.
-    #[error("{path}: {source}")]
+    // The I/O error is part of the message, not a `source`: with both, an error chain
+    // printed whole (`{:#}`) said "No such file or directory" twice.
+    #[error("{path}: {error}")]
     Io {
         /// The file.
         path: PathBuf,
         /// The underlying error.
-        source: std::io::Error,
+        error: std::io::Error,
     },
     /// On-disk data that fails validation (bad magic, checksum mismatch, truncation).
     #[error("{path}: corrupt data: {msg}")]
@@ -40,10 +42,10 @@ pub enum MethodError {
 
 impl MethodError {
     /// Shorthand for [`MethodError::Io`].
-    pub fn io(path: impl Into<PathBuf>, source: std::io::Error) -> Self {
+    pub fn io(path: impl Into<PathBuf>, error: std::io::Error) -> Self {
         Self::Io {
             path: path.into(),
-            source,
+            error,
         }
     }
     /// Shorthand for [`MethodError::Corrupt`].

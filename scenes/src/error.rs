@@ -7,12 +7,14 @@ use std::path::PathBuf;
 #[derive(Debug, thiserror::Error)]
 pub enum SceneError {
     /// An I/O error on a named file.
-    #[error("{path}: {source}")]
+    // The I/O error is part of the message, not a `source`: with both, an error chain
+    // printed whole (`{:#}`) said "No such file or directory" twice.
+    #[error("{path}: {error}")]
     Io {
         /// The file.
         path: PathBuf,
         /// The underlying error.
-        source: std::io::Error,
+        error: std::io::Error,
     },
     /// A file whose contents do not follow its format.
     #[error("{path}: {msg}")]
@@ -40,10 +42,10 @@ pub enum SceneError {
 
 impl SceneError {
     /// Shorthand for [`SceneError::Io`].
-    pub fn io(path: impl Into<PathBuf>, source: std::io::Error) -> Self {
+    pub fn io(path: impl Into<PathBuf>, error: std::io::Error) -> Self {
         Self::Io {
             path: path.into(),
-            source,
+            error,
         }
     }
     /// Shorthand for [`SceneError::Format`].

@@ -25,6 +25,9 @@ use crate::generators::Generator;
 use crate::hash::Fnv64;
 use crate::{PointCloud, Progress, SceneError};
 
+/// The most points `--sample` may resample a mesh to (the result is held in memory).
+pub const MAX_SAMPLE: usize = 500_000_000;
+
 /// Generated scenes at least this large are cached as column files.
 pub const CACHE_MIN_POINTS: usize = 2_000_000;
 /// Bumped whenever a generator's output changes, so cached scenes and references refresh.
@@ -189,6 +192,12 @@ impl SceneSpec {
         };
         if sample.is_some() && !matches!(source, SceneSource::Ply { .. }) {
             return Err(err("--sample applies only to PLY meshes".into()));
+        }
+        if let Some(n) = sample.filter(|&n| n > MAX_SAMPLE) {
+            return Err(err(format!(
+                "--sample {n} is more than the limit {MAX_SAMPLE} (the resampled cloud is held \
+                 in memory, 27 bytes a point)"
+            )));
         }
         Ok(Self {
             text: text.to_string(),

@@ -162,6 +162,15 @@ pub fn read_noted(path: &Path, opts: &PlyOptions) -> Result<(PointCloud, Vec<Str
             "cannot resample to 0 points: the sample count must be at least 1",
         ));
     }
+    if let Some(n) = opts.sample.filter(|&n| n > crate::spec::MAX_SAMPLE) {
+        return Err(ferr(
+            path,
+            format!(
+                "cannot resample to {n} points: the limit is {} (held in memory)",
+                crate::spec::MAX_SAMPLE
+            ),
+        ));
+    }
     let file = File::open(path).map_err(|e| SceneError::io(path, e))?;
     let file_len = file.metadata().map_err(|e| SceneError::io(path, e))?.len();
     let mut input = Input::new(file, file_len);

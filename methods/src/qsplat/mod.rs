@@ -56,7 +56,8 @@ pub struct QsplatParams {
     pub target_ms: Option<f64>,
     /// Split rule of the build (`midpoint`, the paper's; or `median`).
     pub split: build::Split,
-    /// Combine rule of the build (`pairs`, the paper's; or `fewest`).
+    /// Combine rule of the build (`fewest`, the default: the fewest interior nodes, the
+    /// purpose the paper states; or `pairs`, binary levels paired from the top).
     pub combine: build::Combine,
 }
 

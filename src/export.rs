@@ -41,16 +41,21 @@ fn export(s: &SceneArgs, out: &Path, cache: &Path) -> anyhow::Result<()> {
         .load(Some(cache), &harness::progress::Bar::new())
         .with_context(|| format!("loading scene '{}'", s.scene))?
         .warn();
+    let mut written = cloud.attributes();
     let bytes = match ext.as_str() {
-        "las" | "laz" => scenes::las::write(out, &cloud)?,
+        "las" | "laz" => {
+            // LAS has no place for normals or radii: say what the file holds.
+            written.normals = false;
+            written.radii = false;
+            scenes::las::write(out, &cloud)?
+        }
         "ply" => scenes::ply::write(out, &cloud, scenes::ply::PlyFormat::BinaryLittleEndian)?,
         _ => scenes::colfile::write(out, &cloud)?,
     };
     println!(
-        "wrote {} ({} points, {}, {bytes} bytes)",
+        "wrote {} ({} points, {written}, {bytes} bytes)",
         out.display(),
         cloud.len(),
-        cloud.attributes()
     );
     Ok(())
 }

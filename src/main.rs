@@ -48,8 +48,9 @@ enum Command {
     Sweep(sweep::SweepArgs),
     /// Overlay several sweeps' curves in one plot (`sweep-comparison.png/.svg`).
     PlotSweep(plot::PlotSweepArgs),
-    /// Write a scene to a file: `.las`/`.laz` (LAS 1.4), `.ply` (binary little-endian) or
-    /// `.sbc` (splatbench column file), by the extension of `--out`.
+    /// Write a scene to a file: `.las`/`.laz` (LAS 1.2, 1.4 above 2³² − 1 points; positions
+    /// and colours), `.ply` (binary little-endian) or `.sbc` (splatbench column file), by the
+    /// extension of `--out`.
     Export(export::ExportArgs),
     /// A method's tree shape for a number of points, without data (levels, nodes, leaves,
     /// samples per node). Answered by `mwkd`; data-dependent methods say they cannot.

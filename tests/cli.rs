@@ -929,3 +929,35 @@ fn huge_and_negative_counts_and_io_errors_are_clear() {
         "said once: {err}"
     );
 }
+
+/// `export` says what the file holds: LAS has no normals, and the help names the LAS version
+/// the writer uses (issue 13, item 7).
+#[test]
+fn export_reports_what_the_file_holds() {
+    let tmp = tempfile::tempdir().unwrap();
+    let las = tmp.path().join("s.las");
+    let o = bin()
+        .args(["export", "--scene", "statue:500", "--out"])
+        .arg(&las)
+        .output()
+        .unwrap();
+    assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+    let text = String::from_utf8_lossy(&o.stdout);
+    assert!(
+        text.contains("500 points, position,") && !text.contains("normal"),
+        "{text}"
+    );
+    let ply = tmp.path().join("s.ply");
+    let o = bin()
+        .args(["export", "--scene", "statue:500", "--out"])
+        .arg(&ply)
+        .output()
+        .unwrap();
+    assert!(String::from_utf8_lossy(&o.stdout).contains("position+normal"));
+    let help = bin().args(["help", "export"]).output().unwrap();
+    let help = String::from_utf8_lossy(&help.stdout);
+    assert!(
+        help.contains("LAS 1.2") && !help.contains("(LAS 1.4)"),
+        "{help}"
+    );
+}

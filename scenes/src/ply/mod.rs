@@ -25,8 +25,10 @@
 //!   naming the face.
 //!
 //! # What is derived
-//! - Origin = centre of the `f64` bounding box of all vertices; local positions =
-//!   `(p − origin)` rounded to `f32`, so georeferenced files keep their precision.
+//! - Origin = centre of the `f64` bounding box of all vertices (of the inliers' quantile box
+//!   when far strays lie outside it, [`crate::framing::inlier_origin`], as the other readers
+//!   do); local positions = `(p − origin)` rounded to `f32`, so georeferenced files keep their
+//!   precision.
 //! - When the file has triangles and no normals: vertex normal = area-weighted sum of the
 //!   incident face normals (the unnormalised cross products), normalised. A vertex whose sum
 //!   is zero (its faces cancel) takes the normal of its largest incident face; a vertex with no
@@ -313,7 +315,7 @@ fn assemble(
             },
         );
     let (lo, hi) = (DVec3::from(lo), DVec3::from(hi));
-    let origin = (lo + hi) * 0.5;
+    let origin = crate::framing::inlier_origin(&v.pos, lo, hi).unwrap_or((lo + hi) * 0.5);
 
     if let Some(n) = opts.sample {
         return sample_surface(path, &v, tris, origin, n, opts.seed);

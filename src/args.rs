@@ -1,5 +1,7 @@
 //! Argument groups shared by several subcommands, flattened into their argument structs.
 
+use std::path::PathBuf;
+
 use clap::Args;
 use harness::render::Kernel;
 use methods::MethodKind;
@@ -49,6 +51,15 @@ impl SceneArgs {
                 .with_up(self.up),
         )
     }
+}
+
+/// `--cache`, the same for every subcommand that has one.
+#[derive(Args, Clone)]
+pub struct CacheArgs {
+    /// Cache directory: generated scenes, reference builds and images (default
+    /// $SPLATBENCH_CACHE, else splatbench/ in the user cache directory; see `splatbench cache`).
+    #[arg(long = "cache", value_name = "CACHE", default_value_os_t = crate::shared::default_cache())]
+    pub dir: PathBuf,
 }
 
 #[derive(Args, Clone)]

@@ -6,7 +6,7 @@ use anyhow::Context as _;
 use clap::Args;
 use methods::Params;
 
-use crate::args::{MethodArgs, SceneArgs};
+use crate::args::{CacheArgs, MethodArgs, SceneArgs};
 
 #[derive(Args, Clone)]
 pub struct BuildArgs {
@@ -17,14 +17,13 @@ pub struct BuildArgs {
     /// Output directory.
     #[arg(long)]
     pub out: PathBuf,
-    /// Cache directory for large generated scenes.
-    #[arg(long, default_value_os_t = crate::shared::default_cache())]
-    pub cache: PathBuf,
+    #[command(flatten)]
+    pub cache: CacheArgs,
 }
 
 /// `splatbench build`: builds and prints `build.json`.
 pub fn main(a: &BuildArgs) -> anyhow::Result<()> {
-    let stats = build(&a.method, &a.scene, &a.out, &a.cache)?;
+    let stats = build(&a.method, &a.scene, &a.out, &a.cache.dir)?;
     println!("{}", serde_json::to_string_pretty(&stats)?);
     Ok(())
 }

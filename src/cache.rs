@@ -7,10 +7,12 @@
 //! from. `--clear` removes exactly those three folders, never anything else a mistyped
 //! `--cache` might point at.
 
-use std::path::{Path, PathBuf};
+use std::path::Path;
 
 use anyhow::Context;
 use clap::Args;
+
+use crate::args::CacheArgs;
 
 /// The folders splatbench writes in a cache directory, and what each holds.
 pub const ENTRIES: [(&str, &str); 3] = [
@@ -20,20 +22,19 @@ pub const ENTRIES: [(&str, &str); 3] = [
 ];
 
 #[derive(Args)]
-pub struct CacheArgs {
-    /// Cache directory (default: $SPLATBENCH_CACHE, else the user cache directory).
-    #[arg(long, default_value_os_t = crate::shared::default_cache())]
-    pub cache: PathBuf,
+pub struct CacheCommandArgs {
+    #[command(flatten)]
+    pub cache: CacheArgs,
     /// Remove what splatbench cached (the scenes/, refs/ and full/ folders).
     #[arg(long)]
     pub clear: bool,
 }
 
-pub fn main(a: &CacheArgs) -> anyhow::Result<()> {
+pub fn main(a: &CacheCommandArgs) -> anyhow::Result<()> {
     let mut total = (0u64, 0u64);
-    println!("cache: {}", a.cache.display());
+    println!("cache: {}", a.cache.dir.display());
     for (name, what) in ENTRIES {
-        let dir = a.cache.join(name);
+        let dir = a.cache.dir.join(name);
         let (files, bytes) = size(&dir).with_context(|| format!("reading {}", dir.display()))?;
         total = (total.0 + files, total.1 + bytes);
         println!(
@@ -52,7 +53,7 @@ pub fn main(a: &CacheArgs) -> anyhow::Result<()> {
         total.0
     );
     if a.clear {
-        println!("cleared {} ({} freed)", a.cache.display(), mib(total.1));
+        println!("cleared {} ({} freed)", a.cache.dir.display(), mib(total.1));
     }
     Ok(())
 }

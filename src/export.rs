@@ -5,7 +5,7 @@ use std::path::{Path, PathBuf};
 use anyhow::{Context as _, bail};
 use clap::Args;
 
-use crate::args::SceneArgs;
+use crate::args::{CacheArgs, SceneArgs};
 
 #[derive(Args, Clone)]
 pub struct ExportArgs {
@@ -14,14 +14,13 @@ pub struct ExportArgs {
     /// Output file.
     #[arg(long)]
     pub out: PathBuf,
-    /// Cache directory for large generated scenes.
-    #[arg(long, default_value_os_t = crate::shared::default_cache())]
-    pub cache: PathBuf,
+    #[command(flatten)]
+    pub cache: CacheArgs,
 }
 
 /// `splatbench export`.
 pub fn main(a: &ExportArgs) -> anyhow::Result<()> {
-    export(&a.scene, &a.out, &a.cache)
+    export(&a.scene, &a.out, &a.cache.dir)
 }
 
 fn export(s: &SceneArgs, out: &Path, cache: &Path) -> anyhow::Result<()> {

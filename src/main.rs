@@ -61,7 +61,7 @@ enum Command {
     /// a verdict per table, the report in OUT/report.md (and with --publish in paper/).
     Reproduce(reproduce::ReproduceArgs),
     /// Where the cache is (scenes, reference images and builds), its size, and --clear.
-    Cache(cache::CacheArgs),
+    Cache(cache::CacheCommandArgs),
 }
 
 fn main() {

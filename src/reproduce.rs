@@ -8,6 +8,8 @@ use anyhow::bail;
 use clap::{Args, ValueEnum};
 use harness::reproduce::{self, Options, Profile};
 
+use crate::args::CacheArgs;
+
 #[derive(Debug, Clone, Copy, ValueEnum)]
 pub enum ProfileArg {
     /// Small scenes: every table in minutes on 2 cores with lavapipe.
@@ -37,9 +39,8 @@ pub struct ReproduceArgs {
     /// table failed.
     #[arg(long)]
     pub publish: Option<PathBuf>,
-    /// Cache directory (large scenes, reference builds and images).
-    #[arg(long, default_value_os_t = crate::shared::default_cache())]
-    pub cache: PathBuf,
+    #[command(flatten)]
+    pub cache: CacheArgs,
     /// Load and check every spec for both profiles, list them, and run nothing.
     #[arg(long)]
     pub check: bool,
@@ -60,7 +61,7 @@ pub fn main(a: &ReproduceArgs) -> anyhow::Result<()> {
             .out
             .clone()
             .unwrap_or_else(|| PathBuf::from(format!("results/reproduce-{profile}"))),
-        cache: a.cache.clone(),
+        cache: a.cache.dir.clone(),
         exe: std::env::current_exe().ok(),
         publish: a.publish.clone(),
         command: std::iter::once("splatbench".to_string())

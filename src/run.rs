@@ -10,7 +10,7 @@ use harness::runner::RunConfig;
 use methods::{Params, Target};
 use scenes::paths::PathSpec;
 
-use crate::args::{MethodArgs, RenderArgs, SceneArgs, TargetArgs};
+use crate::args::{CacheArgs, MethodArgs, RenderArgs, SceneArgs, TargetArgs};
 use crate::shared::{open_gpu, print_summary};
 
 #[derive(Args, Clone)]
@@ -38,9 +38,8 @@ pub struct RunArgs {
     /// Output directory.
     #[arg(long)]
     pub out: PathBuf,
-    /// Cache directory (large scenes, reference builds and images).
-    #[arg(long, default_value_os_t = crate::shared::default_cache())]
-    pub cache: PathBuf,
+    #[command(flatten)]
+    pub cache: CacheArgs,
     /// Run an existing build (a `splatbench build --out` directory of the same method and
     /// scene) instead of building: the run's memory is then the method's alone. `--param`
     /// may change only runtime parameters (LPC: fetch_per_frame, core_mb, delay_frames,
@@ -77,7 +76,7 @@ pub fn run_config(a: &RunArgs) -> anyhow::Result<RunConfig> {
         save_images: a.save_images,
         metrics: !a.no_metrics,
         out: a.out.clone(),
-        cache: a.cache.clone(),
+        cache: a.cache.dir.clone(),
         build_dir: a.build_dir.clone(),
     })
 }

@@ -7,7 +7,7 @@ use clap::Args;
 use harness::sweep::SweepTarget;
 use methods::Params;
 
-use crate::args::{MethodArgs, RenderArgs, SceneArgs, TargetArgs};
+use crate::args::{CacheArgs, MethodArgs, RenderArgs, SceneArgs, TargetArgs};
 use crate::build::build;
 use crate::run::{RunArgs, run_config};
 use crate::shared::{open_gpu, print_summary};
@@ -36,9 +36,8 @@ pub struct SweepArgs {
     /// (budget-25000/, eps-2/, …), sweep.csv, sweep.png and sweep.svg.
     #[arg(long)]
     pub out: PathBuf,
-    /// Cache directory (large scenes, reference builds and images).
-    #[arg(long, default_value_os_t = crate::shared::default_cache())]
-    pub cache: PathBuf,
+    #[command(flatten)]
+    pub cache: CacheArgs,
     /// Run every target on an existing build (as `run --build-dir`) instead of building into
     /// OUT/build; `--param` may then change only runtime parameters.
     #[arg(long)]
@@ -88,7 +87,7 @@ pub fn main(a: &SweepArgs) -> anyhow::Result<()> {
     harness::sweep::remove_stale(&a.out)?;
     if a.build_dir.is_none() {
         eprintln!("building {} into {}", a.method.method, build_dir.display());
-        build(&a.method, &a.scene, &build_dir, &a.cache)?;
+        build(&a.method, &a.scene, &build_dir, &a.cache.dir)?;
     }
     let bar = harness::progress::Bar::new();
     let rows = harness::sweep::run_targets(&base, &targets, &a.out, &gpu, &bar, print_summary)?;

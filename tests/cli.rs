@@ -4,23 +4,15 @@
 
 use std::path::Path;
 
-use assert_cmd::Command;
 use predicates::prelude::*;
 
-fn bin() -> Command {
-    Command::cargo_bin("splatbench").unwrap()
-}
+mod common;
+
+use common::bin;
 
 /// Runs a command that must fail cleanly: exit 1, `Error:` naming `needle`, no panic.
 fn fails_with(args: &[&str], needle: &str) {
-    let out = bin().args(args).output().unwrap();
-    let err = String::from_utf8_lossy(&out.stderr);
-    assert!(!out.status.success(), "{args:?} should fail");
-    assert!(!err.contains("panicked"), "{args:?} panicked: {err}");
-    assert!(
-        err.contains(needle),
-        "{args:?}: expected '{needle}' in: {err}"
-    );
+    common::fails(bin().args(args), needle);
 }
 
 fn have_gpu(test: &str) -> bool {

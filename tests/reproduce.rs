@@ -13,8 +13,10 @@ fn root() -> PathBuf {
     PathBuf::from(env!("CARGO_MANIFEST_DIR"))
 }
 
+mod common;
+
 fn bin() -> Command {
-    let mut c = Command::cargo_bin("splatbench").unwrap();
+    let mut c = common::bin();
     c.current_dir(root()).env("NODEVICE_SELECT", "1");
     c
 }
@@ -133,11 +135,7 @@ fn bad_specs_name_the_file_and_the_field() {
 
 /// Runs a CLI command that must fail cleanly, naming `needle`.
 fn fails_with(cmd: &mut Command, needle: &str) {
-    let out = cmd.output().unwrap();
-    let err = String::from_utf8_lossy(&out.stderr);
-    assert!(!out.status.success(), "should fail: {err}");
-    assert!(!err.contains("panicked"), "panicked: {err}");
-    assert!(err.contains(needle), "expected '{needle}' in: {err}");
+    common::fails(cmd, needle);
 }
 
 #[test]

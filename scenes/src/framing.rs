@@ -34,6 +34,27 @@ pub struct Framing {
     pub outside: u64,
 }
 
+/// The [`QUANTILES`] of each coordinate of `points` (at least one), estimated from at most
+/// [`QUANTILE_SAMPLES`] evenly strided points: the per-axis low and high corners.
+fn quantile_box<T: Copy + Default>(
+    points: &[[T; 3]],
+    cmp: fn(&T, &T) -> std::cmp::Ordering,
+) -> ([T; 3], [T; 3]) {
+    let stride = points.len().div_ceil(QUANTILE_SAMPLES).max(1);
+    let (mut lo, mut hi) = ([T::default(); 3], [T::default(); 3]);
+    let mut axis: Vec<T> = Vec::with_capacity(points.len() / stride + 1);
+    for a in 0..3 {
+        axis.clear();
+        axis.extend(points.iter().step_by(stride).map(|v| v[a]));
+        let last = (axis.len() - 1) as f64;
+        let i_lo = (last * QUANTILES.0).floor() as usize;
+        let i_hi = (last * QUANTILES.1).ceil() as usize;
+        lo[a] = *axis.select_nth_unstable_by(i_lo, cmp).1;
+        hi[a] = *axis.select_nth_unstable_by(i_hi, cmp).1;
+    }
+    (lo, hi)
+}
+
 /// The origin a reader should store `f32` positions against, when `world` (all positions, or
 /// an even stride through them, in `f64`) has far outliers beyond `lo`..`hi`'s inliers: the
 /// centre of the quantile box, so the inliers keep the precision of their own extent. `None`
@@ -44,19 +65,8 @@ pub fn inlier_origin(world: &[[f64; 3]], lo: glam::DVec3, hi: glam::DVec3) -> Op
     if world.len() < 3 {
         return None;
     }
-    let stride = world.len().div_ceil(QUANTILE_SAMPLES);
-    let mut q = [[0f64; 3]; 2];
-    let mut axis: Vec<f64> = Vec::with_capacity(world.len() / stride + 1);
-    for a in 0..3 {
-        axis.clear();
-        axis.extend(world.iter().step_by(stride).map(|v| v[a]));
-        let last = (axis.len() - 1) as f64;
-        let i_lo = (last * QUANTILES.0).floor() as usize;
-        let i_hi = (last * QUANTILES.1).ceil() as usize;
-        q[0][a] = *axis.select_nth_unstable_by(i_lo, f64::total_cmp).1;
-        q[1][a] = *axis.select_nth_unstable_by(i_hi, f64::total_cmp).1;
-    }
-    let (qlo, qhi) = (glam::DVec3::from(q[0]), glam::DVec3::from(q[1]));
+    let (qlo, qhi) = quantile_box(world, f64::total_cmp);
+    let (qlo, qhi) = (glam::DVec3::from(qlo), glam::DVec3::from(qhi));
     let m = (qhi - qlo).max_element() * f64::from(MARGIN);
     let inside = (qlo - m).cmple(lo).all() && (qhi + m).cmpge(hi).all();
     (!inside).then(|| (qlo + qhi) * 0.5)
@@ -72,19 +82,7 @@ pub fn framing(cloud: &PointCloud) -> Framing {
     if p.len() < 3 {
         return all;
     }
-    let stride = p.len().div_ceil(QUANTILE_SAMPLES);
-    let mut lo = [0f32; 3];
-    let mut hi = [0f32; 3];
-    let mut axis: Vec<f32> = Vec::with_capacity(p.len() / stride + 1);
-    for a in 0..3 {
-        axis.clear();
-        axis.extend(p.iter().step_by(stride).map(|v| v[a]));
-        let last = (axis.len() - 1) as f64;
-        let i_lo = (last * QUANTILES.0).floor() as usize;
-        let i_hi = (last * QUANTILES.1).ceil() as usize;
-        lo[a] = *axis.select_nth_unstable_by(i_lo, f32::total_cmp).1;
-        hi[a] = *axis.select_nth_unstable_by(i_hi, f32::total_cmp).1;
-    }
+    let (lo, hi) = quantile_box(p, f32::total_cmp);
     let (lo, hi) = (glam::Vec3::from(lo), glam::Vec3::from(hi));
     let m = (hi - lo).max_element() * MARGIN;
     let inlier = Aabb {

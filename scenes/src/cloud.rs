@@ -395,6 +395,18 @@ impl PointCloud {
         let origin = DVec3::from(up.to_z_up(self.origin.to_array()));
         PointCloud::new(origin, positions, normals, self.colors, self.radii)
     }
+    /// Returns this cloud with a colour column (replacing any existing one).
+    pub fn with_colors(mut self, colors: Vec<[u8; 3]>) -> Result<Self, SceneError> {
+        if colors.len() != self.len() {
+            return Err(SceneError::InvalidCloud(format!(
+                "column 'color' has {} values but there are {} positions",
+                colors.len(),
+                self.len()
+            )));
+        }
+        self.colors = Some(Column::Owned(colors));
+        Ok(self)
+    }
     /// Returns this cloud without its colour column.
     pub fn without_colors(mut self) -> Self {
         self.colors = None;

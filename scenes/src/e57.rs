@@ -10,8 +10,9 @@
 //!   to 0–255 and rounded. A cloud has colour for every sample or none: when a scan has no
 //!   colour, or a kept point's colour is marked invalid, the colour column is dropped and a
 //!   warning says why.
-//! - Intensity, row/column indices, timestamps and images are not used (no column for them
-//!   yet).
+//! - Intensity ([`E57::intensity`], raw values, for `--shading intensity`) when every scan
+//!   has the field and no kept point marks it invalid; otherwise none. Row/column indices,
+//!   timestamps and images are not used.
 //!
 //! Positions are decoded in `f64` and stored as `f32` relative to the centre of their bounds.
 //! Errors name the file and, for data errors, the scan.
@@ -29,6 +30,8 @@ pub struct E57 {
     pub scans: usize,
     /// Points dropped for an invalid or direction-only coordinate.
     pub dropped: usize,
+    /// The kept points' intensities, when every scan has them.
+    pub intensity: Option<Vec<f32>>,
     /// What was dropped or ignored, one sentence each, naming the file and the attribute.
     pub warnings: Vec<String>,
 }
@@ -57,6 +60,7 @@ pub fn read(path: &Path) -> Result<E57, SceneError> {
     let cap = declared.min(file_len).min(1 << 26) as usize;
     let mut world: Vec<[f64; 3]> = Vec::with_capacity(cap);
     let mut colors: Option<Vec<[u8; 3]>> = Some(Vec::with_capacity(cap));
+    let mut intensity: Option<Vec<f32>> = Some(Vec::with_capacity(cap));
     let mut warnings = Vec::new();
     let mut dropped = 0usize;
     for (k, scan) in scans.iter().enumerate() {
@@ -72,6 +76,9 @@ pub fn read(path: &Path) -> Result<E57, SceneError> {
             ));
             colors = None;
         }
+        if layout.intensity.is_none() {
+            intensity = None;
+        }
         let pose = Pose::of(scan);
         let points = reader
             .pointcloud_raw(scan)
@@ -85,6 +92,12 @@ pub fn read(path: &Path) -> Result<E57, SceneError> {
                 continue;
             };
             world.push(pose.apply(p));
+            if let Some(out) = intensity.as_mut() {
+                match layout.intensity(&raw).map_err(bad)? {
+                    Some(v) => out.push(v as f32),
+                    None => intensity = None,
+                }
+            }
             if let Some(col) = colors.as_mut() {
                 match layout.colour(&raw).map_err(bad)? {
                     Some(c) => col.push(c),
@@ -114,6 +127,7 @@ pub fn read(path: &Path) -> Result<E57, SceneError> {
         cloud,
         scans: scans.len(),
         dropped,
+        intensity,
         warnings,
     })
 }
@@ -131,6 +145,8 @@ struct Layout {
     spherical_invalid: Option<usize>,
     rgb: Option<[(usize, f64, f64); 3]>,
     colour_invalid: Option<usize>,
+    intensity: Option<usize>,
+    intensity_invalid: Option<usize>,
 }
 
 impl Layout {
@@ -176,6 +192,8 @@ impl Layout {
             cartesian_invalid: find(N::CartesianInvalidState),
             spherical_invalid: find(N::SphericalInvalidState),
             colour_invalid: find(N::IsColorInvalid),
+            intensity: find(N::Intensity),
+            intensity_invalid: find(N::IsIntensityInvalid),
             cartesian,
             spherical,
             rgb,
@@ -236,6 +254,19 @@ impl Layout {
             *o = (t.clamp(0.0, 1.0) * 255.0).round() as u8;
         }
         Ok(Some(out))
+    }
+}
+
+impl Layout {
+    /// The point's raw intensity, or `None` when the scan has none or marks it invalid.
+    fn intensity(&self, raw: &[e57::RecordValue]) -> Result<Option<f64>, e57::Error> {
+        let Some(i) = self.intensity else {
+            return Ok(None);
+        };
+        if self.state(raw, self.intensity_invalid)? != 0 {
+            return Ok(None);
+        }
+        self.f64(raw, i).map(Some)
     }
 }
 

@@ -17,6 +17,8 @@
 //!   values and they are kept as they are, otherwise the high byte is taken (`v >> 8`, exact
 //!   for the usual `c × 257` or `c × 256` scalings). No normals, no radii (downstream estimates
 //!   spacing).
+//! - Intensity and classification (every point format has both) are read only when asked
+//!   ([`read_with`], for `--shading intensity|classification`, see [`crate::scalar`]).
 //! - Points are streamed in batches of 65 536 through one reused `las::PointData` buffer and
 //!   decoded column-wise; no `las::Point` is built. Pre-allocation is capped by what the file
 //!   size can hold.
@@ -46,7 +48,7 @@ use las::point::Format;
 use las::{Builder, Color, Point, PointDataBuilder, Reader, Transform, Vector, Writer};
 
 use crate::ply::{finish, write_atomically};
-use crate::{PointCloud, SceneError};
+use crate::{PointCloud, Scalar, SceneError};
 
 /// Points decoded per batch.
 const BATCH: u64 = 1 << 16;
@@ -72,6 +74,8 @@ fn open(path: &Path) -> Result<Reader, SceneError> {
 struct Pass {
     local: Vec<[f32; 3]>,
     rgb: Option<Vec<[u16; 3]>>,
+    /// The scalar asked for, one per stored point.
+    scalar: Option<Vec<f32>>,
     lo: DVec3,
     hi: DVec3,
     /// An even stride of at most [`SAMPLE_MAX`] world positions, for
@@ -83,7 +87,12 @@ struct Pass {
 const SAMPLE_MAX: u64 = 1 << 16;
 
 /// Reads every point; stores local positions relative to `origin` if `store`.
-fn read_pass(path: &Path, origin: DVec3, store: bool) -> Result<Pass, SceneError> {
+fn read_pass(
+    path: &Path,
+    origin: DVec3,
+    store: bool,
+    want: Option<Scalar>,
+) -> Result<Pass, SceneError> {
     let mut reader = open(path)?;
     let header = reader.header();
     let n = header.number_of_points();
@@ -102,6 +111,7 @@ fn read_pass(path: &Path, origin: DVec3, store: bool) -> Result<Pass, SceneError
     };
     let mut local = Vec::with_capacity(cap);
     let mut rgb = (store && has_color).then(|| Vec::with_capacity(cap));
+    let mut scalar = want.filter(|_| store).map(|_| Vec::with_capacity(cap));
     let mut lo = DVec3::INFINITY;
     let mut hi = DVec3::NEG_INFINITY;
     let stride = n.div_ceil(SAMPLE_MAX).max(1);
@@ -145,6 +155,13 @@ fn read_pass(path: &Path, origin: DVec3, store: bool) -> Result<Pass, SceneError
         if let (Some(out), Some(cols)) = (rgb.as_mut(), pd.rgb()) {
             out.extend(cols.map(|(r, g, b)| [r, g, b]));
         }
+        if let Some(out) = scalar.as_mut() {
+            match want {
+                Some(Scalar::Intensity) => out.extend(pd.intensity().map(f32::from)),
+                Some(Scalar::Classification) => out.extend(pd.classification().map(f32::from)),
+                None => {}
+            }
+        }
         done += got;
     }
     if done < n {
@@ -161,9 +178,18 @@ fn read_pass(path: &Path, origin: DVec3, store: bool) -> Result<Pass, SceneError
             format!("{} colours for {} points", c.len(), local.len()),
         ));
     }
+    if let Some(v) = &scalar
+        && v.len() != local.len()
+    {
+        return Err(ferr(
+            path,
+            format!("{} scalar values for {} points", v.len(), local.len()),
+        ));
+    }
     Ok(Pass {
         local,
         rgb,
+        scalar,
         lo,
         hi,
         sample,
@@ -172,6 +198,14 @@ fn read_pass(path: &Path, origin: DVec3, store: bool) -> Result<Pass, SceneError
 
 /// Reads a LAS or LAZ file into a [`PointCloud`] (see the module docs).
 pub fn read(path: &Path) -> Result<PointCloud, SceneError> {
+    read_with(path, None).map(|(cloud, _)| cloud)
+}
+
+/// [`read`], and the per-point values of `want` (intensity or classification) when asked.
+pub fn read_with(
+    path: &Path,
+    want: Option<Scalar>,
+) -> Result<(PointCloud, Option<Vec<f32>>), SceneError> {
     let reader = open(path)?;
     let header = reader.header();
     let n = header.number_of_points();
@@ -195,7 +229,7 @@ pub fn read(path: &Path) -> Result<PointCloud, SceneError> {
     } else {
         DVec3::ZERO
     };
-    let first = read_pass(path, guess, header_ok)?;
+    let first = read_pass(path, guess, header_ok, want)?;
     let contains = |lo: DVec3, hi: DVec3| {
         let tol = 2.0 * scale + 1e-9 * hlo.abs().max(hhi.abs());
         header_ok && (lo - hlo).cmpge(-tol).all() && (hhi - hi).cmpge(-tol).all()
@@ -203,11 +237,11 @@ pub fn read(path: &Path) -> Result<PointCloud, SceneError> {
     let inliers = crate::framing::inlier_origin(&first.sample, first.lo, first.hi);
     let (origin, pass) = match inliers {
         // Far outliers: the origin goes to the inliers' centre, so they keep their precision.
-        Some(origin) => (origin, read_pass(path, origin, true)?),
+        Some(origin) => (origin, read_pass(path, origin, true, want)?),
         None if contains(first.lo, first.hi) => (guess, first),
         None => {
             let origin = (first.lo + first.hi) * 0.5;
-            (origin, read_pass(path, origin, true)?)
+            (origin, read_pass(path, origin, true, want)?)
         }
     };
     let colors = pass.rgb.map(|rgb| {
@@ -216,7 +250,7 @@ pub fn read(path: &Path) -> Result<PointCloud, SceneError> {
             .map(|c| c.map(|v| if eight_bit { v as u8 } else { (v >> 8) as u8 }))
             .collect::<Vec<[u8; 3]>>()
     });
-    PointCloud::new(
+    let cloud = PointCloud::new(
         origin,
         pass.local.into(),
         None,
@@ -226,7 +260,8 @@ pub fn read(path: &Path) -> Result<PointCloud, SceneError> {
     .map_err(|e| match e {
         SceneError::InvalidCloud(m) => ferr(path, format!("invalid point data: {m}")),
         other => other,
-    })
+    })?;
+    Ok((cloud, pass.scalar))
 }
 
 /// The LAS coordinate scale [`write()`] uses for a cloud whose local coordinates span `span`

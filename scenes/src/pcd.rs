@@ -12,8 +12,9 @@
 //!   out one after the other — all points' first field, then all points' second field, …).
 //! - Fields used: `x y z` (required, `F` of size 4 or 8, or integers), `rgb` / `rgba` (PCL's
 //!   packed colour: the 32 bits of the value, float or unsigned, are `0xAARRGGBB`),
-//!   `normal_x normal_y normal_z`. Other fields (`intensity`, `curvature`, padding `_`, …) are
-//!   skipped; each is still checked for a valid `SIZE`/`TYPE`/`COUNT`.
+//!   `normal_x normal_y normal_z`, and `intensity` ([`Pcd::intensity`], for `--shading
+//!   intensity`). Other fields (`curvature`, padding `_`, …) are skipped; each is still
+//!   checked for a valid `SIZE`/`TYPE`/`COUNT`.
 //! - Organised clouds (`HEIGHT > 1`, e.g. a depth camera's grid) mark missing measurements
 //!   with NaN coordinates: a point with any non-finite coordinate is dropped and counted in
 //!   [`Pcd::dropped`]. When every point is dropped the file is an error.
@@ -36,6 +37,8 @@ pub struct Pcd {
     pub cloud: PointCloud,
     /// Points dropped for a non-finite coordinate (the holes of an organised cloud).
     pub dropped: usize,
+    /// The `intensity` field of the kept points, when the file has one.
+    pub intensity: Option<Vec<f32>>,
     /// What was dropped or ignored, one sentence each, naming the file and the field.
     pub warnings: Vec<String>,
 }
@@ -296,6 +299,7 @@ struct Selection {
     xyz: [Field; 3],
     rgb: Option<Field>,
     normal: Option<[Field; 3]>,
+    intensity: Option<Field>,
 }
 
 impl Selection {
@@ -342,7 +346,13 @@ impl Selection {
             None => None,
         };
         let normal = triple(["normal_x", "normal_y", "normal_z"])?;
-        Ok(Self { xyz, rgb, normal })
+        let intensity = find("intensity").map(scalar).transpose()?;
+        Ok(Self {
+            xyz,
+            rgb,
+            normal,
+            intensity,
+        })
     }
 }
 
@@ -400,6 +410,7 @@ struct Columns {
     pos: Vec<[f64; 3]>,
     rgb: Option<Vec<[u8; 3]>>,
     normals: Option<Vec<[f32; 3]>>,
+    intensity: Option<Vec<f32>>,
     bad_normals: usize,
     dropped: usize,
 }
@@ -410,6 +421,7 @@ impl Columns {
             pos: Vec::with_capacity(cap),
             rgb: sel.rgb.as_ref().map(|_| Vec::with_capacity(cap)),
             normals: sel.normal.as_ref().map(|_| Vec::with_capacity(cap)),
+            intensity: sel.intensity.as_ref().map(|_| Vec::with_capacity(cap)),
             bad_normals: 0,
             dropped: 0,
         }
@@ -426,6 +438,9 @@ impl Columns {
         if let (Some(f), Some(col)) = (&sel.rgb, self.rgb.as_mut()) {
             let b = get(f).bits();
             col.push([(b >> 16) as u8, (b >> 8) as u8, b as u8]);
+        }
+        if let (Some(f), Some(col)) = (&sel.intensity, self.intensity.as_mut()) {
+            col.push(get(f).num() as f32);
         }
         if let (Some(fs), Some(col)) = (&sel.normal, self.normals.as_mut()) {
             let n = fs.each_ref().map(|f| get(f).num());
@@ -471,6 +486,7 @@ impl Columns {
         Ok(Pcd {
             cloud,
             dropped: self.dropped,
+            intensity: self.intensity,
             warnings,
         })
     }

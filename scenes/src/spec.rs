@@ -117,6 +117,9 @@ pub struct SceneSpec {
     pub keep_attributes: bool,
     /// The file's up axis, turned to +Z at load (`--up`, `up = "y"` in a scene file).
     pub up: crate::Up,
+    /// Colour the points by this scalar of the file instead of its colours
+    /// (`--shading intensity|classification`; [`crate::scalar`]).
+    pub colour_from: Option<crate::Scalar>,
 }
 
 #[derive(Debug, serde::Deserialize)]
@@ -204,6 +207,7 @@ impl SceneSpec {
             source,
             keep_attributes: false,
             up: crate::Up::Z,
+            colour_from: None,
         })
     }
 
@@ -212,6 +216,12 @@ impl SceneSpec {
         if let Some(u) = up {
             self.up = u;
         }
+        self
+    }
+
+    /// This spec with [`SceneSpec::colour_from`] set.
+    pub fn with_colour_from(mut self, scalar: Option<crate::Scalar>) -> Self {
+        self.colour_from = scalar;
         self
     }
 
@@ -329,6 +339,9 @@ impl SceneSpec {
         if self.up != crate::Up::Z {
             h.write_str("up").write_str(&self.up.to_string());
         }
+        if let Some(s) = self.colour_from {
+            h.write_str("colour_from").write_str(s.name());
+        }
         Ok(h.finish())
     }
 
@@ -339,7 +352,28 @@ impl SceneSpec {
         cache_dir: Option<&Path>,
         progress: &dyn Progress,
     ) -> Result<Loaded, SceneError> {
-        let mut loaded = self.read(cache_dir, progress)?;
+        let (mut loaded, scalar) = self.read(cache_dir, progress)?;
+        if let Some(field) = self.colour_from {
+            let path = self.file().ok_or_else(|| SceneError::Spec {
+                spec: self.text.clone(),
+                msg: format!("a generated scene has no {field} to shade by"),
+            })?;
+            let values = scalar.ok_or_else(|| {
+                SceneError::format(
+                    path,
+                    format!(
+                        "the file has no {field}{} (choose another --shading)",
+                        match field {
+                            crate::Scalar::Intensity => "",
+                            crate::Scalar::Classification => ": only LAS/LAZ files carry one",
+                        }
+                    ),
+                )
+            })?;
+            let colours = crate::scalar::colours(path, field, &values)?;
+            drop(values);
+            loaded.cloud = loaded.cloud.with_colors(colours)?;
+        }
         loaded.cloud = loaded.cloud.with_up(self.up)?;
         if self.keep_attributes || matches!(self.source, SceneSource::Generator { .. }) {
             // Generators fill every column they declare.
@@ -351,12 +385,25 @@ impl SceneSpec {
         Ok(Loaded { cloud, warnings })
     }
 
-    /// Reads the scene as its source holds it.
+    /// The file the scene is read from, if it is not generated.
+    pub fn file(&self) -> Option<&Path> {
+        match &self.source {
+            SceneSource::Generator { .. } => None,
+            SceneSource::Ply { path, .. }
+            | SceneSource::Las { path }
+            | SceneSource::E57 { path }
+            | SceneSource::Pcd { path }
+            | SceneSource::Columns { path } => Some(path),
+        }
+    }
+
+    /// Reads the scene as its source holds it, with the scalar [`Self::colour_from`] names
+    /// when that is set and the file has it.
     fn read(
         &self,
         cache_dir: Option<&Path>,
         progress: &dyn Progress,
-    ) -> Result<Loaded, SceneError> {
+    ) -> Result<(Loaded, Option<Vec<f32>>), SceneError> {
         let plain = match &self.source {
             SceneSource::Generator {
                 generator,
@@ -384,9 +431,12 @@ impl SceneSpec {
                     seed: *seed,
                 };
                 let (cloud, warnings) = crate::ply::read_noted(path, &opts)?;
-                return Ok(Loaded { cloud, warnings });
+                return Ok((Loaded { cloud, warnings }, None));
             }
-            SceneSource::Las { path } => crate::las::read(path),
+            SceneSource::Las { path } => {
+                let (cloud, scalar) = crate::las::read_with(path, self.colour_from)?;
+                return Ok((Loaded::quiet(cloud), scalar));
+            }
             SceneSource::Columns { path } => crate::colfile::open(path),
             SceneSource::E57 { path } => {
                 let e = crate::e57::read(path)?;
@@ -401,10 +451,17 @@ impl SceneSpec {
                         e.scans
                     ));
                 }
-                return Ok(Loaded {
-                    cloud: e.cloud,
-                    warnings,
-                });
+                let scalar = match self.colour_from {
+                    Some(crate::Scalar::Intensity) => e.intensity,
+                    _ => None,
+                };
+                return Ok((
+                    Loaded {
+                        cloud: e.cloud,
+                        warnings,
+                    },
+                    scalar,
+                ));
             }
             SceneSource::Pcd { path } => {
                 let p = crate::pcd::read(path)?;
@@ -418,13 +475,20 @@ impl SceneSpec {
                         p.dropped + p.cloud.len()
                     ));
                 }
-                return Ok(Loaded {
-                    cloud: p.cloud,
-                    warnings,
-                });
+                let scalar = match self.colour_from {
+                    Some(crate::Scalar::Intensity) => p.intensity,
+                    _ => None,
+                };
+                return Ok((
+                    Loaded {
+                        cloud: p.cloud,
+                        warnings,
+                    },
+                    scalar,
+                ));
             }
         };
-        plain.map(Loaded::quiet)
+        plain.map(|c| (Loaded::quiet(c), None))
     }
 }
 

@@ -31,7 +31,11 @@
 //!   (the ratio is undefined there; 0 keeps results finite, and such a frame carries no
 //!   coverage information).
 //! - [`compare`] computes all five into an [`ImageMetrics`] row fragment, with FLIP and SSIM
-//!   running in parallel (rayon).
+//!   running in parallel (rayon). It first puts both images on the **metric background**
+//!   ([`metric_background`]): uncovered pixels (alpha 0) take a colour no covered pixel of
+//!   either image is near, so a missing splat always costs colour error, even when the
+//!   points are black like the renderer's clear colour. Coverage comes from alpha, never
+//!   from colour.
 //!
 //! Empty (0×0) images compare as identical: PSNR 100, SSIM 1, FLIP 0, ratios 0.
 
@@ -134,9 +138,98 @@ pub struct ImageMetrics {
     pub extra_coverage: f64,
 }
 
-/// All five metrics of `test` against `reference`.
+/// The smallest distance (Euclidean, sRGB8 levels) between the metric background and any
+/// covered pixel's colour, when black is not kept: 64 levels, a quarter of the range. A
+/// covered pixel closer to black than this makes [`metric_background`] pick another colour.
+pub const BACKGROUND_MIN_DISTANCE: f32 = 64.0;
+
+/// Candidate metric backgrounds, in order of preference: black (the renderer's clear
+/// colour, so images of ordinary scenes compare exactly as they are drawn), then white and
+/// the six primaries and secondaries.
+pub const BACKGROUND_CANDIDATES: [[u8; 3]; 8] = [
+    [0, 0, 0],
+    [255, 255, 255],
+    [255, 0, 255],
+    [0, 255, 0],
+    [0, 0, 255],
+    [255, 0, 0],
+    [0, 255, 255],
+    [255, 255, 0],
+];
+
+/// The background colour [`compare`] gives the uncovered pixels of both images: black when
+/// no covered pixel of either lies within [`BACKGROUND_MIN_DISTANCE`] of it, else the
+/// candidate of [`BACKGROUND_CANDIDATES`] farthest from every covered colour (distances
+/// measured to 8-level bins of the colours present, i.e. within 7 levels per channel; the
+/// first candidate wins ties). Deterministic, and the same for both images.
+pub fn metric_background(reference: &Image, test: &Image) -> [u8; 3] {
+    // Colours present, binned to 5 bits per channel (32³ bins).
+    let mut present = vec![false; 1 << 15];
+    let bin = |p: &[u8]| {
+        ((p[0] as usize >> 3) << 10) | ((p[1] as usize >> 3) << 5) | (p[2] as usize >> 3)
+    };
+    for img in [reference, test] {
+        for p in img.rgba.chunks_exact(4).filter(|p| p[3] > 0) {
+            present[bin(p)] = true;
+        }
+    }
+    let bins: Vec<[f32; 3]> = (0..present.len())
+        .filter(|&b| present[b])
+        .map(|b| [(b >> 10) & 31, (b >> 5) & 31, b & 31].map(|v| (v << 3) as f32))
+        .collect();
+    // Nearest distance from `c` to any present colour, each bin taken at its nearest point.
+    let nearest = |c: [u8; 3]| -> f32 {
+        let mut best = f32::INFINITY;
+        for lo in &bins {
+            let d2: f32 = (0..3)
+                .map(|k| {
+                    let v = f32::from(c[k]);
+                    let d = if v < lo[k] {
+                        lo[k] - v
+                    } else {
+                        (v - (lo[k] + 7.0)).max(0.0)
+                    };
+                    d * d
+                })
+                .sum();
+            best = best.min(d2);
+        }
+        best.sqrt()
+    };
+    let black = BACKGROUND_CANDIDATES[0];
+    if nearest(black) >= BACKGROUND_MIN_DISTANCE {
+        return black;
+    }
+    let mut best = (black, nearest(black));
+    for &c in &BACKGROUND_CANDIDATES[1..] {
+        let d = nearest(c);
+        if d > best.1 {
+            best = (c, d);
+        }
+    }
+    best.0
+}
+
+/// `img` with every uncovered pixel's colour set to `bg` (alpha kept).
+pub fn on_background(img: &Image, bg: [u8; 3]) -> Image {
+    let mut out = img.clone();
+    for p in out.rgba.chunks_exact_mut(4).filter(|p| p[3] == 0) {
+        p[..3].copy_from_slice(&bg);
+    }
+    out
+}
+
+/// All five metrics of `test` against `reference`, on the [`metric_background`].
 pub fn compare(reference: &Image, test: &Image) -> Result<ImageMetrics, MetricsError> {
     check_same_size(reference, test)?;
+    let bg = metric_background(reference, test);
+    let placed;
+    let (reference, test) = if bg == [0, 0, 0] && !has_uncovered_colour(reference, test) {
+        (reference, test)
+    } else {
+        placed = (on_background(reference, bg), on_background(test, bg));
+        (&placed.0, &placed.1)
+    };
     let (flip_mean, (ssim, (psnr_db, (hole_ratio, extra_coverage)))) = rayon::join(
         || flip_mean_unchecked(reference, test),
         || {
@@ -157,6 +250,16 @@ pub fn compare(reference: &Image, test: &Image) -> Result<ImageMetrics, MetricsE
         flip_mean,
         hole_ratio,
         extra_coverage,
+    })
+}
+
+/// True when an uncovered pixel of either image holds a colour other than black (images
+/// the renderer drew never do).
+fn has_uncovered_colour(a: &Image, b: &Image) -> bool {
+    [a, b].iter().any(|img| {
+        img.rgba
+            .chunks_exact(4)
+            .any(|p| p[3] == 0 && p[..3] != [0, 0, 0])
     })
 }
 

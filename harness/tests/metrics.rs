@@ -268,3 +268,66 @@ fn content_hash_depends_on_size_and_bytes() {
     });
     assert_eq!(empty, expected);
 }
+
+/// Black points on the renderer's black clear colour: a frame that loses half of them must
+/// score colour error, not only holes (issue 12: every method scored FLIP 0.000 on LAS files
+/// whose RGB was all zero). Coverage comes from alpha; the metric background moves away
+/// from the points' colours.
+#[test]
+fn black_points_cannot_vanish_into_the_background() {
+    let black = |x1: u32| {
+        let mut img = Image::new(64, 64);
+        for y in 10..50 {
+            for x in 10..x1 {
+                let i = ((y * 64 + x) * 4) as usize;
+                img.rgba[i..i + 4].copy_from_slice(&[0, 0, 0, 255]);
+            }
+        }
+        img
+    };
+    let (reference, test) = (black(50), black(30));
+    let bg = metrics::metric_background(&reference, &test);
+    assert_ne!(bg, [0, 0, 0]);
+    assert_eq!(bg, [255, 255, 255], "the candidate farthest from black");
+    let m = metrics::compare(&reference, &test).unwrap();
+    assert_eq!(m.hole_ratio, 0.5);
+    // 800 of the 4,096 pixels (0.195) turn from black to white, where FLIP's error is close
+    // to 1: a mean above 0.1 is about half of that. Before, it was exactly 0.
+    assert!(m.flip_mean > 0.1, "FLIP {}", m.flip_mean);
+    assert!(m.psnr_db < 10.0, "PSNR {}", m.psnr_db);
+    // The same frames with grey points keep the black background.
+    let grey = |img: &Image| {
+        let mut g = img.clone();
+        for p in g.rgba.chunks_exact_mut(4).filter(|p| p[3] > 0) {
+            p[..3].copy_from_slice(&[180, 180, 180]);
+        }
+        g
+    };
+    assert_eq!(
+        metrics::metric_background(&grey(&reference), &grey(&test)),
+        [0, 0, 0]
+    );
+    // Identical images stay perfect whatever the background.
+    assert_eq!(
+        metrics::compare(&reference, &reference).unwrap().flip_mean,
+        0.0
+    );
+}
+
+/// Every candidate present: the one whose nearest covered colour is farthest wins.
+#[test]
+fn metric_background_picks_the_farthest_candidate() {
+    let mut img = Image::new(16, 1);
+    for (x, c) in metrics::BACKGROUND_CANDIDATES.iter().enumerate() {
+        img.rgba[x * 4..x * 4 + 4].copy_from_slice(&[c[0], c[1], c[2], 255]);
+    }
+    // All eight corners of the cube are covered colours: each candidate is at distance 0
+    // (within its bin), so the first, black, is kept.
+    assert_eq!(metrics::metric_background(&img, &img), [0, 0, 0]);
+    // Only near-black and near-white points: a saturated colour is farther from both.
+    let mut two = Image::new(2, 1);
+    two.rgba
+        .copy_from_slice(&[8, 8, 8, 255, 250, 250, 250, 255]);
+    let bg = metrics::metric_background(&two, &two);
+    assert!(![[0, 0, 0], [255, 255, 255]].contains(&bg), "{bg:?}");
+}

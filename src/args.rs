@@ -3,7 +3,7 @@
 use std::path::PathBuf;
 
 use clap::Args;
-use harness::render::Kernel;
+use harness::render::{Kernel, Shading};
 use methods::MethodKind;
 
 #[derive(Args, Clone)]
@@ -36,6 +36,12 @@ pub struct SceneArgs {
     /// and most graphics PLY data are Y-up. Default: a scene file's `up`, else z.
     #[arg(long, value_parser = parse_up)]
     pub up: Option<scenes::Up>,
+    /// Shading, the same for the reference and every method: auto (lambert with normals,
+    /// else colour with colours, else edl), lambert, colour, edl (eye-dome lighting),
+    /// elevation, intensity, classification. The last two colour the points by the file's
+    /// scalar, so `build` needs them too; the others change only the images.
+    #[arg(long, value_enum, default_value = "auto")]
+    pub shading: Shading,
 }
 
 fn parse_up(s: &str) -> Result<scenes::Up, String> {
@@ -48,7 +54,8 @@ impl SceneArgs {
         Ok(
             scenes::SceneSpec::parse(&self.scene, self.sample, self.seed)?
                 .with_keep_attributes(self.keep_attributes)
-                .with_up(self.up),
+                .with_up(self.up)
+                .with_colour_from(self.shading.scalar()),
         )
     }
 }

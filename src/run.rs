@@ -71,6 +71,10 @@ pub fn run_config(a: &RunArgs) -> anyhow::Result<RunConfig> {
                 .gpu_cache_mb
                 .checked_mul(1 << 20)
                 .context("--gpu-cache-mb is too large")?,
+            shade: harness::render::Shade {
+                shading: a.scene.shading,
+                ..Default::default()
+            },
         },
         seed: a.scene.seed,
         save_images: a.save_images,

@@ -953,3 +953,79 @@ fn export_reports_what_the_file_holds() {
         "{help}"
     );
 }
+
+/// `--shading`: `auto` resolves to EDL for a bare LAS tile and is recorded; shading by a
+/// scalar the file lacks, or one that is constant, fails before anything is built.
+#[test]
+fn shading_is_resolved_recorded_and_checked() {
+    let tmp = tempfile::tempdir().unwrap();
+    let las = tmp.path().join("bare.las");
+    // A bare tile: positions only (format 0 has intensity and class fields, all zero here).
+    let cloud = scenes::SceneSpec::parse("terrain:3000:2", None, 1)
+        .unwrap()
+        .load(None, &scenes::NoProgress)
+        .unwrap()
+        .cloud
+        .without_colors();
+    scenes::las::write(&las, &cloud).unwrap();
+    for (shading, needle) in [
+        (
+            "intensity",
+            "every point has the intensity 0: nothing to shade by",
+        ),
+        ("classification", "every point has the class"),
+    ] {
+        let out = tmp.path().join(shading);
+        common::fails(
+            bin()
+                .args(["run", "--method", "full", "--frames", "1", "--scene"])
+                .arg(&las)
+                .args(["--shading", shading, "--out"])
+                .arg(&out),
+            needle,
+        );
+        assert!(!out.join("summary.json").exists());
+    }
+    common::fails(
+        bin()
+            .args([
+                "run",
+                "--method",
+                "full",
+                "--scene",
+                "statue:1000",
+                "--shading",
+                "intensity",
+                "--out",
+            ])
+            .arg(tmp.path().join("g")),
+        "a generated scene has no intensity",
+    );
+    fails_with(
+        &["run", "--shading", "phong"],
+        "invalid value 'phong' for '--shading",
+    );
+    if !have_gpu("shading_is_resolved_recorded_and_checked") {
+        return;
+    }
+    for (flag, want) in [(None, "edl"), (Some("elevation"), "elevation")] {
+        let out = tmp.path().join(want);
+        let mut cmd = bin();
+        cmd.args([
+            "run", "--method", "lpc", "--frames", "2", "--width", "64", "--height", "64", "--cache",
+        ])
+        .arg(tmp.path().join("cache"))
+        .arg("--scene")
+        .arg(&las)
+        .arg("--out")
+        .arg(&out);
+        if let Some(f) = flag {
+            cmd.args(["--shading", f]);
+        }
+        let o = cmd.output().unwrap();
+        assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+        let s: serde_json::Value =
+            serde_json::from_slice(&std::fs::read(out.join("summary.json")).unwrap()).unwrap();
+        assert_eq!(s["shading"], want);
+    }
+}

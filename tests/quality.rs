@@ -37,6 +37,7 @@ fn config(
             height: size,
             kernel: Kernel::Square,
             cache_bytes: 64 << 20,
+            shade: Default::default(),
         },
         seed: 1,
         save_images: false,
@@ -162,6 +163,7 @@ fn qsplat_refines_progressively_during_a_pause() {
             height: 96,
             kernel: Kernel::Square,
             cache_bytes: 16 << 20,
+            shade: Default::default(),
         },
         ..config(
             MethodKind::Qsplat,

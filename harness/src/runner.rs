@@ -176,6 +176,8 @@ pub struct Summary {
     pub target: Target,
     /// Kernel.
     pub kernel: Kernel,
+    /// The shading drawn (`--shading`, with `auto` resolved for the scene).
+    pub shading: crate::render::Shading,
     /// Camera path.
     pub path: String,
     /// Frames.
@@ -334,7 +336,11 @@ impl<'g> Reference<'g> {
     fn key(&self, view: &View) -> String {
         let mut h = scenes::hash::Fnv64::default();
         h.write(&self.scene_hash.to_le_bytes())
-            .write(bytemuck::bytes_of(&crate::render::frame_uniform(view)))
+            .write(bytemuck::bytes_of(&crate::render::frame_uniform(
+                view,
+                &self.settings.shade,
+            )))
+            .write_str(self.settings.shade.shading.name())
             .write(&view.camera.near.to_le_bytes())
             .write(&view.camera.far.to_le_bytes())
             .write_str(self.settings.kernel.name())
@@ -407,8 +413,12 @@ pub fn run(cfg: &RunConfig, gpu: &Gpu, progress: &dyn Progress) -> anyhow::Resul
     cfg.method.check_params(&cfg.params)?;
     std::fs::create_dir_all(&cfg.out)
         .with_context(|| format!("creating output directory {}", cfg.out.display()))?;
-    let loaded = cfg
+    // Shading by a file scalar loads it as the cloud's colour (scenes::scalar).
+    let scene = cfg
         .scene
+        .clone()
+        .with_colour_from(cfg.render.shade.shading.scalar());
+    let loaded = scene
         .load(Some(&cfg.cache), progress)
         .with_context(|| format!("loading scene '{}'", cfg.scene.text))?;
     let mut scene_warnings = loaded.warnings.clone();
@@ -425,8 +435,15 @@ pub fn run(cfg: &RunConfig, gpu: &Gpu, progress: &dyn Progress) -> anyhow::Resul
         eprintln!("warning: {w}");
         scene_warnings.push(w);
     }
-    let scene_hash = cfg.scene.content_hash()?;
-    let label = cfg.scene.label();
+    let scene_hash = scene.content_hash()?;
+    let label = scene.label();
+    let render = RenderSettings {
+        shade: crate::render::Shade {
+            shading: cfg.render.shade.shading.resolve(cloud.attributes()),
+            elevation: [framing.framed.min.z, framing.framed.max.z],
+        },
+        ..cfg.render
+    };
     let (build_dir, build, params) = match &cfg.build_dir {
         None => {
             let dir = cfg.out.join("build");
@@ -473,17 +490,10 @@ pub fn run(cfg: &RunConfig, gpu: &Gpu, progress: &dyn Progress) -> anyhow::Resul
             cfg.render.cache_bytes as f64 / (1u64 << 20) as f64
         );
     }
-    let mut renderer = Renderer::new(gpu, cfg.render)?;
-    let mut reference = cfg.metrics.then(|| {
-        Reference::new(
-            gpu,
-            &cloud,
-            label.clone(),
-            scene_hash,
-            &cfg.cache,
-            cfg.render,
-        )
-    });
+    let mut renderer = Renderer::new(gpu, render)?;
+    let mut reference = cfg
+        .metrics
+        .then(|| Reference::new(gpu, &cloud, label.clone(), scene_hash, &cfg.cache, render));
     let bounds = framing.framed;
     let mut summary = Summary {
         complete: false,
@@ -496,6 +506,7 @@ pub fn run(cfg: &RunConfig, gpu: &Gpu, progress: &dyn Progress) -> anyhow::Resul
         params,
         target,
         kernel: cfg.render.kernel,
+        shading: render.shade.shading,
         path: cfg.path.name(),
         frames: cfg.frames,
         gpu_cache_budget_bytes: cfg.render.cache_bytes,
@@ -530,7 +541,7 @@ pub fn run(cfg: &RunConfig, gpu: &Gpu, progress: &dyn Progress) -> anyhow::Resul
 
     // Warm-up (shader compilation, first uploads): untimed, not recorded; the cache is
     // cleared so frame 0 pays its uploads like any cold start.
-    let v0 = frame_view(&cfg.path, 0, cfg.frames, &bounds, cfg.render);
+    let v0 = frame_view(&cfg.path, 0, cfg.frames, &bounds, render);
     let warm = method.frame(&v0, target, &Feedback::default())?;
     renderer.draw(&v0, &warm, method.as_ref(), false)?;
     renderer.clear_cache();
@@ -539,7 +550,7 @@ pub fn run(cfg: &RunConfig, gpu: &Gpu, progress: &dyn Progress) -> anyhow::Resul
     let mut last: Option<(FrameStats, View)> = None;
     progress.start(&format!("{} on {label}", cfg.method), cfg.frames as u64);
     for i in 0..cfg.frames {
-        let view = frame_view(&cfg.path, i, cfg.frames, &bounds, cfg.render);
+        let view = frame_view(&cfg.path, i, cfg.frames, &bounds, render);
         let feedback = next_feedback(i as u64, &renderer, last.as_ref(), &view);
         let t = Instant::now();
         let list = method

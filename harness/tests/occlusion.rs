@@ -207,6 +207,7 @@ fn settings(kernel: Kernel) -> RenderSettings {
         height: H,
         kernel,
         cache_bytes: 64 << 20,
+        shade: Default::default(),
     }
 }
 
@@ -559,6 +560,7 @@ fn query_overhead_timing() {
             height: h,
             kernel: Kernel::Square,
             cache_bytes: 256 << 20,
+            shade: Default::default(),
         },
     )
     .unwrap();

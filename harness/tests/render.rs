@@ -13,7 +13,7 @@ use std::path::{Path, PathBuf};
 
 use harness::gpu::{Gpu, gpu_for_test};
 use harness::image::Image;
-use harness::render::{BASE_COLOR, Kernel, RenderSettings, Renderer, cpu};
+use harness::render::{BASE_COLOR, Kernel, RenderSettings, Renderer, Shade, Shading, cpu};
 use methods::{
     DrawItem, DrawList, Feedback, LodMethod, MethodKind, Params, SplatBatch, SplatSize, Target,
 };
@@ -44,6 +44,7 @@ fn settings(w: u32, h: u32, kernel: Kernel) -> RenderSettings {
         height: h,
         kernel,
         cache_bytes: 64 << 20,
+        shade: Default::default(),
     }
 }
 
@@ -396,5 +397,146 @@ fn spt_gpu_pass_count_equals_cpu_mirror() {
                 assert!(cpu <= stats.points);
             }
         }
+    }
+}
+
+/// `shade` with the statue's local Z range (the runner uses the framed box's).
+fn shade_of(cloud: &PointCloud, shading: Shading) -> Shade {
+    let b = cloud.bounds();
+    Shade {
+        shading,
+        elevation: [b.min.z, b.max.z],
+    }
+}
+
+/// Luma standard deviation over the covered pixels of `img`.
+fn covered_luma_std(img: &Image) -> f64 {
+    let l: Vec<f64> = img
+        .rgba
+        .chunks(4)
+        .filter(|p| p[3] > 0)
+        .map(|p| 0.2126 * p[0] as f64 + 0.7152 * p[1] as f64 + 0.0722 * p[2] as f64)
+        .collect();
+    let mean = l.iter().sum::<f64>() / l.len().max(1) as f64;
+    (l.iter().map(|v| (v - mean).powi(2)).sum::<f64>() / l.len().max(1) as f64).sqrt()
+}
+
+/// Every shading mode: the GPU agrees with the CPU mirror (coverage as in
+/// `gpu_matches_cpu_mirror`, colour within 2 levels on average; EDL adds one rounding of its
+/// own); EDL keeps coverage and gives a bare scene structure a flat base colour lacks; the
+/// elevation ramp spans its stops.
+#[test]
+fn shading_modes_match_cpu_mirror() {
+    let Some(gpu) = gpu_for_test("shading_modes_match_cpu_mirror") else {
+        return;
+    };
+    let tmp = tempfile::tempdir().unwrap();
+    // Bare: positions and radii only, like a LiDAR tile without RGB.
+    let cloud = Generator::Statue
+        .generate(6_000, 11)
+        .unwrap()
+        .without_normals();
+    let mut m = full(&cloud, tmp.path());
+    let v = view(&cloud, 160, 120, 1);
+    let list = m
+        .frame(&v, Target::Tolerance(1.0), &Feedback::default())
+        .unwrap();
+    let mut images = std::collections::HashMap::new();
+    for shading in [
+        Shading::Lambert,
+        Shading::Colour,
+        Shading::Edl,
+        Shading::Elevation,
+    ] {
+        for kernel in [Kernel::Square, Kernel::Gaussian] {
+            let shade = shade_of(&cloud, shading);
+            let mut r = Renderer::new(
+                &gpu,
+                RenderSettings {
+                    shade,
+                    ..settings(160, 120, kernel)
+                },
+            )
+            .unwrap();
+            let (_, img) = r.draw(&v, &list, m.as_ref(), true).unwrap();
+            let img = img.unwrap();
+            let reference = cpu::rasterize_shaded(&v, &list, m.as_ref(), kernel, &shade).unwrap();
+            let (cov, col) = disagreement(&img, &reference);
+            assert!(
+                cov < 0.01,
+                "{shading}/{kernel:?}: coverage differs on {cov:.4}"
+            );
+            let max_col = if kernel == Kernel::Gaussian { 3.0 } else { 2.0 };
+            assert!(
+                col < max_col,
+                "{shading}/{kernel:?}: mean colour difference {col}"
+            );
+            images.insert((shading, kernel), img);
+        }
+    }
+    let flat = &images[&(Shading::Colour, Kernel::Square)];
+    let edl = &images[&(Shading::Edl, Kernel::Square)];
+    assert_eq!(
+        disagreement(flat, edl).0,
+        0.0,
+        "EDL must not change coverage"
+    );
+    // Flat: one colour (std 0). EDL: depth edges darken (72 levels measured on llvmpipe, GL
+    // and Vulkan alike; 20 leaves room for another rasteriser and still rules out flat).
+    assert_eq!(covered_luma_std(flat), 0.0);
+    let s = covered_luma_std(edl);
+    eprintln!("EDL luma std over covered pixels: {s:.2}");
+    assert!(s > 20.0, "EDL shows no structure: luma std {s:.2}");
+    assert!(
+        edl.rgba
+            .chunks(4)
+            .zip(flat.rgba.chunks(4))
+            .all(|(e, f)| (0..3).all(|c| e[c] <= f[c])),
+        "EDL only darkens"
+    );
+    // Elevation: the covered pixels span the ramp from its first stop to near its last.
+    let el = &images[&(Shading::Elevation, Kernel::Square)];
+    let blues: Vec<u8> = el
+        .rgba
+        .chunks(4)
+        .filter(|p| p[3] > 0)
+        .map(|p| p[2])
+        .collect();
+    let (lo, hi) = (*blues.iter().min().unwrap(), *blues.iter().max().unwrap());
+    assert!(
+        lo < 60 && hi > 130,
+        "elevation blue channel spans {lo}..{hi}"
+    );
+}
+
+#[test]
+fn golden_edl() {
+    let Some(gpu) = gpu_for_test("golden_edl") else {
+        return;
+    };
+    let tmp = tempfile::tempdir().unwrap();
+    let cloud = Generator::Statue
+        .generate(20_000, 5)
+        .unwrap()
+        .without_normals();
+    let mut m = full(&cloud, tmp.path());
+    let v = view(&cloud, 128, 128, 0);
+    let list = m
+        .frame(&v, Target::Tolerance(1.0), &Feedback::default())
+        .unwrap();
+    for (shading, name) in [
+        (Shading::Edl, "statue-edl"),
+        (Shading::Elevation, "statue-elevation"),
+    ] {
+        let mut r = Renderer::new(
+            &gpu,
+            RenderSettings {
+                shade: shade_of(&cloud, shading),
+                ..settings(128, 128, Kernel::Square)
+            },
+        )
+        .unwrap();
+        let (_, img) = r.draw(&v, &list, m.as_ref(), true).unwrap();
+        check_golden(name, &img.unwrap(), 0.02);
     }
 }

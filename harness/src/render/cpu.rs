@@ -18,7 +18,7 @@ use methods::{DrawItem, DrawList, IntervalTest, LodMethod, SplatBatch, SplatSize
 use scenes::View;
 
 use super::occlusion::{Icosahedron, OcclusionStats, needs_query};
-use super::{AMBIENT, BASE_COLOR, Kernel};
+use super::{AMBIENT, BASE_COLOR, Kernel, Shade};
 use crate::image::Image;
 
 /// Pixel size of splat `i` of `batch` drawn with `size` at clip-space `w` (the view depth).
@@ -48,10 +48,16 @@ fn linear_to_srgb(c: f32) -> f32 {
     }
 }
 
-/// The linear colour of splat `i` as the shader computes it (base colour × Lambert shade).
-pub fn shade_linear(batch: &SplatBatch, i: usize, eye: Vec3) -> Vec3 {
+/// The linear colour of splat `i` as the shader computes it with `shade` (base colour,
+/// colour or elevation ramp × Lambert shade; [`super::shading`]).
+pub fn shade_linear(batch: &SplatBatch, i: usize, eye: Vec3, shade: &Shade) -> Vec3 {
     let p = Vec3::from(batch.positions[i]);
+    let code = shade.shading.shader_code();
     let base = match &batch.colors {
+        _ if code == 2 => {
+            let t = (p.z - shade.elevation[0]) * shade.elevation_scale();
+            Vec3::from(super::shading::elevation_colour(t).map(srgb_to_linear))
+        }
         Some(c) => {
             let c = c[i];
             Vec3::new(
@@ -62,15 +68,15 @@ pub fn shade_linear(batch: &SplatBatch, i: usize, eye: Vec3) -> Vec3 {
         }
         None => Vec3::from(BASE_COLOR),
     };
-    let shade = match &batch.normals {
-        Some(n) => {
+    let light = match &batch.normals {
+        Some(n) if code == 0 => {
             let n = methods::octnormal::decode(n[i]);
             let l = (eye - p).normalize();
             AMBIENT + (1.0 - AMBIENT) * n.dot(l).abs()
         }
-        None => 1.0,
+        _ => 1.0,
     };
-    base * shade
+    base * light
 }
 
 /// Encodes a linear colour to sRGB8 as the shaders do.
@@ -80,8 +86,8 @@ pub fn encode_srgb(c: Vec3) -> [u8; 3] {
 }
 
 /// The sRGB8 colour of splat `i` as the shader computes it.
-pub fn shade(batch: &SplatBatch, i: usize, eye: Vec3) -> [u8; 3] {
-    encode_srgb(shade_linear(batch, i, eye))
+pub fn shade(batch: &SplatBatch, i: usize, eye: Vec3, shade: &Shade) -> [u8; 3] {
+    encode_srgb(shade_linear(batch, i, eye, shade))
 }
 
 /// One splat's footprint on screen.
@@ -155,9 +161,11 @@ pub struct CpuFrame {
     pub chunks: u64,
     /// What the occlusion queries found (`query_gpu_ms` always `None`).
     pub occlusion: Option<OcclusionStats>,
+    /// The depth buffer (NDC, 1 where nothing was drawn), row-major like the image.
+    pub depth: Vec<f32>,
 }
 
-/// Rasterises `list` on the CPU, decoding chunks through `method`.
+/// Rasterises `list` on the CPU, decoding chunks through `method`, with the default shading.
 pub fn rasterize(
     view: &View,
     list: &DrawList,
@@ -167,6 +175,17 @@ pub fn rasterize(
     render(view, list, method, kernel).map(|f| f.image)
 }
 
+/// [`rasterize`] with `shade` (EDL included).
+pub fn rasterize_shaded(
+    view: &View,
+    list: &DrawList,
+    method: &dyn LodMethod,
+    kernel: Kernel,
+    shade: &Shade,
+) -> anyhow::Result<Image> {
+    render_shaded(view, list, method, kernel, shade).map(|f| f.image)
+}
+
 /// Footprints of the splats of `items` (those the interval tests pass, in front of the eye),
 /// plus the splats sent and the cached chunks drawn.
 fn footprints<'a>(
@@ -174,6 +193,7 @@ fn footprints<'a>(
     items: impl IntoIterator<Item = &'a DrawItem>,
     method: &dyn LodMethod,
     kernel: Kernel,
+    shade: &Shade,
 ) -> anyhow::Result<(Vec<Footprint>, u64, u64)> {
     let vp = view.view_proj();
     let vm = view.view_matrix();
@@ -231,7 +251,7 @@ fn footprints<'a>(
                 z: clip.z / clip.w,
                 z_pushed: back.z / back.w,
                 ellipse,
-                linear: shade_linear(batch, i, eye),
+                linear: shade_linear(batch, i, eye, shade),
             });
         }
     }
@@ -338,12 +358,23 @@ pub fn render(
     method: &dyn LodMethod,
     kernel: Kernel,
 ) -> anyhow::Result<CpuFrame> {
+    render_shaded(view, list, method, kernel, &Shade::default())
+}
+
+/// [`render`] with `shade`; `edl` shading runs [`super::edl::apply_cpu`] on the result.
+pub fn render_shaded(
+    view: &View,
+    list: &DrawList,
+    method: &dyn LodMethod,
+    kernel: Kernel,
+    shade: &Shade,
+) -> anyhow::Result<CpuFrame> {
     let kernel = list.shape.unwrap_or(kernel);
     if list.occlusion.is_some() && kernel == Kernel::Gaussian {
         anyhow::bail!("occlusion culling needs an opaque kernel (square, circle or ellipse)");
     }
     let (w, h) = (view.width as usize, view.height as usize);
-    let (splats, mut points, mut chunks) = footprints(view, &list.items, method, kernel)?;
+    let (splats, mut points, mut chunks) = footprints(view, &list.items, method, kernel, shade)?;
     let mut rgba = vec![0u8; w * h * 4];
     let mut depth = vec![1.0f32; w * h];
     if kernel == Kernel::Gaussian {
@@ -398,7 +429,7 @@ pub fn render(
                 .enumerate()
                 .filter(|(i, _)| stats.is_visible(*i, occ.threshold))
                 .filter_map(|(_, c)| c.item.as_ref());
-            let (splats3, p3, c3) = footprints(view, items3, method, kernel)?;
+            let (splats3, p3, c3) = footprints(view, items3, method, kernel, shade)?;
             draw_opaque(
                 w,
                 h,
@@ -413,14 +444,19 @@ pub fn render(
             Some(stats)
         }
     };
+    let mut image = Image {
+        width: view.width,
+        height: view.height,
+        rgba,
+    };
+    if shade.shading == super::Shading::Edl {
+        super::edl::apply_cpu(&mut image, &depth, view.camera.near, view.camera.far);
+    }
     Ok(CpuFrame {
-        image: Image {
-            width: view.width,
-            height: view.height,
-            rgba,
-        },
+        image,
         points,
         chunks,
         occlusion,
+        depth,
     })
 }

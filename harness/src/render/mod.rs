@@ -43,7 +43,9 @@
 //! all have to be split around the queries, and LPC draws opaque splats.
 
 pub mod cpu;
+pub mod edl;
 pub mod occlusion;
+pub mod shading;
 
 use std::collections::{HashMap, HashSet};
 use std::ops::Range;
@@ -61,6 +63,7 @@ use crate::gpu::Gpu;
 use crate::image::Image;
 use occlusion::Icosahedron;
 pub use occlusion::OcclusionStats;
+pub use shading::{Shade, Shading};
 
 pub use methods::SplatShape as Kernel;
 
@@ -75,6 +78,8 @@ pub struct RenderSettings {
     pub kernel: Kernel,
     /// GPU chunk cache budget, bytes.
     pub cache_bytes: u64,
+    /// Shading ([`shading`]; resolve `auto` first for `edl`).
+    pub shade: Shade,
 }
 
 impl Default for RenderSettings {
@@ -84,6 +89,7 @@ impl Default for RenderSettings {
             height: 512,
             kernel: Kernel::Square,
             cache_bytes: 512 << 20,
+            shade: Shade::default(),
         }
     }
 }
@@ -118,8 +124,12 @@ pub struct FrameUniform {
     pub view: [[f32; 4]; 4],
     /// offset 176
     pub depth_offset: f32,
-    /// offset 180
-    pub _pad1: [f32; 3],
+    /// offset 180: [`Shading::shader_code`]
+    pub shading: u32,
+    /// offset 184: local Z at the bottom of the elevation ramp
+    pub elevation_lo: f32,
+    /// offset 188: 1 / the ramp's height range
+    pub elevation_scale: f32,
 }
 const _: () = assert!(std::mem::size_of::<FrameUniform>() == 192);
 
@@ -290,6 +300,8 @@ pub struct Renderer<'g> {
     draw_stride: u64,
     query: Option<QueryPipeline>,
     query_sets: Vec<wgpu::QuerySet>,
+    /// The eye-dome lighting pass, for `edl` shading.
+    edl: Option<edl::EdlPass>,
 }
 
 /// Which pipeline: an opaque kernel, or one of the gaussian passes.
@@ -320,6 +332,7 @@ pub const SHADER_MODULES: &[(&str, &str)] = &[
     ("interval.wgsl + splat.wgsl", SPLAT_WGSL),
     ("normalize.wgsl", include_str!("normalize.wgsl")),
     ("occlusion.wgsl", OCCLUSION_WGSL),
+    ("edl.wgsl", edl::EDL_WGSL),
 ];
 
 /// The occlusion-query shader (phase 2 of occlusion culling).
@@ -361,7 +374,11 @@ impl<'g> Renderer<'g> {
             sample_count: 1,
             dimension: wgpu::TextureDimension::D2,
             format: COLOR_FORMAT,
-            usage: wgpu::TextureUsages::RENDER_ATTACHMENT | wgpu::TextureUsages::COPY_SRC,
+            // Read by the EDL pass, which writes its result back by a copy.
+            usage: wgpu::TextureUsages::RENDER_ATTACHMENT
+                | wgpu::TextureUsages::COPY_SRC
+                | wgpu::TextureUsages::COPY_DST
+                | wgpu::TextureUsages::TEXTURE_BINDING,
             view_formats: &[],
         });
         let depth = d.create_texture(&wgpu::TextureDescriptor {
@@ -503,6 +520,8 @@ impl<'g> Renderer<'g> {
             draw_stride,
             query: None,
             query_sets: Vec::new(),
+            edl: (settings.shade.shading == Shading::Edl)
+                .then(|| edl::EdlPass::new(gpu, settings.width, settings.height, COLOR_FORMAT)),
         })
     }
 
@@ -844,9 +863,11 @@ impl<'g> Renderer<'g> {
         }
         self.cache.begin_frame();
         let mut stats = FrameStats::default();
-        self.gpu
-            .queue
-            .write_buffer(&self.frame_ubo, 0, bytemuck::bytes_of(&frame_uniform(view)));
+        self.gpu.queue.write_buffer(
+            &self.frame_ubo,
+            0,
+            bytemuck::bytes_of(&frame_uniform(view, &self.settings.shade)),
+        );
         // Timestamp pairs written, by first index: 0 = phase 1 (or the only pass), 2 = the
         // occlusion queries, 4 = phase 3.
         let mut ts_pairs: Vec<u32> = vec![0];
@@ -864,7 +885,7 @@ impl<'g> Renderer<'g> {
             &mut enc,
             PhaseTarget {
                 clear: true,
-                store_depth: list.occlusion.is_some(),
+                store_depth: list.occlusion.is_some() || self.edl.is_some(),
                 ts: (0, 1),
             },
         )?;
@@ -874,7 +895,7 @@ impl<'g> Renderer<'g> {
             self.resolve_timestamps(&mut enc, 0..2, 0);
             self.gpu.queue.submit([enc.finish()]);
             self.gpu.wait()?;
-            return self.finish_frame(t0, stats, counters, &ts_pairs, readback);
+            return self.finish_frame(view, t0, stats, counters, &ts_pairs, readback);
         };
 
         // Phase 2: one occlusion query per candidate against phase 1's depth.
@@ -923,7 +944,7 @@ impl<'g> Renderer<'g> {
                 &mut enc,
                 PhaseTarget {
                     clear: false,
-                    store_depth: false,
+                    store_depth: self.edl.is_some(),
                     ts: (4, 5),
                 },
             )?);
@@ -936,7 +957,8 @@ impl<'g> Renderer<'g> {
         }
         drop(keep_alive);
         drop(pending);
-        let (mut stats, image) = self.finish_frame(t0, stats, counters, &ts_pairs, readback)?;
+        let (mut stats, image) =
+            self.finish_frame(view, t0, stats, counters, &ts_pairs, readback)?;
         if queried_any {
             occlusion.query_gpu_ms = stats.phase_gpu_ms.get(1).copied().flatten();
         }
@@ -944,9 +966,11 @@ impl<'g> Renderer<'g> {
         Ok((stats, image))
     }
 
-    /// After the last submission: wall time, interval counters, timestamps, the image.
+    /// After the last submission: wall time, interval counters, timestamps, the image (with
+    /// the EDL pass first, when the shading has one: outside the timings, see [`edl`]).
     fn finish_frame(
         &self,
+        view: &View,
         t0: Instant,
         mut stats: FrameStats,
         counters: Vec<Option<(wgpu::Buffer, u64)>>,
@@ -980,6 +1004,16 @@ impl<'g> Renderer<'g> {
         }
         stats.cache_bytes = self.cache.bytes();
         let image = if readback {
+            if let Some(e) = &self.edl {
+                e.apply(
+                    self.gpu,
+                    &self.color,
+                    &self.color_view,
+                    &self.depth_view,
+                    view.camera.near,
+                    view.camera.far,
+                );
+            }
             Some(self.read_color()?)
         } else {
             None
@@ -1603,8 +1637,8 @@ pub fn exact_counts(gpu: &Gpu) -> bool {
     gpu.device.adapter_info().backend != wgpu::Backend::Gl
 }
 
-/// The `Frame` uniform for a view.
-pub fn frame_uniform(view: &View) -> FrameUniform {
+/// The `Frame` uniform for a view drawn with `shade`.
+pub fn frame_uniform(view: &View, shade: &Shade) -> FrameUniform {
     FrameUniform {
         view_proj: view.view_proj().to_cols_array_2d(),
         eye: view.camera.position.into(),
@@ -1615,7 +1649,9 @@ pub fn frame_uniform(view: &View) -> FrameUniform {
         base_color: [BASE_COLOR[0], BASE_COLOR[1], BASE_COLOR[2], 1.0],
         view: view.view_matrix().to_cols_array_2d(),
         depth_offset: GAUSS_DEPTH_OFFSET,
-        _pad1: [0.0; 3],
+        shading: shade.shading.shader_code(),
+        elevation_lo: shade.elevation[0],
+        elevation_scale: shade.elevation_scale(),
     }
 }
 

@@ -16,9 +16,9 @@ struct Frame {
     base_color: vec4<f32>,  // offset 96: linear RGB used when the scene has no colour
     view: mat4x4<f32>,      // offset 112: world → view (ellipse axes)
     depth_offset: f32,      // offset 176: gaussian depth pass pushes splats back by this × radius
-    _pad1: f32,             // offset 180
-    _pad2: f32,             // offset 184
-    _pad3: f32,             // offset 188
+    shading: u32,           // offset 180: 0 Lambert, 1 unlit, 2 elevation ramp (render::shading)
+    elevation_lo: f32,      // offset 184: local Z at the bottom of the ramp
+    elevation_scale: f32,   // offset 188: 1 / the ramp's height range
 }                           // size 192
 
 struct Draw {
@@ -75,6 +75,20 @@ fn linear_to_srgb(c: vec3<f32>) -> vec3<f32> {
     let lo = c * 12.92;
     let hi = 1.055 * pow(c, vec3<f32>(1.0 / 2.4)) - 0.055;
     return select(hi, lo, c <= vec3<f32>(0.0031308));
+}
+
+// The elevation ramp (render::shading::elevation_colour): five viridis stops, sRGB, linear
+// in between; t clamped to 0..1.
+const RAMP = array<vec3<f32>, 5>(
+    vec3<f32>(68.0, 1.0, 84.0), vec3<f32>(59.0, 82.0, 139.0), vec3<f32>(33.0, 145.0, 140.0),
+    vec3<f32>(94.0, 201.0, 98.0), vec3<f32>(253.0, 231.0, 37.0),
+);
+
+fn elevation_colour(t: f32) -> vec3<f32> {
+    let s = clamp(t, 0.0, 1.0) * 4.0;
+    let i = min(u32(floor(s)), 3u);
+    let f = s - f32(i);
+    return mix(RAMP[i], RAMP[i + 1u], f) / 255.0;
 }
 
 fn splat_position(ii: u32) -> vec3<f32> {
@@ -150,11 +164,13 @@ fn splat_vertex(vi: u32, ii: u32, ellipse: bool, depth_push: bool) -> VsOut {
     out.uv = c;
 
     var base = frame.base_color.rgb;
-    if ((draw.flags & 2u) != 0u) {
+    if (frame.shading == 2u) {
+        base = srgb_to_linear(elevation_colour((p.z - frame.elevation_lo) * frame.elevation_scale));
+    } else if ((draw.flags & 2u) != 0u) {
         base = srgb_to_linear(unpack4x8unorm(colors[ii]).rgb);
     }
     var shade = 1.0;
-    if (has_normal) {
+    if (has_normal && frame.shading == 0u) {
         // Lambert, headlight at the eye, two-sided (scans carry normals of either sign).
         shade = frame.ambient + (1.0 - frame.ambient) * abs(dot(n, l));
     }

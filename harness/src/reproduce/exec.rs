@@ -299,6 +299,7 @@ impl<'a> Context<'a> {
                     .gpu_cache_mb
                     .checked_mul(1 << 20)
                     .context("gpu_cache_mb is too large")?,
+                shade: Default::default(),
             },
             seed: scene_seed(scene),
             save_images: false,

@@ -7,7 +7,9 @@
 #
 # NEW_BIN / OLD_BIN are splatbench binaries (e.g. target/release/splatbench and a build of an
 # earlier commit); OLD_BIN runs only on the formats it reads (.las .laz .ply). Each run: orbit,
-# 6 frames, 256×256, ε = 1 px, metrics against the full-resolution reference. Needs pip,
+# 6 frames, 256×256, ε = 1 px, metrics against the full-resolution reference, default shading
+# (recorded per run). NEW_BIN also runs LPC's `spacing_rule=cover90` departure (`lpc-cover90`)
+# beside the paper's rule, on every file. Needs pip,
 # python3 and network access to PyPI; about 5 minutes per binary on 2 cores with lavapipe.
 set -euo pipefail
 work=$(realpath -m "$1"); new=$(realpath "$2"); old=${3:+$(realpath "$3")}
@@ -24,12 +26,16 @@ run_all() { # TAG BIN
   for f in "${files[@]}"; do
     local ext=${f##*.}; ext=${ext,,}
     if [ "$tag" = before ] && [[ ! " las laz ply " =~ " $ext " ]]; then continue; fi
-    for m in full qsplat spt lpc mwkd; do
-      local out="$work/runs/$tag/$(basename "$f")/$m"
+    local methods=(full qsplat spt lpc mwkd)
+    if [ "$tag" = after ]; then methods+=(lpc-cover90); fi
+    for m in "${methods[@]}"; do
+      local out="$work/runs/$tag/$(basename "$f")/$m" extra=()
+      if [ "$m" = lpc-cover90 ]; then extra=(--param spacing_rule=cover90); fi
       mkdir -p "$out"
       set +e
-      NODEVICE_SELECT=1 "$bin" run --method "$m" --scene "$work/$f" --path orbit --frames 6 \
-        --width 256 --height 256 --out "$out" --cache "$work/cache" >"$out.stdout" 2>"$out.stderr"
+      NODEVICE_SELECT=1 "$bin" run --method "${m%%-*}" "${extra[@]}" --scene "$work/$f" \
+        --path orbit --frames 6 --width 256 --height 256 --out "$out" --cache "$work/cache" \
+        >"$out.stdout" 2>"$out.stderr"
       echo $? >"$out.rc"
       set -e
     done
@@ -50,15 +56,17 @@ def result(d):
     return {"points": s["scene"]["points"], "drawn": m["points_drawn"], "holes": m["hole_ratio"],
             "holes_max": max(float(r["hole_ratio"]) for r in fr), "flip": m["flip_mean"],
             "warnings": s["scene"].get("warnings", []), "commit": s["git_commit"],
+            "shading": s.get("shading", "lambert/flat"),
             "adapter": s["adapter"]["name"]}
 def cell(r):
     if r is None: return "—"
     if "error" in r: return "error: " + r["error"].replace("|", "/")
-    return f'{r["drawn"]:,.0f} / {r["holes"]:.3f} / {r["holes_max"]:.3f} / {r["flip"]:.4f}'
+    return (f'{r["drawn"]:,.0f} / {r["holes"]:.3f} / {r["holes_max"]:.3f} / {r["flip"]:.4f}'
+            f' ({r["shading"]})')
 rows, warn, meta = [], {}, {}
 for fdir in sorted(glob.glob(f"{work}/runs/after/*/")):
     name = os.path.basename(fdir.rstrip("/"))
-    for m in ["full", "qsplat", "spt", "lpc", "mwkd"]:
+    for m in ["full", "qsplat", "spt", "lpc", "lpc-cover90", "mwkd"]:
         a = result(f"{work}/runs/after/{name}/{m}")
         b = result(f"{work}/runs/before/{name}/{m}") if os.path.isdir(f"{work}/runs/before/{name}") else None
         rows.append((name, m, b, a))
@@ -72,7 +80,8 @@ out = [f"# Real third-party files, every method\n",
        f"orbit, 6 frames, 256×256, ε = 1 px.\n"]
 for k, (c, ad) in sorted(meta.items()):
     out.append(f"- {k}: commit `{c}`, adapter {ad}")
-out += ["", "Cells: points drawn (median) / holes median / holes max / FLIP median.", "",
+out += ["", "Cells: points drawn (median) / holes median / holes max / FLIP median (shading; "
+        "before this column existed, runs drew lambert with normals and flat without).", "",
         "| file | method | before | after |", "|---|---|---|---|"]
 out += [f"| {f} | {m} | {cell(b)} | {cell(a)} |" for f, m, b, a in rows]
 out += ["", "## Load warnings (after)", ""]

@@ -586,3 +586,55 @@ fn unsupported_extensions_are_named_with_the_supported_list() {
     let e = SceneSpec::parse("statue", None, 1).unwrap_err().to_string();
     assert!(e.contains("missing point count"), "{e}");
 }
+
+/// E57 intensity: kept per valid point when every scan has it, used by `--shading
+/// intensity`; a file whose scans lack it says so.
+#[test]
+fn e57_intensity_is_read_for_shading() {
+    let dir = tempfile::tempdir().unwrap();
+    let path = dir.path().join("int.e57");
+    let mut w = E57Writer::from_file(&path, "guid-int").unwrap();
+    let proto = vec![
+        Record::CARTESIAN_X_F64,
+        Record::CARTESIAN_Y_F64,
+        Record::CARTESIAN_Z_F64,
+        Record::CARTESIAN_INVALID_STATE,
+        Record::INTENSITY_U16,
+    ];
+    let mut pc = w.add_pointcloud("scan", proto).unwrap();
+    for (i, v) in [100i64, 900, 555, 300].iter().enumerate() {
+        let invalid = if i == 2 { 2 } else { 0 };
+        pc.add_point(vec![
+            RecordValue::Double(i as f64),
+            RecordValue::Double(0.0),
+            RecordValue::Double(1.0),
+            RecordValue::Integer(invalid),
+            RecordValue::Integer(*v),
+        ])
+        .unwrap();
+    }
+    pc.finalize().unwrap();
+    w.finalize().unwrap();
+    let r = scenes::e57::read(&path).unwrap();
+    // The invalid point is dropped with its intensity.
+    assert_eq!(r.intensity.as_deref(), Some(&[100.0, 900.0, 300.0][..]));
+    let c = scenes::SceneSpec::parse(&path.to_string_lossy(), None, 1)
+        .unwrap()
+        .with_colour_from(Some(scenes::Scalar::Intensity))
+        .load(None, &scenes::NoProgress)
+        .unwrap()
+        .cloud;
+    let greys: Vec<u8> = c.colors().unwrap().iter().map(|c| c[0]).collect();
+    assert_eq!(greys, vec![0, 255, 64]);
+    // The two-scan file of the test above has no intensity.
+    let none = dir.path().join("none.e57");
+    write_e57(&none, true);
+    assert!(scenes::e57::read(&none).unwrap().intensity.is_none());
+    let m = scenes::SceneSpec::parse(&none.to_string_lossy(), None, 1)
+        .unwrap()
+        .with_colour_from(Some(scenes::Scalar::Intensity))
+        .load(None, &scenes::NoProgress)
+        .unwrap_err()
+        .to_string();
+    assert!(m.contains("none.e57") && m.contains("no intensity"), "{m}");
+}

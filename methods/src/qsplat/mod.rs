@@ -59,6 +59,12 @@ pub struct QsplatParams {
     /// Combine rule of the build (`fewest`, the default: the fewest interior nodes, the
     /// purpose the paper states; or `pairs`, binary levels paired from the top).
     pub combine: build::Combine,
+    /// Draw back faces too (`two_sided=true`, a departure): no normal-cone culling. The
+    /// paper culls back-facing subtrees (§3.2), which from inside a closed model — the last
+    /// frames of `zoom`, the `extremes` and `flythrough` paths — culls every node, since all
+    /// the surface seen from inside faces away; and for scans whose normals are not
+    /// oriented, culls half of the samples. The reference draws both sides.
+    pub two_sided: bool,
 }
 
 impl QsplatParams {
@@ -289,15 +295,16 @@ impl LodMethod for Qsplat {
     ) -> Result<DrawList, MethodError> {
         let body = self.file.body();
         let h = &self.file.header;
+        let cull = !self.params.two_sided;
         let (batch, c) = match target.validate()? {
             Target::Tolerance(eps) => {
                 let thr = match self.control.as_mut() {
                     Some(fc) => fc.next(eps, feedback),
                     None => eps,
                 };
-                select::select_threshold(body, h, view, thr, self.last_len)?
+                select::select_threshold(body, h, view, thr, self.last_len, cull)?
             }
-            Target::Budget(b) => select::select_budget(body, h, view, b, self.last_len)?,
+            Target::Budget(b) => select::select_budget(body, h, view, b, self.last_len, cull)?,
         };
         self.last_len = batch.len();
         Ok(DrawList {

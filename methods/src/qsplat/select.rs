@@ -81,7 +81,8 @@ struct Ctx<'a> {
     body: &'a [u8],
     nb: usize,
     colors: bool,
-    normals: bool,
+    /// Back-face culling by normal cone: the model has normals and `two_sided` is off.
+    cull: bool,
     frustum: Frustum,
     eye: Vec3,
     fwd: Vec3,
@@ -101,7 +102,13 @@ fn corrupt(h: &str, off: usize) -> MethodError {
 }
 
 impl<'a> Ctx<'a> {
-    fn new(body: &'a [u8], header: &Header, view: &View, capacity: usize) -> Self {
+    fn new(
+        body: &'a [u8],
+        header: &Header,
+        view: &View,
+        capacity: usize,
+        cull_backfaces: bool,
+    ) -> Self {
         let colors = header.flags & format::FLAG_COLORS != 0;
         let normals = header.flags & format::FLAG_NORMALS != 0;
         let attrs = scenes::Attributes {
@@ -113,7 +120,7 @@ impl<'a> Ctx<'a> {
             body,
             nb: header.node_bytes(),
             colors,
-            normals,
+            cull: normals && cull_backfaces,
             frustum: view.frustum(),
             eye: view.camera.position,
             fwd: view.camera.forward(),
@@ -210,7 +217,7 @@ impl<'a> Ctx<'a> {
                 Containment::Intersects => {}
             }
         }
-        if !*front && self.normals {
+        if !*front && self.cull {
             match self.facing(n) {
                 Facing::Back => return Some(false),
                 Facing::Front => *front = true,
@@ -246,7 +253,7 @@ impl<'a> Ctx<'a> {
         inside: bool,
         front: bool,
     ) -> Result<bool, MethodError> {
-        if n.children == 0 || (inside && (front || !self.normals)) {
+        if n.children == 0 || (inside && (front || !self.cull)) {
             return Ok(true);
         }
         let (kids, count) = self.group(
@@ -399,8 +406,9 @@ pub fn select_threshold(
     view: &View,
     thr_px: f32,
     capacity: usize,
+    cull_backfaces: bool,
 ) -> Result<(SplatBatch, Counters), MethodError> {
-    let mut ctx = Ctx::new(body, header, view, capacity);
+    let mut ctx = Ctx::new(body, header, view, capacity, cull_backfaces);
     let root = ctx.root(header)?;
     ctx.visit(&root, false, false, thr_px)?;
     ctx.n.threshold_px = thr_px as f64;
@@ -414,8 +422,9 @@ pub fn select_budget(
     view: &View,
     budget: u64,
     capacity: usize,
+    cull_backfaces: bool,
 ) -> Result<(SplatBatch, Counters), MethodError> {
-    let mut ctx = Ctx::new(body, header, view, capacity);
+    let mut ctx = Ctx::new(body, header, view, capacity, cull_backfaces);
     let root = ctx.root(header)?;
     // Arena of (node, inside, front); the heap orders indices by (size, earliest offset).
     let mut arena: Vec<(Node, bool, bool)> = Vec::new();

@@ -90,8 +90,28 @@ pub struct RenderArgs {
 pub struct TargetArgs {
     /// Pixel tolerance (default 1).
     #[arg(long, allow_negative_numbers = true)]
-    pub eps: Option<f32>,
+    pub eps: Option<f64>,
     /// Point budget per frame.
     #[arg(long, allow_negative_numbers = true)]
     pub budget: Option<u64>,
+}
+
+impl TargetArgs {
+    /// The target these flags name: `--budget`, else `--eps` (default 1 px). An `--eps`
+    /// beyond what an `f32` holds is refused with its value (it used to read "got inf").
+    pub fn target(&self) -> anyhow::Result<methods::Target> {
+        Ok(match (self.eps, self.budget) {
+            (_, Some(b)) => methods::Target::budget(b)?,
+            (e, None) => {
+                let e = e.unwrap_or(1.0);
+                if e.is_finite() && e.abs() > f64::from(f32::MAX) {
+                    anyhow::bail!(
+                        "--eps {e:e} is beyond the largest tolerance a frame can use ({:e} px)",
+                        f32::MAX
+                    );
+                }
+                methods::Target::tolerance(e as f32)?
+            }
+        })
+    }
 }

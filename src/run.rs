@@ -7,7 +7,7 @@ use anyhow::Context as _;
 use clap::Args;
 use harness::render::RenderSettings;
 use harness::runner::RunConfig;
-use methods::{Params, Target};
+use methods::Params;
 use scenes::paths::PathSpec;
 
 use crate::args::{CacheArgs, MethodArgs, RenderArgs, SceneArgs, TargetArgs};
@@ -46,15 +46,18 @@ pub struct RunArgs {
     /// occlusion, occlusion_threshold).
     #[arg(long)]
     pub build_dir: Option<PathBuf>,
+    /// Exit 0 although chunks of an LPC or MWKD repository failed to load (a corrupted or
+    /// truncated repo.bin). They are reported either way: on stderr, in frames.csv
+    /// (`chunks_failed`) and in summary.json (`failed_chunks`); without this flag the run
+    /// fails and summary.json says "complete": false.
+    #[arg(long)]
+    pub allow_missing_chunks: bool,
 }
 
 /// The runner's configuration for `run`'s arguments (`sweep` makes one per target).
 pub fn run_config(a: &RunArgs) -> anyhow::Result<RunConfig> {
     let params = Params::parse(&a.method.params)?;
-    let target = match (a.target.eps, a.target.budget) {
-        (_, Some(b)) => Target::budget(b)?,
-        (e, None) => Target::tolerance(e.unwrap_or(1.0))?,
-    };
+    let target = a.target.target()?;
     Ok(RunConfig {
         method: a.method.method,
         params,
@@ -82,13 +85,15 @@ pub fn run_config(a: &RunArgs) -> anyhow::Result<RunConfig> {
         out: a.out.clone(),
         cache: a.cache.dir.clone(),
         build_dir: a.build_dir.clone(),
+        allow_missing_chunks: a.allow_missing_chunks,
     })
 }
 
 /// `splatbench run`.
 pub fn main(args: &RunArgs) -> anyhow::Result<()> {
-    let gpu = open_gpu()?;
+    // Flags first: a bad value is reported without waiting for an adapter.
     let cfg = run_config(args)?;
+    let gpu = open_gpu()?;
     let s = harness::runner::run(&cfg, &gpu, &harness::progress::Bar::new())?;
     let plots = harness::plot::plot_run(&cfg.out)?;
     print_summary(&s);

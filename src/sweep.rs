@@ -70,7 +70,7 @@ pub fn main(a: &SweepArgs) -> anyhow::Result<()> {
         scene: a.scene.clone(),
         render: a.render.clone(),
         target: TargetArgs {
-            eps: first.and_then(|t| t.eps_px()),
+            eps: first.and_then(|t| t.eps_px()).map(f64::from),
             budget: first.and_then(|t| t.budget_points()),
         },
         path: a.path.clone(),
@@ -80,6 +80,7 @@ pub fn main(a: &SweepArgs) -> anyhow::Result<()> {
         out: a.out.clone(),
         cache: a.cache.clone(),
         build_dir: Some(build_dir.clone()),
+        allow_missing_chunks: false,
     })?;
     let gpu = open_gpu()?;
     std::fs::create_dir_all(&a.out).with_context(|| format!("creating {}", a.out.display()))?;

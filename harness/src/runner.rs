@@ -58,12 +58,20 @@ pub fn frame_columns(method: &dyn LodMethod) -> Vec<&'static str> {
     if method.occlusion_culled() {
         columns.extend(OCCLUSION_COLUMNS);
     }
+    if method.loads_chunks() {
+        columns.push("chunks_failed");
+    }
     columns
 }
 
 /// The values of [`frame_columns`] for one frame: the list's counters, then what the
-/// renderer counted.
-pub fn frame_counters(method: &dyn LodMethod, list: &DrawList, stats: &FrameStats) -> Vec<f64> {
+/// renderer counted, then the chunks that have failed to load so far (`failed`).
+pub fn frame_counters(
+    method: &dyn LodMethod,
+    list: &DrawList,
+    stats: &FrameStats,
+    failed: usize,
+) -> Vec<f64> {
     let mut counters = list.counters.clone();
     if method.interval_tested() {
         let passed = stats.gpu_passed.unwrap_or(0);
@@ -83,6 +91,9 @@ pub fn frame_counters(method: &dyn LodMethod, list: &DrawList, stats: &FrameStat
             o.map_or(0, |o| o.clouds_queried) as f64,
             o.map_or(0, |o| o.clouds_occluded) as f64,
         ]);
+    }
+    if method.loads_chunks() {
+        counters.push(failed as f64);
     }
     counters
 }
@@ -151,6 +162,20 @@ pub struct RunConfig {
     /// measure the method alone, without the build's memory, and compare runtime settings
     /// (e.g. LPC's `occlusion`, `core_mb`) on one build.
     pub build_dir: Option<PathBuf>,
+    /// Finish with exit status 0 although chunks failed to load (`--allow-missing-chunks`);
+    /// they are reported either way.
+    pub allow_missing_chunks: bool,
+}
+
+/// A chunk that failed to load during a run.
+#[derive(Debug, Clone, serde::Serialize)]
+pub struct FailedChunk {
+    /// Chunk (LPC cloud, MWKD node) id.
+    pub id: methods::ChunkId,
+    /// The first frame in which the failure was seen.
+    pub frame: u64,
+    /// The error, naming the file and the chunk.
+    pub error: String,
 }
 
 /// `summary.json`.
@@ -192,6 +217,9 @@ pub struct Summary {
     pub splats_per_s_basis: &'static str,
     /// Medians over the frames.
     pub medians: Medians,
+    /// Chunks that failed to load: the frames drew without them, so they are not a
+    /// faithful measurement (the run fails unless `--allow-missing-chunks`).
+    pub failed_chunks: Vec<FailedChunk>,
     /// Peak resident set size of the process.
     pub peak_rss_bytes: u64,
     /// Wall time of the whole run, s.
@@ -476,8 +504,13 @@ pub fn run(cfg: &RunConfig, gpu: &Gpu, progress: &dyn Progress) -> anyhow::Resul
     };
     let mut method = match &cfg.build_dir {
         None => MethodKind::open(&build_dir)?,
-        Some(dir) => MethodKind::open_with(dir, &cfg.params)
-            .with_context(|| format!("--build-dir {} with --param", dir.display()))?,
+        Some(dir) => MethodKind::open_with(dir, &cfg.params).with_context(|| {
+            if cfg.params.0.is_empty() {
+                format!("--build-dir {}", dir.display())
+            } else {
+                format!("--build-dir {} with --param", dir.display())
+            }
+        })?,
     };
     if let Some(need) = method.gpu_resident_bytes()
         && need > cfg.render.cache_bytes
@@ -526,6 +559,7 @@ pub fn run(cfg: &RunConfig, gpu: &Gpu, progress: &dyn Progress) -> anyhow::Resul
         build,
         splats_per_s_basis: if gpu.timestamps { "gpu_ms" } else { "wall_ms" },
         medians: Medians::default(),
+        failed_chunks: Vec::new(),
         peak_rss_bytes: 0,
         run_seconds: 0.0,
     };
@@ -573,7 +607,20 @@ pub fn run(cfg: &RunConfig, gpu: &Gpu, progress: &dyn Progress) -> anyhow::Resul
         let denom = stats.gpu_ms.unwrap_or(stats.wall_ms);
         // Splats actually drawn: those that passed the GPU's LOD test, if there was one.
         let drawn = stats.gpu_passed.unwrap_or(stats.points);
-        let counters = frame_counters(method.as_ref(), &list, &stats);
+        for (id, error) in method.failed_chunks() {
+            if !summary.failed_chunks.iter().any(|f| f.id == id) {
+                eprintln!(
+                    "error: frame {i}: {} chunk {id} failed to load: {error}",
+                    cfg.method
+                );
+                summary.failed_chunks.push(FailedChunk {
+                    id,
+                    frame: i as u64,
+                    error,
+                });
+            }
+        }
+        let counters = frame_counters(method.as_ref(), &list, &stats, summary.failed_chunks.len());
         let row = FrameRow {
             frame: i as u64,
             method: cfg.method.name().into(),
@@ -625,7 +672,18 @@ pub fn run(cfg: &RunConfig, gpu: &Gpu, progress: &dyn Progress) -> anyhow::Resul
     summary.medians = Medians::of(&rows);
     summary.peak_rss_bytes = crate::rss::peak_bytes();
     summary.run_seconds = t_run.elapsed().as_secs_f64();
-    summary.complete = true;
+    let failed = summary.failed_chunks.len();
+    summary.complete = failed == 0 || cfg.allow_missing_chunks;
     write_json(&summary_path, &summary)?;
+    if !summary.complete {
+        let first = &summary.failed_chunks[0];
+        anyhow::bail!(
+            "{failed} chunk(s) of {} failed to load (first, in frame {}: {}): the frames drew              without them, so {} is not a faithful measurement (summary.json says              \"complete\": false and lists them; --allow-missing-chunks accepts them)",
+            cfg.method,
+            first.frame,
+            first.error,
+            cfg.out.display()
+        );
+    }
     Ok(summary)
 }

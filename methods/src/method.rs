@@ -58,6 +58,19 @@ pub trait LodMethod: Send {
     fn gpu_resident_bytes(&self) -> Option<u64> {
         None
     }
+    /// Chunks that failed to load and that the method renders on without (a coarser level, a
+    /// stand-in), each with its error naming the file and the chunk. The runner reports them
+    /// and fails the run unless told to accept them: frames missing data are not a faithful
+    /// measurement.
+    fn failed_chunks(&self) -> Vec<(ChunkId, String)> {
+        Vec::new()
+    }
+    /// True if the method loads chunks from a repository as it renders (LPC, MWKD): the
+    /// runner then appends `chunks_failed` ([`LodMethod::failed_chunks`] so far, counted
+    /// after the frame was drawn).
+    fn loads_chunks(&self) -> bool {
+        false
+    }
 }
 
 /// [`LodMethod::drawn_points`] computed from the chunks: every item's
@@ -208,4 +221,24 @@ pub fn write_json<T: serde::Serialize>(path: &Path, value: &T) -> Result<(), Met
 pub fn read_json<T: serde::de::DeserializeOwned>(path: &Path) -> Result<T, MethodError> {
     let text = std::fs::read_to_string(path).map_err(|e| MethodError::io(path, e))?;
     serde_json::from_str(&text).map_err(|e| MethodError::corrupt(path, e.to_string()))
+}
+
+/// Refuses a point budget smaller than the root a method refines from (`what` with `root`
+/// points): LPC and MWKD draw whole clouds / nodes, and below the root their selection is
+/// empty — a black frame passed off as a result. Their papers always draw the root; we keep
+/// the budget a hard bound and say instead which budget is the smallest that draws. `None`
+/// (no nodes) and tolerance targets pass.
+pub fn check_budget_above_root(
+    method: &str,
+    what: &str,
+    target: Target,
+    root: Option<u32>,
+) -> Result<(), MethodError> {
+    match (target, root) {
+        (Target::Budget(b), Some(r)) if b < u64::from(r) => Err(MethodError::Param(format!(
+            "method '{method}': --budget {b} is smaller than its {what} of {r} points, the \
+             least it can draw (the papers refine from the root): give --budget {r} or more"
+        ))),
+        _ => Ok(()),
+    }
 }

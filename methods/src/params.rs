@@ -39,11 +39,21 @@ impl Params {
     pub fn to_typed<T: DeserializeOwned>(&self, method: &str) -> Result<T, MethodError> {
         let mut table = toml::Table::new();
         for (k, v) in &self.0 {
-            let value = format!("x = {v}")
+            let parsed = format!("x = {v}")
                 .parse::<toml::Table>()
                 .ok()
-                .and_then(|mut t| t.remove("x"))
-                .unwrap_or_else(|| toml::Value::String(v.clone()));
+                .and_then(|mut t| t.remove("x"));
+            let digits = v.strip_prefix('-').unwrap_or(v);
+            if parsed.is_none() && !digits.is_empty() && digits.bytes().all(|b| b.is_ascii_digit())
+            {
+                // An integer beyond i64 reads as a string and serde would say "invalid type".
+                return Err(MethodError::Param(format!(
+                    "method '{method}': {k}={v}: the number is out of range (parameters take \
+                     integers of at most {})",
+                    i64::MAX
+                )));
+            }
+            let value = parsed.unwrap_or_else(|| toml::Value::String(v.clone()));
             table.insert(k.clone(), value);
         }
         T::deserialize(toml::Value::Table(table))

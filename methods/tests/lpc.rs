@@ -72,3 +72,43 @@ fn at_most_fetch_per_frame_requests_and_progressive_refinement() {
         "refinement took {frames} frames with 3 requests per frame"
     );
 }
+
+/// A budget below the root cloud (issue 13, item 6) is refused with the smallest budget that
+/// draws, for LPC and MWKD alike, instead of an empty frame; the root's size itself draws.
+#[test]
+fn budget_below_the_root_is_an_error_naming_the_least() {
+    let cloud = Generator::Statue.generate(20_000, 2).unwrap();
+    for (kind, params, root) in [
+        (MethodKind::Lpc, vec!["m=1024"], 1024u64),
+        (MethodKind::Mwkd, vec!["vbo=512"], 512),
+    ] {
+        let tmp = tempfile::tempdir().unwrap();
+        kind.build(
+            &cloud,
+            &Params::parse(&params).unwrap(),
+            "test",
+            tmp.path(),
+            &scenes::NoProgress,
+        )
+        .unwrap();
+        let mut m = MethodKind::open(tmp.path()).unwrap();
+        let v = view(&cloud, 3.0);
+        for b in [1, root - 1] {
+            let e = m
+                .frame(&v, Target::Budget(b), &Feedback::default())
+                .unwrap_err()
+                .to_string();
+            assert!(
+                e.contains(&format!("--budget {b} is smaller than"))
+                    && e.contains(&format!("give --budget {root} or more")),
+                "{kind}: {e}"
+            );
+        }
+        let l = settled(m.as_mut(), &v, Target::Budget(root));
+        assert!(
+            l.points() > 0 && l.points() <= root,
+            "{kind}: {}",
+            l.points()
+        );
+    }
+}

@@ -683,7 +683,13 @@ fn rejects_non_finite_numbers() {
 fn rejects_degenerate_views() {
     assert_rejects(
         &file("", "", "position = [0.0, 0.0, 0.0]"),
-        &["key[1]", "position equals target"],
+        &["key[1]", "position is at the target"],
+    );
+    // 1e-7 from the target at unit scale: not "equal", but below what f32 resolves (issue
+    // 13, item 7: the message said "position equals target").
+    assert_rejects(
+        &file("", "", "position = [1e-7, 0.0, 0.0]"),
+        &["key[1]", "closer to it than 1e-6"],
     );
     assert_rejects(
         &file("", "position = [2.0, 0.0, 0.0]\nup = [1.0, 0.0, 0.0]", ""),
@@ -700,7 +706,7 @@ fn rejects_degenerate_views() {
             "position = [1.0, 0.0, 0.0]",
             "position = [-1.0, 0.0, 0.0]",
         ),
-        &["between key[0] and key[1]", "position equals target"],
+        &["between key[0] and key[1]", "position is at the target"],
     );
     // Fine at the keys, but looks straight down between them.
     assert_rejects(

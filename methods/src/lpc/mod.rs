@@ -312,6 +312,16 @@ impl LodMethod for Lpc {
     fn attributes(&self) -> Attributes {
         self.attributes
     }
+    fn loads_chunks(&self) -> bool {
+        true
+    }
+    fn failed_chunks(&self) -> Vec<(ChunkId, String)> {
+        self.access
+            .failures()
+            .into_iter()
+            .map(|(id, e)| (ChunkId::from(id), e))
+            .collect()
+    }
     fn input_points(&self) -> u64 {
         self.info.points
     }
@@ -322,6 +332,12 @@ impl LodMethod for Lpc {
         feedback: &Feedback,
     ) -> Result<DrawList, MethodError> {
         let target = target.validate()?;
+        crate::method::check_budget_above_root(
+            NAME,
+            "root cloud",
+            target,
+            self.nodes.first().map(|n| n.points),
+        )?;
         self.access.begin_frame();
         let cached = |id: u32| feedback.cached.contains(&(id as ChunkId));
         let sel = self.select(view, target, &cached);

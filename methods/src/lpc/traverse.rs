@@ -459,7 +459,7 @@ mod tests {
                 }
             }
         }
-        // A budget below the root cloud draws nothing rather than exceed it.
+        // A budget below the root cloud selects nothing (`Lpc::frame` refuses it first).
         let sel = t.select(&nodes, &view, Target::Budget(49), &all);
         assert_eq!(sel.points, 0);
     }

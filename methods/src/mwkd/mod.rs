@@ -683,6 +683,16 @@ impl LodMethod for Mwkd {
     fn attributes(&self) -> Attributes {
         self.attributes
     }
+    fn loads_chunks(&self) -> bool {
+        true
+    }
+    fn failed_chunks(&self) -> Vec<(ChunkId, String)> {
+        self.access
+            .failures()
+            .into_iter()
+            .map(|(id, e)| (ChunkId::from(id), e))
+            .collect()
+    }
     fn input_points(&self) -> u64 {
         self.info.points
     }
@@ -693,6 +703,12 @@ impl LodMethod for Mwkd {
         feedback: &Feedback,
     ) -> Result<DrawList, MethodError> {
         let target = target.validate()?;
+        crate::method::check_budget_above_root(
+            NAME,
+            "root node",
+            target,
+            self.nodes.first().map(|n| n.points),
+        )?;
         self.access.begin_frame();
         let occlusion = self.params.occlusion;
         let held = |id: u32| occlusion && feedback.occluded.contains(&(id as ChunkId));

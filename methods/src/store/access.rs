@@ -85,6 +85,11 @@ pub trait DataAccess: Send + Sync {
     fn resident_bytes(&self) -> u64;
     /// Requests queued or in flight.
     fn pending(&self) -> usize;
+    /// Chunks that failed to load (read or decode), by id, each with its error naming the
+    /// source and the chunk; none by default.
+    fn failures(&self) -> Vec<(u32, String)> {
+        Vec::new()
+    }
 }
 
 /// Options of the local [`Loader`].
@@ -320,6 +325,9 @@ impl Shared {
 /// as failed: it is never available, further requests for it are ignored, and
 /// [`DataAccess::get`] reads it again on the caller's thread, returning the error (or the
 /// chunk, if the source has recovered). The thread goes on with the next request.
+/// [`DataAccess::failures`] lists the failed chunks, so that a method which renders on
+/// without them (LPC stays coarse, MWKD keeps a stand-in) can report them: the runner puts
+/// them in `frames.csv`, `summary.json` and on stderr, and fails the run.
 ///
 /// Dropping the loader stops the thread before its next request and joins it.
 ///
@@ -330,6 +338,8 @@ pub struct Loader {
     /// served on the caller's thread).
     tx: Option<Sender<u32>>,
     worker: Option<JoinHandle<()>>,
+    /// What the chunks come from, for messages (the repository file).
+    origin: String,
 }
 
 impl Loader {
@@ -343,7 +353,9 @@ impl Loader {
         options: LoaderOptions,
     ) -> Result<Self, MethodError> {
         let source = LocalSource::new(Repository::open(repo)?, refs, noun);
-        Ok(Self::spawn(Arc::new(source), decode, options))
+        let mut loader = Self::spawn(Arc::new(source), decode, options);
+        loader.origin = repo.display().to_string();
+        Ok(loader)
     }
 
     /// Starts a loader thread over `source`, decoding with `decode`.
@@ -373,6 +385,7 @@ impl Loader {
             shared,
             tx: worker.as_ref().map(|_| tx),
             worker,
+            origin: "the chunk source".into(),
         }
     }
 
@@ -412,6 +425,20 @@ impl DataAccess for Loader {
         st.pending += 1;
         drop(st);
         self.shared.serve(id);
+    }
+
+    fn failures(&self) -> Vec<(u32, String)> {
+        let st = self.shared.state();
+        let mut out: Vec<(u32, String)> = st
+            .entries
+            .iter()
+            .filter_map(|(&id, e)| match e {
+                Entry::Failed(msg) => Some((id, format!("{}: {msg}", self.origin))),
+                _ => None,
+            })
+            .collect();
+        out.sort();
+        out
     }
 
     fn available(&self, id: u32) -> bool {

@@ -332,7 +332,10 @@ fn view_problem(position: DVec3, target: DVec3, up: DVec3) -> Option<&'static st
     let scale = position.abs().max(target.abs()).max_element();
     // Numbers are finite here (checked before).
     if d.length() <= 1e-6 * scale {
-        return Some("position equals target");
+        return Some(
+            "position is at the target, or closer to it than 1e-6 × the size of the \
+             coordinates (f32 view maths cannot resolve the direction)",
+        );
     }
     let Some(up) = up.try_normalize() else {
         return Some("up is the zero vector");

@@ -68,7 +68,7 @@ for fdir in sorted(glob.glob(f"{work}/runs/after/*/")):
     name = os.path.basename(fdir.rstrip("/"))
     for m in ["full", "qsplat", "spt", "lpc", "lpc-cover90", "mwkd"]:
         a = result(f"{work}/runs/after/{name}/{m}")
-        b = result(f"{work}/runs/before/{name}/{m}") if os.path.isdir(f"{work}/runs/before/{name}") else None
+        b = result(f"{work}/runs/before/{name}/{m}") if os.path.isdir(f"{work}/runs/before/{name}/{m}") else None
         rows.append((name, m, b, a))
         if "warnings" in a:
             # Each warning starts with the scene's path in WORK: the file is named already.

@@ -22,7 +22,10 @@
 //!   size can hold.
 //! - Errors are [`SceneError`]s naming the file: unreadable header, a file with 0 points,
 //!   truncated point data (naming the batch of points), non-finite coordinates (naming the
-//!   point).
+//!   point). Before the `las` crate sees the file, the header fields it and `laz` allocate or
+//!   compute by are checked against the file's size (`las_check.rs`: the LAZ chunk table and
+//!   layer sizes, the laszip items, the first EVLR, point count × record length); each failure
+//!   names the field and the byte.
 //!
 //! # Writing ([`write()`])
 //! - LAS 1.2 (1.4 above 2³² − 1 points), point format 2 (with RGB, each 8-bit channel × 257 so
@@ -172,6 +175,7 @@ fn read_pass(path: &Path, origin: DVec3, store: bool) -> Result<Pass, SceneError
 
 /// Reads a LAS or LAZ file into a [`PointCloud`] (see the module docs).
 pub fn read(path: &Path) -> Result<PointCloud, SceneError> {
+    crate::las_check::check(path)?;
     let reader = open(path)?;
     let header = reader.header();
     let n = header.number_of_points();

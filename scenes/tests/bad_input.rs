@@ -1,0 +1,234 @@
+#![allow(clippy::unwrap_used)]
+//! Corrupted and inconsistent inputs (issue 13): each must be an error naming the file, the
+//! field and the byte or line — never an abort, a panic or silently dropped data. An abort
+//! inside a decoder kills this test binary, which fails the test as surely as an assertion.
+
+use std::path::{Path, PathBuf};
+
+fn data(name: &str) -> PathBuf {
+    Path::new(env!("CARGO_MANIFEST_DIR"))
+        .join("tests/data/real")
+        .join(name)
+}
+
+fn u32_at(b: &[u8], at: usize) -> u32 {
+    u32::from_le_bytes(b[at..at + 4].try_into().unwrap())
+}
+
+fn put_u32(b: &mut [u8], at: usize, v: u32) {
+    b[at..at + 4].copy_from_slice(&v.to_le_bytes());
+}
+
+fn put_u64(b: &mut [u8], at: usize, v: u64) {
+    b[at..at + 8].copy_from_slice(&v.to_le_bytes());
+}
+
+/// Writes `bytes` as `name` in `dir`, reads it as LAS / LAZ and returns the error message,
+/// checking that it names the file and contains every needle.
+fn las_err(dir: &Path, name: &str, bytes: &[u8], needles: &[&str]) -> String {
+    let p = dir.join(name);
+    std::fs::write(&p, bytes).unwrap();
+    let m = scenes::las::read(&p)
+        .map(|c| c.len())
+        .expect_err("the read must fail")
+        .to_string();
+    assert!(m.contains(name), "the message does not name {name}: {m}");
+    for n in needles {
+        assert!(m.contains(n), "{name}: '{n}' missing from: {m}");
+    }
+    m
+}
+
+// ---------------------------------------------------------------------------------------------
+// LAZ: fields the laz crate allocates by
+// ---------------------------------------------------------------------------------------------
+
+/// plane.laz (laspy): LAS 1.2, point format 3 compressed, 4 VLRs, points at byte 878, one
+/// chunk of 28,185 points, its chunk table at byte 59,330 (14 bytes before the end).
+const PLANE_POINTS_AT: usize = 878;
+
+fn plane() -> Vec<u8> {
+    let b = std::fs::read(data("plane.laz")).unwrap();
+    assert_eq!(u32_at(&b, 96) as usize, PLANE_POINTS_AT);
+    b
+}
+
+fn chunk_table_at(b: &[u8]) -> usize {
+    i64::from_le_bytes(b[PLANE_POINTS_AT..PLANE_POINTS_AT + 8].try_into().unwrap()) as usize
+}
+
+#[test]
+fn laz_chunk_count_beyond_the_file_is_an_error_not_an_abort() {
+    let dir = tempfile::tempdir().unwrap();
+    let orig = plane();
+    let table = chunk_table_at(&orig);
+    assert_eq!(u32_at(&orig, table + 4), 1);
+    // The original reads.
+    let ok = dir.path().join("plane.laz");
+    std::fs::write(&ok, &orig).unwrap();
+    assert_eq!(scenes::las::read(&ok).unwrap().len(), 28_185);
+    // 2³² − 1 chunks: the laz crate reserved 64 GiB for them and aborted.
+    for count in [u32::MAX, 1 << 28, 100_000] {
+        let mut b = orig.clone();
+        put_u32(&mut b, table + 4, count);
+        las_err(
+            dir.path(),
+            "chunks.laz",
+            &b,
+            &[
+                "LAZ chunk table at byte 59330",
+                &format!("claims {count} chunks"),
+            ],
+        );
+    }
+    // Fixed-size chunks of 50,000: 28,185 points need at most 2 (one, and an empty last).
+    let mut b = orig.clone();
+    put_u32(&mut b, table + 4, 7);
+    las_err(
+        dir.path(),
+        "seven.laz",
+        &b,
+        &["claims 7 chunks", "need at most 2"],
+    );
+}
+
+#[test]
+fn laz_chunk_table_offset_moved_onto_other_bytes_is_checked_there() {
+    let dir = tempfile::tempdir().unwrap();
+    let orig = plane();
+    // Point the offset at bytes of the compressed points, and make them claim many chunks.
+    let fake = 20_000usize;
+    let mut b = orig.clone();
+    put_u64(&mut b, PLANE_POINTS_AT, fake as u64);
+    put_u32(&mut b, fake + 4, 0xFFFF_FF00);
+    las_err(
+        dir.path(),
+        "moved.laz",
+        &b,
+        &["chunk table at byte 20000", "claims 4294967040 chunks"],
+    );
+    // An offset of 0 sends the crate to the last 8 bytes of the file: checked there too.
+    let mut b = orig.clone();
+    put_u64(&mut b, PLANE_POINTS_AT, 0);
+    let n = b.len();
+    put_u64(&mut b, n - 8, fake as u64);
+    las_err(
+        dir.path(),
+        "tail.laz",
+        &b,
+        &["chunk table at byte 20000", "offset read at byte 59336"],
+    );
+}
+
+#[test]
+fn laz_items_must_match_the_record_length() {
+    let dir = tempfile::tempdir().unwrap();
+    let orig = plane();
+    // The laszip VLR is the 4th: header 227 + (54 + 192) + (54 + 96) + (54 + 95) = 772; its
+    // data at 826, items from 826 + 34: (6, 20, 2), (7, 8, 2), (8, 6, 2).
+    let items = 826 + 34;
+    assert_eq!(&orig[items..items + 2], &6u16.to_le_bytes());
+    // Point10 declared as 60 bytes.
+    let mut b = orig.clone();
+    b[items + 2..items + 4].copy_from_slice(&60u16.to_le_bytes());
+    las_err(
+        dir.path(),
+        "item.laz",
+        &b,
+        &["item 0 (Point10) as 60 bytes", "the type has 20"],
+    );
+    // Point record length 34 → 40 in the header.
+    let mut b = orig.clone();
+    b[105..107].copy_from_slice(&40u16.to_le_bytes());
+    las_err(
+        dir.path(),
+        "reclen.laz",
+        &b,
+        &["34 bytes per point", "point record length is 40"],
+    );
+}
+
+/// A LAS 1.4 file with point format `format`, LAZ-compressed if `laz`, and one EVLR.
+fn las14(path: &Path, format: u8, laz: bool, n: usize) {
+    let mut b = las::Builder::from((1, 4));
+    b.point_format = las::point::Format::new(format).unwrap();
+    b.point_format.is_compressed = laz;
+    let t = las::Transform {
+        scale: 0.001,
+        offset: 0.0,
+    };
+    b.transforms = las::Vector { x: t, y: t, z: t };
+    b.evlrs.push(las::Vlr {
+        user_id: "splatbench".into(),
+        record_id: 7,
+        description: "test".into(),
+        data: vec![1, 2, 3, 4, 5],
+    });
+    let mut w = las::Writer::from_path(path, b.into_header().unwrap()).unwrap();
+    for i in 0..n {
+        let f = i as f64;
+        w.write_point(las::Point {
+            x: f * 0.5,
+            y: (f * 0.37).sin() * 10.0,
+            z: f * 0.01,
+            return_number: 1,
+            number_of_returns: 1,
+            gps_time: Some(f),
+            ..Default::default()
+        })
+        .unwrap();
+    }
+    w.close().unwrap();
+}
+
+#[test]
+fn laz_layer_sizes_beyond_the_file_are_an_error() {
+    let dir = tempfile::tempdir().unwrap();
+    let p = dir.path().join("six.laz");
+    las14(&p, 6, true, 3000);
+    assert_eq!(scenes::las::read(&p).unwrap().len(), 3000);
+    let orig = std::fs::read(&p).unwrap();
+    let points_at = u32_at(&orig, 96) as usize;
+    // Chunk 0: chunk table offset (8), first point raw (30), point count (4), 9 layer sizes.
+    let sizes_at = points_at + 8 + 30 + 4;
+    for layer in [0usize, 4, 8] {
+        let mut b = orig.clone();
+        put_u32(&mut b, sizes_at + 4 * layer, 0xFFFF_FFF0);
+        las_err(
+            dir.path(),
+            "layer.laz",
+            &b,
+            &[
+                &format!("LAZ chunk 0 (at byte {}): layer {layer}", points_at + 8),
+                "declares 4294967280 bytes",
+            ],
+        );
+    }
+}
+
+// ---------------------------------------------------------------------------------------------
+// LAS header fields
+// ---------------------------------------------------------------------------------------------
+
+#[test]
+fn las_evlr_longer_than_the_file_is_an_error() {
+    let dir = tempfile::tempdir().unwrap();
+    for (name, laz) in [("evlr.las", false), ("evlr.laz", true)] {
+        let p = dir.path().join(name);
+        las14(&p, 6, laz, 100);
+        assert_eq!(scenes::las::read(&p).unwrap().len(), 100);
+        let mut b = std::fs::read(&p).unwrap();
+        let start = u64::from_le_bytes(b[235..243].try_into().unwrap()) as usize;
+        assert_eq!(start + 60 + 5, b.len());
+        put_u64(&mut b, start + 20, 1 << 40);
+        las_err(
+            dir.path(),
+            name,
+            &b,
+            &[
+                &format!("EVLR at byte {start} declares 1099511627776 bytes"),
+                "5 bytes left",
+            ],
+        );
+    }
+}

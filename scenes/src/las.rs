@@ -24,8 +24,8 @@
 //!   truncated point data (naming the batch of points), non-finite coordinates (naming the
 //!   point). Before the `las` crate sees the file, the header fields it and `laz` allocate or
 //!   compute by are checked against the file's size (`las_check.rs`: the LAZ chunk table and
-//!   layer sizes, the laszip items, the first EVLR, point count × record length); each failure
-//!   names the field and the byte.
+//!   layer sizes, the laszip items, the first EVLR, point count × record length), as are the
+//!   scale factors and trailing point records; each failure names the field and the byte.
 //!
 //! # Writing ([`write()`])
 //! - LAS 1.2 (1.4 above 2³² − 1 points), point format 2 (with RGB, each 8-bit channel × 257 so

@@ -9,8 +9,19 @@
 //! cleanly; the check only ever rejects, it never decodes.
 //!
 //! What is checked, and the rule for each:
+//! - **Scale factors and offsets** (`x scale factor`, …): finite, and scale factors non-zero.
+//!   A zero scale collapses every point onto the offset.
 //! - **Point count × record length**: fits a 64-bit file offset (the `las` crate multiplies
-//!   them unchecked).
+//!   them unchecked). For uncompressed files the records must fit in the file after the
+//!   offset to point data: a shorter file is truncated, and the error says how many whole
+//!   records are there.
+//! - **Trailing bytes after the point records** (uncompressed files): accepted when the
+//!   header declares EVLRs (LAS 1.4) or internal waveform data (LAS 1.3+) — the bytes between
+//!   the records and them are padding, which the `las` crate keeps — and when they are fewer
+//!   than one record (padding some writers add). One whole record's worth or more without
+//!   EVLRs is an error: that is what a header that under-counts its points looks like, and
+//!   reading it would silently drop those points. Compressed files are not checked for this
+//!   (their point data has no size to compare against).
 //! - **The first EVLR** (LAS 1.4), which the `las` crate reads into a buffer of its declared
 //!   (64-bit) size: its header and data must lie inside the file.
 //! - **The laszip VLR** of a compressed file (point format with bit 7 set): each item's
@@ -63,6 +74,9 @@ fn u64_at(b: &[u8], at: usize) -> u64 {
     let mut w = [0u8; 8];
     w.copy_from_slice(&b[at..at + 8]);
     u64::from_le_bytes(w)
+}
+fn f64_at(b: &[u8], at: usize) -> f64 {
+    f64::from_bits(u64_at(b, at))
 }
 
 /// A laszip item: type code, declared size, version.
@@ -146,18 +160,41 @@ pub fn check(path: &Path) -> Result<(), SceneError> {
         legacy_points
     };
 
+    // Scale factors and offsets.
+    for (i, axis) in ["x", "y", "z"].into_iter().enumerate() {
+        let scale = f64_at(&h, 131 + 8 * i);
+        let offset = f64_at(&h, 155 + 8 * i);
+        if scale == 0.0 {
+            return Err(bad(format!(
+                "{axis} scale factor is 0 (header byte {}): every point would collapse onto \
+                 the offset",
+                131 + 8 * i
+            )));
+        }
+        if !scale.is_finite() {
+            return Err(bad(format!(
+                "{axis} scale factor is {scale} (header byte {}), not a finite number",
+                131 + 8 * i
+            )));
+        }
+        if !offset.is_finite() {
+            return Err(bad(format!(
+                "{axis} offset is {offset} (header byte {}), not a finite number",
+                155 + 8 * i
+            )));
+        }
+    }
+
     // Point count × record length.
     let point_bytes = points.checked_mul(u64::from(record_len));
-    if point_bytes
-        .and_then(|b| b.checked_add(offset_to_points))
-        .is_none()
-    {
+    let end_of_points = point_bytes.and_then(|b| b.checked_add(offset_to_points));
+    let Some(end_of_points) = end_of_points else {
         return Err(bad(format!(
             "the header declares {points} points of {record_len} bytes: more bytes than a file \
              can hold"
         )));
-    }
-    // The EVLRs (1.4).
+    };
+    // The EVLRs (1.4) and internal waveform data (1.3+).
     let evlr = if v14 {
         let start = u64_at(&h, 235);
         let count = u32_at(&h, 243);
@@ -165,6 +202,32 @@ pub fn check(path: &Path) -> Result<(), SceneError> {
     } else {
         None
     };
+    let waveform = if v13 {
+        Some(u64_at(&h, 227)).filter(|&w| w > 0)
+    } else {
+        None
+    };
+    if !compressed {
+        if end_of_points > file_len {
+            let have = file_len.saturating_sub(offset_to_points) / u64::from(record_len.max(1));
+            return Err(bad(format!(
+                "point data truncated: the header declares {points} points of {record_len} \
+                 bytes from byte {offset_to_points} (to byte {end_of_points}), but the file \
+                 ends at byte {file_len}: only {} of {points} points are there",
+                have.min(points)
+            )));
+        }
+        let trailing = file_len - end_of_points;
+        let declared = evlr.is_some() || waveform.is_some_and(|w| w >= end_of_points);
+        if !declared && record_len > 0 && trailing >= u64::from(record_len) {
+            return Err(bad(format!(
+                "{trailing} bytes follow the last of the {points} point records the header \
+                 declares (from byte {end_of_points} to the end, {} records' worth) and the \
+                 header declares no EVLRs: the point count is likely wrong",
+                trailing / u64::from(record_len)
+            )));
+        }
+    }
     if let Some(start) = evlr {
         let mut e = [0u8; EVLR_HEADER as usize];
         if start

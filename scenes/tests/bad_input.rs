@@ -5,6 +5,9 @@
 
 use std::path::{Path, PathBuf};
 
+use glam::DVec3;
+use scenes::PointCloud;
+
 fn data(name: &str) -> PathBuf {
     Path::new(env!("CARGO_MANIFEST_DIR"))
         .join("tests/data/real")
@@ -37,6 +40,28 @@ fn las_err(dir: &Path, name: &str, bytes: &[u8], needles: &[&str]) -> String {
         assert!(m.contains(n), "{name}: '{n}' missing from: {m}");
     }
     m
+}
+
+/// A small cloud at UTM-like coordinates.
+fn tile(n: usize) -> PointCloud {
+    let mut r = scenes::rng::Pcg32::new(5);
+    let pos: Vec<[f32; 3]> = (0..n)
+        .map(|_| {
+            [
+                r.range_f32(-50.0, 50.0),
+                r.range_f32(-50.0, 50.0),
+                r.range_f32(0.0, 5.0),
+            ]
+        })
+        .collect();
+    PointCloud::new(
+        DVec3::new(500_000.0, 4_100_000.0, 50.0),
+        pos.into(),
+        None,
+        None,
+        None,
+    )
+    .unwrap()
 }
 
 // ---------------------------------------------------------------------------------------------
@@ -231,4 +256,121 @@ fn las_evlr_longer_than_the_file_is_an_error() {
             ],
         );
     }
+}
+
+#[test]
+fn las_zero_or_non_finite_scale_names_the_axis() {
+    let dir = tempfile::tempdir().unwrap();
+    let p = dir.path().join("ok.las");
+    scenes::las::write(&p, &tile(200)).unwrap();
+    let orig = std::fs::read(&p).unwrap();
+    for (axis, at) in [("x", 131), ("y", 139), ("z", 147)] {
+        let mut b = orig.clone();
+        b[at..at + 8].copy_from_slice(&0f64.to_le_bytes());
+        las_err(
+            dir.path(),
+            "scale.las",
+            &b,
+            &[&format!("{axis} scale factor is 0 (header byte {at})")],
+        );
+        b[at..at + 8].copy_from_slice(&f64::NAN.to_le_bytes());
+        las_err(
+            dir.path(),
+            "scale.las",
+            &b,
+            &[&format!("{axis} scale factor is NaN")],
+        );
+    }
+    let mut b = orig.clone();
+    b[163..171].copy_from_slice(&f64::INFINITY.to_le_bytes());
+    las_err(dir.path(), "offset.las", &b, &["y offset is inf"]);
+    // And through LAZ too.
+    let z = dir.path().join("ok.laz");
+    scenes::las::write(&z, &tile(200)).unwrap();
+    let mut b = std::fs::read(&z).unwrap();
+    b[147..155].copy_from_slice(&0f64.to_le_bytes());
+    las_err(dir.path(), "scale.laz", &b, &["z scale factor is 0"]);
+}
+
+#[test]
+fn las_point_count_beyond_the_file_is_truncation_and_overflow_is_an_error() {
+    let dir = tempfile::tempdir().unwrap();
+    let p = dir.path().join("ok.las");
+    scenes::las::write(&p, &tile(200)).unwrap();
+    let orig = std::fs::read(&p).unwrap();
+    let mut b = orig.clone();
+    put_u32(&mut b, 107, 4_000_000_000);
+    las_err(
+        dir.path(),
+        "count.las",
+        &b,
+        &[
+            "declares 4000000000 points of 20 bytes",
+            "only 200 of 4000000000",
+        ],
+    );
+    // LAS 1.4: a 64-bit count whose bytes overflow a file offset.
+    let p = dir.path().join("ok14.las");
+    las14(&p, 6, false, 10);
+    let mut b = std::fs::read(&p).unwrap();
+    put_u32(&mut b, 107, 0);
+    put_u64(&mut b, 247, u64::MAX / 3);
+    las_err(
+        dir.path(),
+        "huge.las",
+        &b,
+        &["points of 30 bytes: more bytes than a file can hold"],
+    );
+    let mut b = std::fs::read(dir.path().join("ok14.las")).unwrap();
+    put_u32(&mut b, 107, 0);
+    put_u64(&mut b, 247, u64::MAX / 3);
+    b[104] |= 0x80; // as if compressed: the count still multiplies unchecked in the crate
+    las_err(
+        dir.path(),
+        "huge.laz",
+        &b,
+        &["more bytes than a file can hold"],
+    );
+}
+
+#[test]
+fn las_trailing_records_without_evlrs_are_an_error_padding_and_evlrs_are_not() {
+    let dir = tempfile::tempdir().unwrap();
+    let p = dir.path().join("ok.las");
+    scenes::las::write(&p, &tile(200)).unwrap();
+    let orig = std::fs::read(&p).unwrap();
+    // The header under-counts: 150 of 200 points declared → 50 records left over.
+    let mut b = orig.clone();
+    put_u32(&mut b, 107, 150);
+    let end = u32_at(&orig, 96) as usize + 150 * 20;
+    las_err(
+        dir.path(),
+        "under.las",
+        &b,
+        &[
+            "1000 bytes follow the last of the 150 point records",
+            &format!("from byte {end}"),
+            "50 records' worth",
+            "no EVLRs",
+        ],
+    );
+    // A few bytes of padding (less than one record) are accepted.
+    let mut b = orig.clone();
+    b.extend_from_slice(&[0, 0, 0x1a]);
+    let q = dir.path().join("pad.las");
+    std::fs::write(&q, &b).unwrap();
+    assert_eq!(scenes::las::read(&q).unwrap().len(), 200);
+    // EVLRs after the points (LAS 1.4), with padding before them, are accepted.
+    let e = dir.path().join("evlr.las");
+    las14(&e, 6, false, 100);
+    assert_eq!(scenes::las::read(&e).unwrap().len(), 100);
+    let mut b = std::fs::read(&e).unwrap();
+    let start = u64::from_le_bytes(b[235..243].try_into().unwrap()) as usize;
+    let evlr = b.split_off(start);
+    b.extend_from_slice(&[0u8; 64]);
+    put_u64(&mut b, 235, (start + 64) as u64);
+    b.extend_from_slice(&evlr);
+    let q = dir.path().join("padded-evlr.las");
+    std::fs::write(&q, &b).unwrap();
+    assert_eq!(scenes::las::read(&q).unwrap().len(), 100);
 }

@@ -5,6 +5,8 @@
 
 use std::path::{Path, PathBuf};
 
+use scenes::ply::{self, PlyFormat, PlyOptions};
+
 use glam::DVec3;
 use scenes::PointCloud;
 
@@ -373,4 +375,189 @@ fn las_trailing_records_without_evlrs_are_an_error_padding_and_evlrs_are_not() {
     let q = dir.path().join("padded-evlr.las");
     std::fs::write(&q, &b).unwrap();
     assert_eq!(scenes::las::read(&q).unwrap().len(), 100);
+}
+
+// ---------------------------------------------------------------------------------------------
+// PLY
+// ---------------------------------------------------------------------------------------------
+
+/// Writes `bytes` as `name`, reads it as PLY and returns the error message, checking that it
+/// names the file and contains every needle.
+fn ply_err(dir: &Path, name: &str, bytes: &[u8], needles: &[&str]) -> String {
+    let p = dir.join(name);
+    std::fs::write(&p, bytes).unwrap();
+    let m = ply::read(&p, &PlyOptions::default())
+        .map(|c| c.len())
+        .expect_err("the read must fail")
+        .to_string();
+    assert!(m.contains(name), "the message does not name {name}: {m}");
+    for n in needles {
+        assert!(m.contains(n), "{name}: '{n}' missing from: {m}");
+    }
+    m
+}
+
+fn ply_ok(dir: &Path, name: &str, bytes: &[u8]) -> usize {
+    let p = dir.join(name);
+    std::fs::write(&p, bytes).unwrap();
+    ply::read(&p, &PlyOptions::default()).unwrap().len()
+}
+
+/// Byte offset of the body (just after `end_header\n`).
+fn body_at(b: &[u8]) -> usize {
+    b.windows(11).position(|w| w == b"end_header\n").unwrap() + 11
+}
+
+/// `bytes` with the first `from` replaced by `to` (in the header).
+fn edit(bytes: &[u8], from: &str, to: &str) -> Vec<u8> {
+    let at = bytes
+        .windows(from.len())
+        .position(|w| w == from.as_bytes())
+        .unwrap();
+    [&bytes[..at], to.as_bytes(), &bytes[at + from.len()..]].concat()
+}
+
+#[test]
+fn ply_binary_header_under_counting_its_vertices_is_an_error() {
+    let dir = tempfile::tempdir().unwrap();
+    let p = dir.path().join("ok.ply");
+    ply::write(&p, &tile(100), PlyFormat::BinaryLittleEndian).unwrap();
+    let orig = std::fs::read(&p).unwrap();
+    assert_eq!(ply_ok(dir.path(), "ok.ply", &orig), 100);
+    // 90 of 100 declared: 10 records of 3 doubles are left over.
+    let b = edit(&orig, "element vertex 100", "element vertex 90");
+    let end = body_at(&b) + 90 * 24;
+    ply_err(
+        dir.path(),
+        "under.ply",
+        &b,
+        &[
+            "240 bytes follow the last element 'vertex'",
+            &format!("from byte {end}"),
+        ],
+    );
+    // One stray byte is reported too, in both byte orders, after faces as well.
+    for format in [PlyFormat::BinaryLittleEndian, PlyFormat::BinaryBigEndian] {
+        let m = dir.path().join("mesh.ply");
+        let square = [
+            [0.0, 0.0, 0.0],
+            [1.0, 0.0, 0.0],
+            [1.0, 1.0, 0.0],
+            [0.0, 1.0, 0.0],
+        ];
+        ply::write_mesh(&m, &square, &[[0, 1, 2], [0, 2, 3]], format).unwrap();
+        let mut b = std::fs::read(&m).unwrap();
+        let len = b.len();
+        b.push(b'\n');
+        ply_err(
+            dir.path(),
+            "stray.ply",
+            &b,
+            &[&format!(
+                "1 bytes follow the last element 'face', from byte {len}"
+            )],
+        );
+    }
+}
+
+#[test]
+fn ply_ascii_lines_after_the_last_element_name_the_line() {
+    let dir = tempfile::tempdir().unwrap();
+    let text = "ply\nformat ascii 1.0\nelement vertex 2\nproperty float x\nproperty float y\n\
+                property float z\nend_header\n0 0 0\n1 1 1\n2 2 2\n";
+    ply_err(
+        dir.path(),
+        "under.ply",
+        text.as_bytes(),
+        &["line 10: '2 2 2' follows the last element 'vertex'"],
+    );
+    // Trailing blank lines are fine.
+    let text = text.replace("2 2 2\n", "\n  \r\n\n");
+    assert_eq!(ply_ok(dir.path(), "blank.ply", text.as_bytes()), 2);
+}
+
+#[test]
+fn ply_extra_elements_after_the_needed_ones_are_still_checked_to_the_end() {
+    let dir = tempfile::tempdir().unwrap();
+    // A binary file whose last element ('edge', not read) hides 4 more bytes behind it.
+    let mut b = b"ply\nformat binary_little_endian 1.0\nelement vertex 1\nproperty float x\n\
+                  property float y\nproperty float z\nelement edge 2\nproperty int a\n\
+                  end_header\n"
+        .to_vec();
+    for v in [1.5f32, 2.5, 3.5] {
+        b.extend_from_slice(&v.to_le_bytes());
+    }
+    b.extend_from_slice(&[0u8; 8]);
+    assert_eq!(ply_ok(dir.path(), "edges.ply", &b), 1);
+    b.extend_from_slice(&[0u8; 4]);
+    ply_err(
+        dir.path(),
+        "edges4.ply",
+        &b,
+        &["4 bytes follow the last element 'edge'"],
+    );
+}
+
+#[test]
+fn ply_ascii_body_under_a_binary_header_is_an_error() {
+    let dir = tempfile::tempdir().unwrap();
+    let p = dir.path().join("ascii.ply");
+    ply::write(&p, &tile(50), PlyFormat::Ascii).unwrap();
+    let orig = std::fs::read(&p).unwrap();
+    for (fmt, name) in [
+        ("binary_little_endian", "le.ply"),
+        ("binary_big_endian", "be.ply"),
+    ] {
+        let b = edit(&orig, "format ascii 1.0", &format!("format {fmt} 1.0"));
+        let body = body_at(&b);
+        ply_err(
+            dir.path(),
+            name,
+            &b,
+            &[
+                &format!("declares format {fmt} but the body (from byte {body}) is ascii text"),
+                "is ascii text ('4",
+            ],
+        );
+    }
+    // Real binary bodies pass the rule: every format the writer has, positions only too.
+    for format in [PlyFormat::BinaryLittleEndian, PlyFormat::BinaryBigEndian] {
+        let q = dir.path().join("bin.ply");
+        ply::write(&q, &tile(50), format).unwrap();
+        assert_eq!(ply::read(&q, &PlyOptions::default()).unwrap().len(), 50);
+    }
+}
+
+#[test]
+fn ply_ascii_fractional_or_out_of_range_integers_name_the_line_and_property() {
+    let dir = tempfile::tempdir().unwrap();
+    let head = "ply\nformat ascii 1.0\nelement vertex 2\nproperty float x\nproperty float y\n\
+                property float z\nproperty char flag\nproperty uchar red\nproperty uchar green\n\
+                property uchar blue\nend_header\n";
+    let ok = format!("{head}0 0 0 -3 10 20 30\n1 1 1 127 255 0 12.0\n");
+    assert_eq!(ply_ok(dir.path(), "ok.ply", ok.as_bytes()), 2);
+    ply_err(
+        dir.path(),
+        "frac.ply",
+        format!("{head}0 0 0 0.302 10 20 30\n1 1 1 0 0 0 0\n").as_bytes(),
+        &["line 12 (vertex 0): property 'flag' (char): '0.302' is not an integer"],
+    );
+    ply_err(
+        dir.path(),
+        "range.ply",
+        format!("{head}0 0 0 1 10 20 30\n1 1 1 0 0 300 0\n").as_bytes(),
+        &["line 13 (vertex 1): property 'green' (uchar): '300' is outside its range 0..=255"],
+    );
+    ply_err(
+        dir.path(),
+        "neg.ply",
+        format!("{head}0 0 0 -129 10 20 30\n1 1 1 0 0 0 0\n").as_bytes(),
+        &["property 'flag' (char): '-129' is outside its range -128..=127"],
+    );
+    ply_err(
+        dir.path(),
+        "nan.ply",
+        format!("{head}0 0 0 0 nan 20 30\n1 1 1 0 0 0 0\n").as_bytes(),
+        &["property 'red' (uchar): 'nan' is not an integer"],
+    );
 }

@@ -25,7 +25,9 @@
 //!   point). Before the `las` crate sees the file, the header fields it and `laz` allocate or
 //!   compute by are checked against the file's size (`las_check.rs`: the LAZ chunk table and
 //!   layer sizes, the laszip items, the first EVLR, point count × record length), as are the
-//!   scale factors and trailing point records; each failure names the field and the byte.
+//!   scale factors and trailing point records; each failure names the field and the byte. A
+//!   panic inside the crates (the `laz` decoder asserts on some corrupted chunks) is caught
+//!   and returned as an error naming the file.
 //!
 //! # Writing ([`write()`])
 //! - LAS 1.2 (1.4 above 2³² − 1 points), point format 2 (with RGB, each 8-bit channel × 257 so
@@ -176,6 +178,11 @@ fn read_pass(path: &Path, origin: DVec3, store: bool) -> Result<Pass, SceneError
 /// Reads a LAS or LAZ file into a [`PointCloud`] (see the module docs).
 pub fn read(path: &Path) -> Result<PointCloud, SceneError> {
     crate::las_check::check(path)?;
+    crate::las_check::contained(path, || read_checked(path))
+}
+
+/// [`read`] after the header checks, with panics of the crates not yet contained.
+fn read_checked(path: &Path) -> Result<PointCloud, SceneError> {
     let reader = open(path)?;
     let header = reader.header();
     let n = header.number_of_points();

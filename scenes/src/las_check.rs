@@ -33,6 +33,9 @@
 //!   file, its chunk count is at most the bytes between the point data and the table plus one
 //!   (every chunk but an empty last one holds at least one byte), and, for fixed-size chunks,
 //!   at most ⌈points / chunk size⌉ + 1. The crate allocates 16 bytes per declared chunk.
+//! - **Panics**: what the checks cannot see — a corrupted compressed chunk, on which the `laz`
+//!   decoder trips its own assertions (`decoders.rs`: `sym < (1 << 16)`) — is contained by
+//!   [`contained`], which turns a panic inside the crates into an error naming the file.
 //! - **Layered chunks** (LAZ for point formats 6–10): every chunk's layer sizes, which the
 //!   crate allocates as read, must fit in the rest of the file. The chunks are walked from
 //!   the point data: first point, point count, layer sizes, layers.
@@ -117,6 +120,26 @@ impl Item {
             _ => None,
         }
     }
+}
+
+/// Runs `read` (the whole read through the `las` and `laz` crates) and turns a panic inside
+/// it into a [`SceneError::Format`] naming the file and the panic's message. The crates'
+/// state is dropped with the panic; nothing of it is used afterwards.
+pub fn contained<T>(
+    path: &Path,
+    read: impl FnOnce() -> Result<T, SceneError>,
+) -> Result<T, SceneError> {
+    std::panic::catch_unwind(std::panic::AssertUnwindSafe(read)).unwrap_or_else(|payload| {
+        let msg = payload
+            .downcast_ref::<&str>()
+            .map(|s| (*s).to_owned())
+            .or_else(|| payload.downcast_ref::<String>().cloned())
+            .unwrap_or_else(|| "no message".into());
+        Err(SceneError::format(
+            path,
+            format!("the LAS/LAZ decoder failed on corrupted data ({msg})"),
+        ))
+    })
 }
 
 /// Checks the fields of the LAS / LAZ file at `path` that the `las` and `laz` crates allocate

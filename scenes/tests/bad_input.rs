@@ -561,3 +561,27 @@ fn ply_ascii_fractional_or_out_of_range_integers_name_the_line_and_property() {
         &["property 'red' (uchar): 'nan' is not an integer"],
     );
 }
+
+#[test]
+fn laz_decoder_panics_on_a_corrupted_chunk_are_contained() {
+    // Found by the fuzzer (target laz): one byte inside the layered chunk of a format-6 file
+    // trips `debug_assert!(sym < (1 << 16))` in laz's arithmetic decoder, a panic in any
+    // build with debug assertions (the tests'); the reader must return an error instead.
+    let dir = tempfile::tempdir().unwrap();
+    let p = dir.path().join("six.laz");
+    las14(&p, 6, true, 300);
+    let mut b = std::fs::read(&p).unwrap();
+    assert_eq!(
+        (b.len(), b[2739]),
+        (3182, 160),
+        "the writer's output changed"
+    );
+    b[2739] = 156;
+    let q = dir.path().join("sym.laz");
+    std::fs::write(&q, &b).unwrap();
+    let r = std::panic::catch_unwind(|| scenes::las::read(&q).map(|c| c.len()));
+    let r = r.expect("a panic escaped the LAS/LAZ reader");
+    if let Err(e) = r {
+        assert!(e.to_string().contains("sym.laz"), "{e}");
+    }
+}

@@ -39,8 +39,8 @@ struct Cli {
 
 fn print_reports(reports: &[Report]) {
     println!(
-        "{:<12} {:>8} {:>9} {:>9} {:>7} {:>7} {:>7}",
-        "target", "execs", "seconds", "execs/s", "panics", "crashes", "hangs"
+        "{:<12} {:>8} {:>9} {:>9} {:>9} {:>7} {:>7} {:>7}",
+        "target", "execs", "accepted", "seconds", "execs/s", "panics", "crashes", "hangs"
     );
     for r in reports {
         let count = |k| {
@@ -51,9 +51,10 @@ fn print_reports(reports: &[Report]) {
                 .sum::<u64>()
         };
         println!(
-            "{:<12} {:>8} {:>9.1} {:>9.0} {:>7} {:>7} {:>7}",
+            "{:<12} {:>8} {:>9} {:>9.1} {:>9.0} {:>7} {:>7} {:>7}",
             r.target.name(),
             r.execs,
+            r.accepted,
             r.seconds,
             r.execs as f64 / r.seconds.max(1e-9),
             count(run::Kind::Panic),

@@ -266,8 +266,9 @@ pub fn ply(r: &mut Pcg32, b: &mut Vec<u8>) {
     *b = out;
 }
 
-/// One TOML-aware mutation: a value replaced by one of another type or an extreme, a line
-/// removed or doubled, a key renamed, or a stray table or key added.
+/// One TOML- or JSON-aware mutation (JSON as the methods write it, one key per line): a
+/// value replaced by one of another type or an extreme, a line removed or doubled, a key
+/// renamed, or a stray table or key added.
 pub fn toml(r: &mut Pcg32, b: &mut Vec<u8>) {
     let text = String::from_utf8_lossy(b).into_owned();
     let mut lines: Vec<String> = text.lines().map(str::to_owned).collect();
@@ -297,10 +298,18 @@ pub fn toml(r: &mut Pcg32, b: &mut Vec<u8>) {
         "1979-05-27",
         "\"y\"",
     ];
+    // TOML `key = value`, or a pretty-printed JSON `"key": value,` line.
+    let json = text.trim_start().starts_with('{');
+    let sep = if json { ':' } else { '=' };
     match r.below(6) {
         0 | 1 => {
-            if let Some((k, _)) = lines[i].split_once('=') {
-                lines[i] = format!("{k}= {}", VALUES[below(r, VALUES.len())]);
+            if let Some((k, v)) = lines[i].split_once(sep) {
+                let comma = if json && v.trim_end().ends_with(',') {
+                    ","
+                } else {
+                    ""
+                };
+                lines[i] = format!("{k}{sep} {}{comma}", VALUES[below(r, VALUES.len())]);
             }
         }
         2 => {
@@ -311,18 +320,12 @@ pub fn toml(r: &mut Pcg32, b: &mut Vec<u8>) {
             lines.insert(i, l);
         }
         4 => {
-            if let Some((k, v)) = lines[i].split_once('=') {
+            if let Some((k, v)) = lines[i].split_once(sep) {
                 let k = k.trim();
-                let renamed = if k.is_empty() {
-                    "x".to_owned()
-                } else {
-                    format!(
-                        "{}{}",
-                        &k[..k.len() - 1],
-                        (b'a' + r.below(26) as u8) as char
-                    )
-                };
-                lines[i] = format!("{renamed} ={v}");
+                let mut renamed: String = k.to_owned();
+                renamed.pop();
+                renamed.push((b'a' + r.below(26) as u8) as char);
+                lines[i] = format!("{renamed} {sep}{v}");
             }
         }
         _ => {

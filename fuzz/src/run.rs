@@ -17,6 +17,9 @@ use crate::targets::{self, Corpus, Target};
 
 /// Set in the child's environment; its value is ignored.
 pub const CHILD_ENV: &str = "SPLATBENCH_FUZZ_CHILD";
+/// When set, the child prints every decoder error on stderr (run the child directly to see
+/// them: `SPLATBENCH_FUZZ_CHILD=1 SPLATBENCH_FUZZ_ERRORS=1 fuzz TARGET --iters N`).
+pub const ERRORS_ENV: &str = "SPLATBENCH_FUZZ_ERRORS";
 
 /// How a run is set up.
 #[derive(Debug, Clone)]
@@ -76,6 +79,8 @@ pub struct Report {
     pub target: Target,
     /// Inputs executed (including those that crashed or hung).
     pub execs: u64,
+    /// Inputs the decoder accepted (no error): how far mutations get past the checks.
+    pub accepted: u64,
     /// Wall time, seconds (child start-up and seed building included).
     pub seconds: f64,
     /// Child processes started.
@@ -127,7 +132,8 @@ fn one_line(s: &str) -> String {
 }
 
 /// The child's loop: iterations `start..opts.iters` of `target`, one line each on stdout
-/// (`S i` before, `P i message` after a panic, `D` at the end).
+/// (`R` when the seeds are ready, `S i` before an input, `O` after one the decoder accepted,
+/// `P i message` after a panic, `D` at the end).
 pub fn child(target: Target, opts: &Options, start: u64) -> Result<(), String> {
     limit_memory(opts.mem_mb);
     std::panic::set_hook(Box::new(|info| {
@@ -162,6 +168,7 @@ pub fn child(target: Target, opts: &Options, start: u64) -> Result<(), String> {
     };
     say("R\n".into());
     let scratch = work.join("run");
+    let show_errors = std::env::var_os(ERRORS_ENV).is_some();
     for i in start..opts.iters {
         say(format!("S {i}\n"));
         let caught = std::panic::catch_unwind(std::panic::AssertUnwindSafe(|| {
@@ -170,6 +177,11 @@ pub fn child(target: Target, opts: &Options, start: u64) -> Result<(), String> {
         }));
         let main = MAIN_PANIC.lock().ok().and_then(|mut s| s.take());
         let thread = THREAD_PANIC.lock().ok().and_then(|mut s| s.take());
+        match &caught {
+            Ok(Ok(())) => say("O\n".into()),
+            Ok(Err(e)) if show_errors => eprintln!("input {i}: {}", one_line(e)),
+            _ => {}
+        }
         let escaped = caught
             .is_err()
             .then(|| main.unwrap_or_else(|| "a panic".into()));
@@ -192,6 +204,7 @@ fn scratch_dir(what: &str) -> PathBuf {
 
 enum Msg {
     Ready,
+    Accepted,
     Start(u64),
     Panic(u64, String),
     Done,
@@ -201,6 +214,7 @@ fn parse(line: &str) -> Option<Msg> {
     let mut parts = line.splitn(3, ' ');
     match parts.next()? {
         "R" => Some(Msg::Ready),
+        "O" => Some(Msg::Accepted),
         "D" => Some(Msg::Done),
         "S" => parts.next()?.parse().ok().map(Msg::Start),
         "P" => {
@@ -311,6 +325,7 @@ pub fn supervise(target: Target, opts: &Options) -> Result<Report, String> {
     };
     let mut next = 0u64;
     let mut execs = 0u64;
+    let mut accepted = 0u64;
     let mut children = 0u64;
     while next < opts.iters {
         children += 1;
@@ -361,6 +376,7 @@ pub fn supervise(target: Target, opts: &Options) -> Result<Report, String> {
             };
             match rx.recv_timeout(wait) {
                 Ok(Msg::Ready) => ready = true,
+                Ok(Msg::Accepted) => accepted += 1,
                 Ok(Msg::Start(i)) => {
                     current = Some(i);
                     execs += 1;
@@ -403,6 +419,7 @@ pub fn supervise(target: Target, opts: &Options) -> Result<Report, String> {
     Ok(Report {
         target,
         execs,
+        accepted,
         seconds: t0.elapsed().as_secs_f64(),
         children,
         findings: findings.into_iter().map(|(_, f)| f).collect(),

@@ -36,9 +36,17 @@
 //! - **Panics**: what the checks cannot see — a corrupted compressed chunk, on which the `laz`
 //!   decoder trips its own assertions (`decoders.rs`: `sym < (1 << 16)`) — is contained by
 //!   [`contained`], which turns a panic inside the crates into an error naming the file.
-//! - **Layered chunks** (LAZ for point formats 6–10): every chunk's layer sizes, which the
-//!   crate allocates as read, must fit in the rest of the file. The chunks are walked from
-//!   the point data: first point, point count, layer sizes, layers.
+//! - **Layered chunks** (items of version 3 or 4, point formats 6–10): every chunk's layer
+//!   sizes, which the crate allocates as read, must fit in the rest of the file. The chunks
+//!   are walked as the crate reads them — the layered decoder is chosen by the first item's
+//!   version whatever the compressor field says (a pointwise compressor then has no chunk
+//!   table offset before the first chunk), and a chunk is first point, point count, layer
+//!   sizes, layers, the next one starting where its last layer ends — with the crate's
+//!   count of points per chunk: the chunk size, all points for the pointwise compressor, the
+//!   table's counts for variable-size chunks (decoded with `laz`'s own `ChunkTable::read`
+//!   once the count above is sane), else the count stored in the chunk.
+//! - **The laszip items**: at least one byte per point (the crate splits its buffer into
+//!   records of that size).
 
 use std::fs::File;
 use std::io::{Read, Seek, SeekFrom};
@@ -346,11 +354,14 @@ pub fn check(path: &Path) -> Result<(), SceneError> {
              point, but the header's point record length is {record_len} bytes"
         )));
     }
-    if !matches!(compressor, 2 | 3) {
-        return Ok(()); // not chunked: no chunk table
+    if items_size == 0 {
+        return Err(bad(format!(
+            "the laszip VLR (at byte {vlr_at}) lists {n_items} items of 0 bytes per point"
+        )));
     }
-
-    // The chunk table.
+    // Compressors 2 and 3 (pointwise and layered chunked) have a chunk table and start the
+    // point data with its offset; 1 (pointwise) has neither.
+    let chunked = matches!(compressor, 2 | 3);
     let data_start = offset_to_points;
     let mut w = [0u8; 8];
     if !read_at(&mut file, data_start, &mut w).map_err(io)? {
@@ -366,7 +377,10 @@ pub fn check(path: &Path) -> Result<(), SceneError> {
         table = i64::from_le_bytes(w);
         table_field = file_len - 8;
     }
-    if table > data_start as i64 {
+    // The entries, decoded as the crate decodes them once their count is known to be sane:
+    // with variable-size chunks they say how many points each chunk holds.
+    let mut entries: Option<Vec<u64>> = None;
+    if chunked && table > data_start as i64 {
         let table = table as u64;
         let mut t = [0u8; 8];
         if table.checked_add(8).is_some_and(|e| e <= file_len)
@@ -389,24 +403,40 @@ pub fn check(path: &Path) -> Result<(), SceneError> {
                          points in chunks of {cs} need at most {most}"
                     )));
                 }
+            } else {
+                file.seek(SeekFrom::Start(table)).map_err(io)?;
+                let mut src = std::io::BufReader::new(&mut file);
+                if let Ok(t) = laz::laszip::ChunkTable::read(&mut src, true) {
+                    entries = Some(t.as_ref().iter().map(|e| e.point_count).collect());
+                }
             }
         }
     }
 
-    // Layered chunks: the layer sizes the crate allocates as it reads them.
-    if compressor != 3 {
-        return Ok(());
-    }
+    // Layered chunks: the layer sizes the crate allocates as it reads them. The crate picks
+    // the layered decoder by the first item's version, whatever the compressor, reads the
+    // chunks one after the other (a chunk ends where its last layer does), and counts a
+    // chunk's points as below (the count stored in the chunk only without a table).
+    let layered = items.first().is_some_and(|i| matches!(i.version, 3 | 4));
     let Some(layers) = items
         .iter()
         .map(|i| i.layers())
         .try_fold(0u64, |acc, l| l.map(|l| acc + l))
+        .filter(|_| layered)
     else {
-        return Ok(()); // not layered items: the crate refuses them
+        return Ok(()); // pointwise items, or items the layered decoder refuses
     };
-    let mut pos = data_start + 8;
+    let points_in = |chunk: usize, stored: u64| -> u64 {
+        match (chunk_size, &entries) {
+            _ if compressor == 1 => u64::from(u32::MAX),
+            (Some(cs), _) => cs,
+            (None, Some(e)) => e.get(chunk).copied().unwrap_or(u64::MAX),
+            (None, None) => stored,
+        }
+    };
+    let mut pos = data_start + if chunked { 8 } else { 0 };
     let mut left = points;
-    let mut chunk = 0u64;
+    let mut chunk = 0usize;
     let mut sizes = vec![0u8; 4 * layers as usize];
     while left > 0 {
         let sizes_at = pos + items_size + 4;
@@ -416,7 +446,6 @@ pub fn check(path: &Path) -> Result<(), SceneError> {
         {
             return Ok(());
         }
-        let count = u64::from(u32_at(&c, 0));
         let mut at = sizes_at + 4 * layers;
         for (l, s) in sizes.chunks_exact(4).enumerate() {
             let size = u64::from(u32_at(s, 0));
@@ -429,10 +458,9 @@ pub fn check(path: &Path) -> Result<(), SceneError> {
             }
             at += size;
         }
-        if count == 0 {
-            return Ok(()); // the crate's business: nothing more is allocated by it here
-        }
-        left = left.saturating_sub(count);
+        // A chunk of 0 points never ends: the crate reads every point left from it.
+        let n = points_in(chunk, u64::from(u32_at(&c, 0)));
+        left = left.saturating_sub(if n == 0 { u64::MAX } else { n });
         pos = at;
         chunk += 1;
     }

@@ -175,7 +175,8 @@ fn laz_items_must_match_the_record_length() {
     );
 }
 
-/// A LAS 1.4 file with point format `format`, LAZ-compressed if `laz`, and one EVLR.
+/// A LAS 1.4 file with point format `format` (6, or 7 with colours), LAZ-compressed if `laz`,
+/// and one EVLR. (`fuzz/seeds/las14-*` were written by this function.)
 fn las14(path: &Path, format: u8, laz: bool, n: usize) {
     let mut b = las::Builder::from((1, 4));
     b.point_format = las::point::Format::new(format).unwrap();
@@ -201,6 +202,11 @@ fn las14(path: &Path, format: u8, laz: bool, n: usize) {
             return_number: 1,
             number_of_returns: 1,
             gps_time: Some(f),
+            color: (format == 7).then(|| las::Color {
+                red: (i as u16).wrapping_mul(300),
+                green: 7,
+                blue: 65535,
+            }),
             ..Default::default()
         })
         .unwrap();
@@ -584,4 +590,29 @@ fn laz_decoder_panics_on_a_corrupted_chunk_are_contained() {
     if let Err(e) = r {
         assert!(e.to_string().contains("sym.laz"), "{e}");
     }
+}
+
+#[test]
+fn laz_layered_items_under_a_pointwise_compressor_are_walked_where_the_crate_reads() {
+    // Found by the fuzzer (target laz): the laszip VLR's compressor field changed from 3
+    // (layered chunked) to 1 (pointwise). laz still picks the layered decoder (by the items'
+    // version) but reads the chunk from the first byte of the point data, with no chunk-table
+    // offset before it: the layer sizes it reads are other bytes, one of ~4 GiB, and the
+    // process aborted allocating it. The check walked the chunks only for compressor 3.
+    let dir = tempfile::tempdir().unwrap();
+    let p = dir.path().join("seven.laz");
+    las14(&p, 7, true, 200);
+    assert_eq!(scenes::las::read(&p).unwrap().len(), 200);
+    let mut b = std::fs::read(&p).unwrap();
+    // The laszip VLR is the only VLR: header 375, VLR header 54, compressor at its data's 0.
+    assert_eq!(&b[377..391], b"laszip encoded");
+    assert_eq!(u16::from_le_bytes([b[429], b[430]]), 3);
+    b[429] = 1;
+    let points_at = u32_at(&b, 96);
+    las_err(
+        dir.path(),
+        "pointwise.laz",
+        &b,
+        &[&format!("LAZ chunk 0 (at byte {points_at}): layer")],
+    );
 }

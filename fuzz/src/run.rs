@@ -93,12 +93,13 @@ pub struct Report {
 // The child
 // ---------------------------------------------------------------------------------------------
 
-/// The first panic of the current iteration on another thread than the one running the
-/// iterations (a loader thread): message and location.
+/// The first panic of the current iteration that is a finding whether or not it is caught:
+/// on another thread than the one running the iterations (a loader thread), or in this
+/// workspace's own code: message and location.
 static THREAD_PANIC: Mutex<Option<String>> = Mutex::new(None);
-/// The last panic on the iterating thread. It is a finding only when it escapes the
-/// decoder (`catch_unwind` sees it): a reader may contain a third-party crate's panic and
-/// return an error, which is the behaviour wanted.
+/// The last panic in a dependency's code on the iterating thread. It is a finding only when
+/// it escapes the decoder (`catch_unwind` sees it): a reader may contain a third-party
+/// crate's panic and return an error, which is the behaviour wanted.
 static MAIN_PANIC: Mutex<Option<String>> = Mutex::new(None);
 static MAIN_THREAD: std::sync::OnceLock<std::thread::ThreadId> = std::sync::OnceLock::new();
 
@@ -147,7 +148,12 @@ pub fn child(target: Target, opts: &Options, start: u64) -> Result<(), String> {
             .location()
             .map_or_else(String::new, |l| format!(" at {}:{}", l.file(), l.line()));
         let main = MAIN_THREAD.get() == Some(&std::thread::current().id());
-        if main {
+        // A panic in this workspace's code is a bug even when a reader contains it (as the
+        // LAS reader contains the laz crate's): only third-party panics may be contained.
+        let ours = info.location().is_some_and(|l| {
+            !l.file().contains("/.cargo/registry/") && !l.file().starts_with("/rustc/")
+        });
+        if main && !ours {
             if let Ok(mut slot) = MAIN_PANIC.lock() {
                 *slot = Some(format!("{msg}{at}"));
             }
@@ -182,10 +188,12 @@ pub fn child(target: Target, opts: &Options, start: u64) -> Result<(), String> {
             Ok(Err(e)) if show_errors => eprintln!("input {i}: {}", one_line(e)),
             _ => {}
         }
-        let escaped = caught
-            .is_err()
-            .then(|| main.unwrap_or_else(|| "a panic".into()));
-        if let Some(msg) = escaped.or(thread) {
+        let finding = if caught.is_err() {
+            Some(main.or(thread).unwrap_or_else(|| "a panic".into()))
+        } else {
+            thread
+        };
+        if let Some(msg) = finding {
             say(format!("P {i} {}\n", one_line(&msg)));
         }
     }

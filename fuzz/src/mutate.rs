@@ -52,7 +52,7 @@ pub fn interesting(r: &mut Pcg32, near: u64) -> u64 {
 /// Overwrites `width` bytes at `at` (clipped to the buffer) with `v`, little-endian.
 pub fn put_le(b: &mut [u8], at: usize, width: usize, v: u64) {
     for (k, byte) in v.to_le_bytes().iter().take(width).enumerate() {
-        if let Some(slot) = b.get_mut(at + k) {
+        if let Some(slot) = b.get_mut(at.saturating_add(k)) {
             *slot = *byte;
         }
     }
@@ -62,7 +62,7 @@ pub fn put_le(b: &mut [u8], at: usize, width: usize, v: u64) {
 pub fn get_le(b: &[u8], at: usize, width: usize) -> u64 {
     let mut w = [0u8; 8];
     for (k, slot) in w.iter_mut().take(width).enumerate() {
-        *slot = b.get(at + k).copied().unwrap_or(0);
+        *slot = b.get(at.saturating_add(k)).copied().unwrap_or(0);
     }
     u64::from_le_bytes(w)
 }
@@ -164,7 +164,7 @@ fn odd_number(r: &mut Pcg32, near: u64) -> String {
         4 => "4294967296".into(),
         5 => "0.302".into(),
         6 => ["nan", "inf", "-inf", "1e308", "-0", "1e-320"][below(r, 6)].into(),
-        7 => (near + 1).to_string(),
+        7 => near.saturating_add(1).to_string(),
         8 => near.saturating_sub(1).to_string(),
         _ => interesting(r, near).to_string(),
     }
@@ -386,7 +386,7 @@ pub fn las(r: &mut Pcg32, b: &mut [u8]) {
         4 => {
             // The LAZ chunk-table offset (first 8 bytes of the point data) or the table.
             let table = get_le(b, points_at, 8) as usize;
-            if chance(r, 2) && table + 8 <= b.len() {
+            if chance(r, 2) && table.checked_add(8).is_some_and(|e| e <= b.len()) {
                 let near = get_le(b, table + 4, 4);
                 put_le(b, table + 4, 4, interesting(r, near));
             } else {

@@ -281,7 +281,12 @@ impl Saver<'_> {
             self.corpus = Some(targets::corpus(self.target, &work)?);
         }
         let corpus = self.corpus.as_ref().ok_or("no corpus")?;
-        let input = targets::input(self.target, corpus, self.opts.seed, f.iteration);
+        // The child already reported a panic of the input generator itself; here it would
+        // stop the whole run.
+        let input = std::panic::catch_unwind(|| {
+            targets::input(self.target, corpus, self.opts.seed, f.iteration)
+        })
+        .map_err(|_| format!("input {} could not be made again", f.iteration))?;
         let hash = scenes::hash::fnv1a64(&input.bytes);
         std::fs::create_dir_all(&self.opts.crashes)
             .map_err(|e| format!("{}: {e}", self.opts.crashes.display()))?;
@@ -327,7 +332,13 @@ pub fn supervise(target: Target, opts: &Options) -> Result<Report, String> {
             hits: 1,
             reproducer: None,
         };
-        f.reproducer = Some(saver.save(&f)?);
+        f.reproducer = match saver.save(&f) {
+            Ok(p) => Some(p),
+            Err(e) => {
+                eprintln!("fuzz: no reproducer for iteration {i}: {e}");
+                None
+            }
+        };
         findings.push((k, f));
         Ok(())
     };

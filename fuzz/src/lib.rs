@@ -6,7 +6,8 @@
 //!   a tiny generated scene) and a way to drive it with an input.
 //! - [`mutate`]: input `i` of a run is a seed file with 1–4 stacked mutations drawn from
 //!   `Pcg32::stream(seed, i)`: byte flips, random and interesting bytes and integers,
-//!   truncation, extension, splices, and header-field edits that know PLY, LAS/LAZ and TOML.
+//!   truncation, extension, splices, and header-field edits that know PLY, LAS/LAZ, PCD and
+//!   TOML/JSON.
 //!   The same `(seed, i)` always gives the same input, which is how a crash is reproduced.
 //! - [`run`]: iterations run in a child process under an address-space limit; a panic, an
 //!   abort (signal), an out-of-memory or a hang is a finding, saved as

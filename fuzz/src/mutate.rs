@@ -431,3 +431,82 @@ pub fn las(r: &mut Pcg32, b: &mut [u8]) {
         }
     }
 }
+
+// ---------------------------------------------------------------------------------------------
+// PCD headers, E57 pages
+// ---------------------------------------------------------------------------------------------
+
+/// One PCD-aware mutation: a number of a header line (`POINTS`, `WIDTH`, `SIZE`, `COUNT`, …),
+/// a `TYPE` letter, the `DATA` encoding, or (compressed bodies) the two sizes before the data.
+pub fn pcd(r: &mut Pcg32, b: &mut Vec<u8>) {
+    let Some(data) = b.windows(5).position(|w| w == b"DATA ") else {
+        return;
+    };
+    let Some(end) = b[data..]
+        .iter()
+        .position(|&c| c == b'\n')
+        .map(|k| data + k + 1)
+    else {
+        return;
+    };
+    if b[data..end].starts_with(b"DATA binary_compressed") && r.below(3) == 0 {
+        let at = end + 4 * below(r, 2);
+        let near = get_le(b, at, 4);
+        put_le(b, at, 4, interesting(r, near));
+        return;
+    }
+    let header = String::from_utf8_lossy(&b[..end]).into_owned();
+    let mut lines: Vec<String> = header.lines().map(str::to_owned).collect();
+    let i = below(r, lines.len());
+    let mut toks: Vec<String> = lines[i].split_whitespace().map(str::to_owned).collect();
+    if toks.len() >= 2 {
+        let k = 1 + below(r, toks.len() - 1);
+        toks[k] = match toks[0].as_str() {
+            "TYPE" => ["F", "U", "I", "X"][below(r, 4)].into(),
+            "DATA" => {
+                ["ascii", "binary", "binary_compressed", "binary_compressed"][below(r, 4)].into()
+            }
+            "FIELDS" => ["x", "y", "z", "rgb", "normal_x", "_"][below(r, 6)].into(),
+            _ => {
+                let near = toks[k].parse::<f64>().map_or(0, |v| v.abs() as u64);
+                odd_number(r, near)
+            }
+        };
+        lines[i] = toks.join(" ");
+    }
+    let mut out = lines.join("\n").into_bytes();
+    out.push(b'\n');
+    out.extend_from_slice(&b[end..]);
+    *b = out;
+}
+
+/// CRC-32C (Castagnoli), as E57 pages carry it.
+fn crc32c(data: &[u8]) -> u32 {
+    let mut crc = !0u32;
+    for &byte in data {
+        crc ^= u32::from(byte);
+        for _ in 0..8 {
+            crc = if crc & 1 != 0 {
+                (crc >> 1) ^ 0x82F6_3B78
+            } else {
+                crc >> 1
+            };
+        }
+    }
+    !crc
+}
+
+/// Recomputes the big-endian CRC-32C at the end of every page of an E57 file (page size from
+/// its header, 1024 when that is not sane), so mutations reach the parser behind the check.
+pub fn reseal_e57(b: &mut [u8]) {
+    let page = get_le(b, 40, 8);
+    let page = if (8..=1 << 20).contains(&page) {
+        page as usize
+    } else {
+        1024
+    };
+    for p in b.chunks_exact_mut(page) {
+        let sum = crc32c(&p[..page - 4]);
+        p[page - 4..].copy_from_slice(&sum.to_be_bytes());
+    }
+}

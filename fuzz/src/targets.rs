@@ -15,11 +15,13 @@ use scenes::{Aabb, PointCloud, View};
 use crate::mutate;
 
 /// Every target, in the order `all` runs them.
-pub const ALL: [Target; 15] = [
+pub const ALL: [Target; 17] = [
     Target::PlyAscii,
     Target::PlyBinary,
     Target::Las,
     Target::Laz,
+    Target::Pcd,
+    Target::E57,
     Target::Sbc,
     Target::SceneToml,
     Target::PathToml,
@@ -44,6 +46,10 @@ pub enum Target {
     Las,
     /// `scenes::las::read` on LAZ (pointwise and layered chunks).
     Laz,
+    /// `scenes::pcd::read` on PCD files (ascii, binary, binary_compressed).
+    Pcd,
+    /// `scenes::e57::read` on E57 files (the `e57` crate).
+    E57,
     /// `scenes::colfile::open` on column files.
     Sbc,
     /// `SceneSpec::parse` on scene `.toml` files.
@@ -71,6 +77,8 @@ impl Target {
             Target::PlyBinary => "ply-binary",
             Target::Las => "las",
             Target::Laz => "laz",
+            Target::Pcd => "pcd",
+            Target::E57 => "e57",
             Target::Sbc => "sbc",
             Target::SceneToml => "scene-toml",
             Target::PathToml => "path-toml",
@@ -99,6 +107,8 @@ impl Target {
             }
             Target::Las => "LAS reader (las crate): header fields, VLRs, EVLRs, point records",
             Target::Laz => "LAZ reader (laz crate): laszip VLR, chunk table, chunks, layers",
+            Target::Pcd => "PCD reader: header lines, ascii/binary/LZF-compressed bodies",
+            Target::E57 => "E57 reader (e57 crate): pages and checksums, XML, binary sections",
             Target::Sbc => "column file (.sbc) open: header fields (checksum resealed), columns",
             Target::SceneToml => "scene .toml parsing (SceneSpec::parse), small generators loaded",
             Target::PathToml => "keyframe path .toml parsing and validation, cameras evaluated",
@@ -426,6 +436,17 @@ pub fn corpus(target: Target, work: &Path) -> Result<Corpus, String> {
                 read_seed(&committed.join("las14-format7.laz"))?,
             ]
         }
+        Target::Pcd => [
+            "ascii.pcd",
+            "binary.pcd",
+            "binary_compressed.pcd",
+            "ascii_organized.pcd",
+            "binary_compressed_organized.pcd",
+        ]
+        .iter()
+        .map(|n| read_seed(&real.join(n)))
+        .collect::<Result<_, _>>()?,
+        Target::E57 => vec![read_seed(&real.join("pipeSpherical.e57"))?],
         Target::Sbc => vec![
             written(work, "attrs.sbc", |p| {
                 scenes::colfile::write(p, &small_cloud(40, true)?)
@@ -521,6 +542,8 @@ fn reseal(name: &str, b: &mut [u8]) {
     } else if name == "lod.bin" && b.len() >= 24 {
         let sum = fnv(&b[24..]);
         mutate::put_le(b, 16, 8, sum);
+    } else if name.ends_with(".e57") {
+        mutate::reseal_e57(b);
     } else if name == "index.bin" && b.len() >= 24 {
         let sum = methods::store::checksum(&b[24..]);
         mutate::put_le(b, 16, 8, sum);
@@ -561,6 +584,7 @@ pub fn input(target: Target, corpus: &Corpus, seed: u64, i: u64) -> Input {
     let mut b = s.bytes.clone();
     let aware = |r: &mut Pcg32, b: &mut Vec<u8>| match target {
         Target::PlyAscii | Target::PlyBinary => mutate::ply(r, b),
+        Target::Pcd => mutate::pcd(r, b),
         Target::Las | Target::Laz => mutate::las(r, b),
         Target::SceneToml | Target::PathToml => mutate::toml(r, b),
         Target::Method(_) if s.name.ends_with(".json") => mutate::toml(r, b),
@@ -665,6 +689,18 @@ pub fn execute(
         Target::Las | Target::Laz => {
             write(&file, &input.bytes)?;
             scenes::las::read(&file)
+                .map(drop)
+                .map_err(|e| e.to_string())
+        }
+        Target::Pcd => {
+            write(&file, &input.bytes)?;
+            scenes::pcd::read(&file)
+                .map(drop)
+                .map_err(|e| e.to_string())
+        }
+        Target::E57 => {
+            write(&file, &input.bytes)?;
+            scenes::e57::read(&file)
                 .map(drop)
                 .map_err(|e| e.to_string())
         }

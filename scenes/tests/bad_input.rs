@@ -164,6 +164,19 @@ fn laz_items_must_match_the_record_length() {
         &b,
         &["item 0 (Point10) as 60 bytes", "the type has 20"],
     );
+    // Every item made extra bytes of size 0, and a record length of 0 to match: laz would
+    // split its buffer into records of 0 bytes.
+    let mut b = orig.clone();
+    for k in 0..3 {
+        b[items + 6 * k..items + 6 * k + 4].fill(0);
+    }
+    b[105..107].fill(0);
+    las_err(
+        dir.path(),
+        "zero.laz",
+        &b,
+        &["3 items of 0 bytes per point"],
+    );
     // Point record length 34 → 40 in the header.
     let mut b = orig.clone();
     b[105..107].copy_from_slice(&40u16.to_le_bytes());

@@ -369,3 +369,25 @@ fn occlusion_holds_back_occluded_nodes_and_reclaims_their_budget() {
         "reclaimed budget: {counted} splats now vs {visible_before} for the same region"
     );
 }
+
+#[test]
+fn an_index_claiming_gigabytes_for_a_chunk_is_an_error_not_an_abort() {
+    // Found by the fuzzer (target mwkd): index.bin with a chunk's decompressed length set to
+    // ~4 GiB and its checksum resealed; the store allocated that much before LZO failed, and
+    // under a memory limit the process aborted.
+    let cloud = Generator::Statue.generate(2000, 1).unwrap();
+    let tmp = tempfile::tempdir().unwrap();
+    build(&cloud, &["fanout=4", "vbo=100"], tmp.path());
+    let path = tmp.path().join("index.bin");
+    let mut nodes = index::read(&path).unwrap();
+    nodes[0].chunk.raw = u32::MAX - 8;
+    index::write(&path, &nodes).unwrap();
+    let e = Mwkd::open(tmp.path(), Manifest::read(tmp.path()).unwrap())
+        .map(drop)
+        .unwrap_err()
+        .to_string();
+    assert!(
+        e.contains("repo.bin") && e.contains("4294967287 decompressed bytes claimed"),
+        "{e}"
+    );
+}

@@ -776,3 +776,40 @@ fn colour_rule_raises_error_to_the_diameter() {
     let b = build_tree(&grey, &r, 1000.0);
     assert!(a.nodes.iter().zip(&b.nodes).all(|(x, y)| x.e_g == y.e_g));
 }
+
+#[test]
+fn index_json_counts_of_any_size_are_errors_not_overflows() {
+    // Found by the fuzzer (target spt, `fuzz` profile with overflow checks): index.json is
+    // plain JSON, and a node count of 2⁶³ − 1 overflowed `nodes × bytes per node` (a panic
+    // in debug builds, a wrapped and wrong size check in release).
+    let tmp = tempfile::tempdir().unwrap();
+    build_open(&statue(2000), &[], tmp.path()).unwrap();
+    let path = tmp.path().join("index.json");
+    let orig = std::fs::read_to_string(&path).unwrap();
+    let nodes = orig
+        .lines()
+        .find_map(|l| l.trim().strip_prefix("\"nodes\": "))
+        .unwrap()
+        .trim_end_matches(',')
+        .to_owned();
+    let open = |text: &str| {
+        std::fs::write(&path, text).unwrap();
+        Spt::open(tmp.path(), Manifest::read(tmp.path()).unwrap())
+            .map(drop)
+            .unwrap_err()
+            .to_string()
+    };
+    let e = open(&orig.replacen(
+        &format!("\"nodes\": {nodes}"),
+        "\"nodes\": 9223372036854775807",
+        1,
+    ));
+    assert!(e.contains("more than gpu_limit_mb"), "{e}");
+    // A cluster or chunk count near 2⁶⁴ in an otherwise valid index.
+    let e = open(&orig.replacen(
+        &format!("\"count\": {nodes}"),
+        "\"count\": 18446744073709551615",
+        1,
+    ));
+    assert!(e.contains("index.json"), "{e}");
+}

@@ -24,7 +24,12 @@
 //!   size can hold.
 //! - Errors are [`SceneError`]s naming the file: unreadable header, a file with 0 points,
 //!   truncated point data (naming the batch of points), non-finite coordinates (naming the
-//!   point).
+//!   point). Before the `las` crate sees the file, the header fields it and `laz` allocate or
+//!   compute by are checked against the file's size (`las_check.rs`: the LAZ chunk table and
+//!   layer sizes, the laszip items, the first EVLR, point count × record length), as are the
+//!   scale factors and trailing point records; each failure names the field and the byte. A
+//!   panic inside the crates (the `laz` decoder asserts on some corrupted chunks) is caught
+//!   and returned as an error naming the file.
 //!
 //! # Writing ([`write()`])
 //! - LAS 1.2 (1.4 above 2³² − 1 points), point format 2 (with RGB, each 8-bit channel × 257 so
@@ -203,6 +208,15 @@ pub fn read(path: &Path) -> Result<PointCloud, SceneError> {
 
 /// [`read`], and the per-point values of `want` (intensity or classification) when asked.
 pub fn read_with(
+    path: &Path,
+    want: Option<Scalar>,
+) -> Result<(PointCloud, Option<Vec<f32>>), SceneError> {
+    crate::las_check::check(path)?;
+    crate::las_check::contained(path, || read_checked(path, want))
+}
+
+/// [`read_with`] after the header checks, with panics of the crates not yet contained.
+fn read_checked(
     path: &Path,
     want: Option<Scalar>,
 ) -> Result<(PointCloud, Option<Vec<f32>>), SceneError> {

@@ -23,6 +23,7 @@ pub mod framing;
 pub mod generators;
 pub mod hash;
 pub mod las;
+mod las_check;
 pub mod paths;
 pub mod pcd;
 pub mod ply;

@@ -518,8 +518,11 @@ impl Spt {
             std::fs::read_to_string(&index_path).map_err(|e| MethodError::io(&index_path, e))?;
         let index: Index = serde_json::from_str(&text)
             .map_err(|e| MethodError::corrupt(&index_path, e.to_string()))?;
-        let bytes = index.nodes * gpu_bytes_per_node(manifest.attributes);
-        let limit = params.gpu_limit_mb * (1 << 20);
+        // index.json is not checksummed: its counts are any u64, and must not overflow.
+        let bytes = index
+            .nodes
+            .saturating_mul(gpu_bytes_per_node(manifest.attributes));
+        let limit = params.gpu_limit_mb.saturating_mul(1 << 20);
         if bytes > limit {
             return Err(MethodError::Limit(format!(
                 "spt: the model needs {:.1} MiB of GPU memory ({} nodes × {} bytes, all resident), \
@@ -558,12 +561,14 @@ impl Spt {
                     ),
                 ));
             }
-            next += c.count;
+            next = next.saturating_add(c.count);
         }
         let mut cnext = 0u64;
         for (i, c) in index.chunks.iter().enumerate() {
             let in_cluster = index.clusters.get(c.cluster as usize).is_some_and(|cl| {
-                c.start >= cl.start && c.start + c.count as u64 <= cl.start + cl.count
+                c.start >= cl.start
+                    && c.start.saturating_add(u64::from(c.count))
+                        <= cl.start.saturating_add(cl.count)
             });
             if c.start != cnext || c.count == 0 || !in_cluster {
                 return Err(MethodError::corrupt(
@@ -574,7 +579,7 @@ impl Spt {
                     ),
                 ));
             }
-            cnext += c.count as u64;
+            cnext = cnext.saturating_add(u64::from(c.count));
         }
         if next != index.nodes || cnext != index.nodes {
             return Err(MethodError::corrupt(

@@ -89,8 +89,32 @@ pub fn compress(raw: &[u8]) -> Vec<u8> {
     lzo1x::compress(raw, lzo1x::CompressLevel::default())
 }
 
+/// Most bytes LZO1X can make of one stored byte, over a whole chunk: a run's length is
+/// extended by 255 per zero byte of its instruction, and no instruction does better; the
+/// constant covers the first instruction's fixed part. See [`max_raw_len`].
+const LZO_MAX_RATIO: usize = 256;
+
+/// The longest decompressed length `stored` bytes of LZO1X can have. A chunk reference
+/// claiming more is corrupt: decompressing it would only allocate its claimed length (up to
+/// 4 GiB, an abort when memory is short) before failing.
+pub fn max_raw_len(stored: usize) -> usize {
+    stored
+        .saturating_mul(LZO_MAX_RATIO)
+        .saturating_add(LZO_MAX_RATIO)
+}
+
 /// Decompresses `stored` into exactly `raw_len` bytes; `what` names the chunk in the error.
+/// A `raw_len` more than LZO1X can make of `stored` ([`max_raw_len`]) is an error, checked
+/// before anything is allocated.
 pub fn decompress(stored: &[u8], raw_len: usize, what: &str) -> Result<Vec<u8>, String> {
+    if raw_len > max_raw_len(stored.len()) {
+        return Err(format!(
+            "{what}: {raw_len} decompressed bytes claimed from {} stored bytes, more than \
+             LZO can make of them (at most {})",
+            stored.len(),
+            max_raw_len(stored.len())
+        ));
+    }
     let mut out = vec![0u8; raw_len];
     lzo1x::decompress(stored, &mut out)
         .map_err(|e| format!("{what}: LZO decompression failed: {e:?}"))?;
@@ -284,6 +308,31 @@ mod tests {
             }
         }
         assert_ne!(checksum(&data[..999]), h);
+    }
+
+    #[test]
+    fn raw_length_beyond_what_lzo_can_expand_is_an_error_before_allocating() {
+        // The most compressible inputs stay within the bound.
+        for n in [0usize, 1, 100, 4096, 1 << 22] {
+            for fill in [0u8, 0xaa] {
+                let raw = vec![fill; n];
+                let stored = compress(&raw);
+                assert!(
+                    n <= max_raw_len(stored.len()),
+                    "{n} bytes stored in {}",
+                    stored.len()
+                );
+                assert_eq!(decompress(&stored, n, "chunk"), Ok(raw));
+            }
+        }
+        // Found by the fuzzer (target mwkd, index.bin resealed): a reference claiming
+        // ~4 GiB from a few hundred stored bytes made `vec![0; raw]` abort the process.
+        let stored = compress(&[7u8; 5000]);
+        let e = decompress(&stored, u32::MAX as usize, "node 3").unwrap_err();
+        assert!(
+            e.contains("node 3") && e.contains("more than LZO can make"),
+            "{e}"
+        );
     }
 
     #[test]

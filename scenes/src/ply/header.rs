@@ -53,6 +53,31 @@ impl Scalar {
     pub(super) fn is_integer(self) -> bool {
         !matches!(self, Scalar::F32 | Scalar::F64)
     }
+    /// The type's name in a header (the classic names).
+    pub(super) fn name(self) -> &'static str {
+        match self {
+            Scalar::I8 => "char",
+            Scalar::U8 => "uchar",
+            Scalar::I16 => "short",
+            Scalar::U16 => "ushort",
+            Scalar::I32 => "int",
+            Scalar::U32 => "uint",
+            Scalar::F32 => "float",
+            Scalar::F64 => "double",
+        }
+    }
+    /// The smallest and largest value of an integer type (`None` for floats).
+    pub(super) fn int_range(self) -> Option<(i64, i64)> {
+        Some(match self {
+            Scalar::I8 => (i8::MIN.into(), i8::MAX.into()),
+            Scalar::U8 => (0, u8::MAX.into()),
+            Scalar::I16 => (i16::MIN.into(), i16::MAX.into()),
+            Scalar::U16 => (0, u16::MAX.into()),
+            Scalar::I32 => (i32::MIN.into(), i32::MAX.into()),
+            Scalar::U32 => (0, u32::MAX.into()),
+            Scalar::F32 | Scalar::F64 => return None,
+        })
+    }
 }
 
 #[derive(Debug, Clone, Copy)]

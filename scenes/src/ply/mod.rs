@@ -6,8 +6,18 @@
 //!   `property list CTYPE ITYPE NAME`, `end_header`. Every PLY scalar type: `char`/`int8`,
 //!   `uchar`/`uint8`, `short`/`int16`, `ushort`/`uint16`, `int`/`int32`, `uint`/`uint32`,
 //!   `float`/`float32`, `double`/`float64`. Elements other than `vertex` and `face` (`edge`,
-//!   `material`, …) are skipped in all three formats, list properties included; elements after
-//!   the last one needed are not read at all.
+//!   `material`, …) are skipped in all three formats, list properties included (fixed-size
+//!   binary elements by a seek), so that what follows the last element can be checked.
+//! - The body must end with the last element: bytes after it (binary) or non-blank lines
+//!   after it (ascii) are an error naming the byte offset and count, or the line — that is
+//!   what a header under-counting its vertices looks like, and reading on would silently
+//!   drop them.
+//! - A body of ascii text under a `binary_*` header is an error, not garbage coordinates.
+//!   The rule: the first 64 bytes of the body (all of it if shorter, and at least 8) hold
+//!   only the characters of ascii numbers (`0-9 + - . e E`, space, tab, `\r`, `\n`), at least
+//!   one digit and at least one newline. Binary records almost never do: a float whose four
+//!   bytes are such characters is below 10⁻⁸ or above 10⁸ in magnitude, and 64 such bytes in
+//!   a row with a newline among them do not occur in real binary data.
 //! - `vertex`: `x`, `y`, `z` (required, any numeric type, read as `f64`); `nx`, `ny`, `nz`
 //!   (optional, renormalised; if any is zero or not finite the column is dropped with a
 //!   warning naming the count and the first such vertex — with faces, normals are then
@@ -57,8 +67,10 @@
 //! (ascii; numbered from the top of the file), or element, record index and property
 //! (binary): missing `ply` magic, unknown format, no `end_header`, no `vertex` element or a
 //! count of 0, missing `x`/`y`/`z`, truncated data ("unexpected end of file in vertex 17 of
-//! 100"), too few / too many / non-numeric values on an ascii line, negative or oversized list
-//! counts, face indices out of range, non-finite coordinates. Reading never
+//! 100"), too few / too many / non-numeric values on an ascii line, a fractional or
+//! out-of-range value for an integer property (`0.302` or `300` for a `uchar`), negative or
+//! oversized list counts, face indices out of range, non-finite coordinates, data after the
+//! last element, an ascii body under a binary header. Reading never
 //! panics, and no allocation is sized by a header count alone: pre-allocation is capped by
 //! what the remaining file bytes can hold.
 //!
@@ -93,7 +105,7 @@ mod vertices;
 mod write;
 
 use faces::{face_list, read_faces, skip_element};
-use header::parse_header;
+use header::{Encoding, parse_header};
 use input::Input;
 use mesh::{mesh_normals, mesh_radii, sample_surface};
 use vertices::{Vertices, read_vertices, select_vertex};
@@ -216,10 +228,10 @@ pub fn read_noted(path: &Path, opts: &PlyOptions) -> Result<(PointCloud, Vec<Str
     let mut verts = None;
     let mut tris = None;
     let mut line_no = header.lines;
+    if let Encoding::Binary { big_endian } = header.encoding {
+        reject_ascii_body(&mut input, big_endian, path)?;
+    }
     for (ei, el) in header.elements.iter().enumerate() {
-        if verts.is_some() && (face.is_none() || tris.is_some()) {
-            break; // the rest of the file is not needed
-        }
         if ei == vi {
             verts = Some(read_vertices(
                 &mut input,
@@ -245,6 +257,7 @@ pub fn read_noted(path: &Path, opts: &PlyOptions) -> Result<(PointCloud, Vec<Str
             skip_element(&mut input, &header, el, &mut line_no, path)?;
         }
     }
+    check_body_end(&mut input, &header, line_no, path)?;
     let mut verts = verts.ok_or_else(|| ferr(path, "the vertex element could not be read"))?;
     let tris = tris.unwrap_or_default();
     let mut warnings = Vec::new();
@@ -267,6 +280,89 @@ pub fn read_noted(path: &Path, opts: &PlyOptions) -> Result<(PointCloud, Vec<Str
         verts.normals = None;
     }
     Ok((assemble(path, verts, &tris, opts)?, warnings))
+}
+
+/// Characters of an ascii PLY body of numbers.
+fn ascii_number_byte(b: u8) -> bool {
+    b.is_ascii_digit()
+        || matches!(
+            b,
+            b'+' | b'-' | b'.' | b'e' | b'E' | b' ' | b'\t' | b'\r' | b'\n'
+        )
+}
+
+/// Rejects an ascii body under a binary header (the rule is in the module docs).
+fn reject_ascii_body(input: &mut Input, big_endian: bool, path: &Path) -> Result<(), SceneError> {
+    const WINDOW: usize = 64;
+    let want = usize::try_from(input.remaining()).map_or(WINDOW, |r| r.min(WINDOW));
+    if want < 8 {
+        return Ok(());
+    }
+    input.fill(want).map_err(|e| SceneError::io(path, e))?;
+    let head = &input.avail()[..want.min(input.avail().len())];
+    if head.iter().all(|&b| ascii_number_byte(b))
+        && head.contains(&b'\n')
+        && head.iter().any(u8::is_ascii_digit)
+    {
+        let first = head.split(|&b| b == b'\n').next().unwrap_or_default();
+        return Err(ferr(
+            path,
+            format!(
+                "the header declares format {} but the body (from byte {}) is ascii text \
+                 ('{}'): the format line is wrong",
+                if big_endian {
+                    "binary_big_endian"
+                } else {
+                    "binary_little_endian"
+                },
+                input.position(),
+                excerpt(String::from_utf8_lossy(first).trim_end())
+            ),
+        ));
+    }
+    Ok(())
+}
+
+/// After the last element: nothing but the end of the file (ascii: blank lines).
+fn check_body_end(
+    input: &mut Input,
+    header: &header::Header,
+    mut line_no: u64,
+    path: &Path,
+) -> Result<(), SceneError> {
+    let last = header
+        .elements
+        .last()
+        .map_or_else(|| "header".to_owned(), |e| format!("element '{}'", e.name));
+    match header.encoding {
+        Encoding::Ascii => {
+            if let Some((n, line)) = records::next_ascii_line(input, &mut line_no, path)? {
+                return Err(ferr(
+                    path,
+                    format!(
+                        "line {n}: '{}' follows the last {last} (the header's counts are too \
+                         small, or the file has text after its data)",
+                        excerpt(line.trim())
+                    ),
+                ));
+            }
+        }
+        Encoding::Binary { .. } => {
+            let extra = input.remaining();
+            if extra > 0 {
+                return Err(ferr(
+                    path,
+                    format!(
+                        "{extra} bytes follow the last {last}, from byte {} to the end of the \
+                         file (the header's counts are too small, or the file has data after \
+                         its elements)",
+                        input.position()
+                    ),
+                ));
+            }
+        }
+    }
+    Ok(())
 }
 
 /// Maps a [`SceneError::InvalidCloud`] from validation to a format error naming the file.

@@ -215,11 +215,29 @@ pub(super) fn parse_ascii_record(
     };
     for (k, p) in el.props.iter().enumerate() {
         match p.ty {
-            PropType::Scalar(_) => {
+            PropType::Scalar(s) => {
                 let t = next(&p.name)?;
-                values[k] = t.parse::<f64>().map_err(|_| {
+                let v = t.parse::<f64>().map_err(|_| {
                     format!("property '{}': '{}' is not a number", p.name, excerpt(t))
                 })?;
+                if let Some((lo, hi)) = s.int_range() {
+                    let why = if !v.is_finite() || v.fract() != 0.0 {
+                        Some("is not an integer".to_owned())
+                    } else if v < lo as f64 || v > hi as f64 {
+                        Some(format!("is outside its range {lo}..={hi}"))
+                    } else {
+                        None
+                    };
+                    if let Some(why) = why {
+                        return Err(format!(
+                            "property '{}' ({}): '{}' {why}",
+                            p.name,
+                            s.name(),
+                            excerpt(t)
+                        ));
+                    }
+                }
+                values[k] = v;
             }
             PropType::List { .. } => {
                 let t = next(&p.name)?;

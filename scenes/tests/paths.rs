@@ -685,10 +685,14 @@ fn rejects_degenerate_views() {
         &file("", "", "position = [0.0, 0.0, 0.0]"),
         &["key[1]", "position is at the target"],
     );
-    // 1e-7 from the target at unit scale: not "equal", but below what f32 resolves (issue
-    // 13, item 7: the message said "position equals target").
+    // 1e-7 from a target at unit distance from the origin: not "equal", but below what the
+    // view maths resolve (issue 13, item 7: the message said "position equals target").
     assert_rejects(
-        &file("", "", "position = [1e-7, 0.0, 0.0]"),
+        &file(
+            "",
+            "",
+            "position = [1.0, 0.0, 0.0]\ntarget = [1.0000001, 0.0, 0.0]",
+        ),
         &["key[1]", "closer to it than 1e-6"],
     );
     assert_rejects(

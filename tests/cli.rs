@@ -598,7 +598,7 @@ fn run_reuses_an_existing_build() {
         csv.lines()
             .next()
             .unwrap()
-            .ends_with("clouds_queried,clouds_occluded")
+            .ends_with("clouds_queried,clouds_occluded,chunks_failed")
     );
 }
 

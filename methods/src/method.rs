@@ -235,7 +235,7 @@ pub fn check_budget_above_root(
     root: Option<u32>,
 ) -> Result<(), MethodError> {
     match (target, root) {
-        (Target::Budget(b), Some(r)) if b < u64::from(r) => Err(MethodError::Param(format!(
+        (Target::Budget(b), Some(r)) if b < u64::from(r) => Err(MethodError::Target(format!(
             "method '{method}': --budget {b} is smaller than its {what} of {r} points, the \
              least it can draw (the papers refine from the root): give --budget {r} or more"
         ))),

@@ -2,11 +2,13 @@
 //! intensity — and the colours splatbench shades them with (`--shading intensity` and
 //! `--shading classification`).
 //!
-//! A scalar is read only when a run asks to shade by it, and it reaches the methods as the
-//! cloud's colour column ([`SceneSpec::colour_from`](crate::SceneSpec::colour_from)): every
-//! method then stores, streams and draws it as it does any colour (QSplat and LPC quantise
-//! it, SPT and MWKD keep 8 bits), the reference included, and no method carries a column it
-//! does not draw. A run without such shading never reads the scalar.
+//! A scalar reaches the methods only as the cloud's colour column, and only when a run
+//! shades by it ([`SceneSpec::colour_from`](crate::SceneSpec::colour_from)): every method
+//! then stores, streams and draws it as it does any colour (QSplat and LPC quantise it, SPT
+//! and MWKD keep 8 bits), the reference included, and no method carries a column it does
+//! not draw. The LAS reader decodes it only when asked; the PCD and E57 readers keep their
+//! intensity field with the points (4 bytes a point while loading) and the loader drops it
+//! unless asked.
 //!
 //! - **Intensity** → grey, linear in the sRGB-encoded value over the robust range: the 1 %
 //!   and 99 % quantiles of the cloud's intensities map to 0 and 255, values beyond clamp

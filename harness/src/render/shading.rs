@@ -97,11 +97,6 @@ impl Shading {
         }
     }
 
-    /// True when the Lambert term applies (`auto` unresolved counts as `lambert`).
-    pub fn lit(self) -> bool {
-        matches!(self, Shading::Auto | Shading::Lambert)
-    }
-
     /// The shader's `frame.shading` code: 0 lit, 1 unlit, 2 elevation ramp.
     pub fn shader_code(self) -> u32 {
         match self {
@@ -187,6 +182,26 @@ mod tests {
         assert_eq!(Shading::Auto.resolve(a(false, false)), Shading::Edl);
         for &s in &Shading::ALL[1..] {
             assert_eq!(s.resolve(a(false, false)), s);
+        }
+    }
+
+    /// `splat.wgsl` spells the ramp's stops out; they must be these.
+    #[test]
+    fn shader_ramp_is_the_rust_ramp() {
+        let stops: Vec<String> = ELEVATION_STOPS
+            .iter()
+            .map(|c| format!("vec3<f32>({:.1}, {:.1}, {:.1})", c[0], c[1], c[2]))
+            .collect();
+        let wgsl = super::super::SPLAT_WGSL;
+        let at = wgsl.find("const RAMP").expect("RAMP in splat.wgsl");
+        let ramp = &wgsl[at..at + wgsl[at..].find(");").unwrap()];
+        assert_eq!(
+            ramp.matches("vec3<f32>(").count(),
+            stops.len(),
+            "{ramp}"
+        );
+        for s in &stops {
+            assert!(ramp.contains(s.as_str()), "{s} not in {ramp}");
         }
     }
 

@@ -100,8 +100,8 @@ pub struct Built {
     pub true_normals: Vec<Vec<Vec3>>,
 }
 
-/// A sphere code and the sphere it decodes to.
-type Encoded = (u16, (Vec3, f32));
+/// A sphere code, the sphere it decodes to, and the absolute margin it was encoded with.
+type Encoded = (u16, (Vec3, f32), f64);
 
 /// Where a range is split (`--param split=`).
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Default, serde::Deserialize, serde::Serialize)]
@@ -436,16 +436,21 @@ pub fn build_tree_with(
 
     // Top-down quantisation.
     let root = truth[0][0];
-    let margin = quant::abs_margin(root.c.abs().max_element() + root.r);
-    // The stored root sphere is the true one grown by the margins, so every child satisfies
-    // `encode_sphere`'s precondition (and inductively every level below).
+    // Each sphere's absolute margin is taken from its own coordinates (`quant::abs_margin`
+    // of its |centre| + radius), capped by its parent's: a child inside its parent has
+    // `|c|∞ + r ≤ |C|∞ + R`, so the cap only absorbs `f32` rounding, and margins shrink down
+    // the tree. The stored root sphere is the true one grown by its margins, so every child
+    // satisfies `encode_sphere`'s precondition (and inductively every level below).
+    let sphere_margin = |t: &TrueNode| quant::abs_margin(t.c.abs().max_element() + t.r);
+    let root_margin = sphere_margin(&root);
     let root_r = f32_up(quant::needed_radius(
         root.c.as_dvec3(),
         root.c.as_dvec3(),
         root.r as f64,
-        margin,
+        root_margin,
     ));
     let mut decoded: Vec<Vec<(Vec3, f32)>> = vec![vec![(root.c, root_r)]];
+    let mut margins: Vec<Vec<f64>> = vec![vec![root_margin]];
     let mut sphere_codes: Vec<Vec<u16>> = vec![vec![0]];
     for l in 1..ranges.len() {
         let starts = &child_start[l - 1];
@@ -456,15 +461,16 @@ pub fn build_tree_with(
                 (starts[p + 1] - starts[p]) as usize,
             ));
         }
-        let pdec = &decoded[l - 1];
+        let (pdec, pmargin) = (&decoded[l - 1], &margins[l - 1]);
         let res: Result<Vec<Encoded>, MethodError> = truth[l]
             .par_iter()
             .zip(parent.par_iter())
             .enumerate()
             .map(|(i, (t, &p))| {
                 let (pc, pr) = pdec[p as usize];
+                let margin = sphere_margin(t).min(pmargin[p as usize]);
                 quant::encode_sphere(pc, pr, t.c, t.r, margin)
-                    .map(|(code, c, r)| (code as u16, (c, r)))
+                    .map(|(code, c, r)| (code as u16, (c, r), margin))
                     .ok_or_else(|| {
                         MethodError::Limit(format!(
                             "qsplat: node {i} of level {l} has no enclosing sphere code \
@@ -474,9 +480,10 @@ pub fn build_tree_with(
                     })
             })
             .collect();
-        let (codes, dec): (Vec<u16>, Vec<(Vec3, f32)>) = res?.into_iter().unzip();
-        sphere_codes.push(codes);
-        decoded.push(dec);
+        let res = res?;
+        sphere_codes.push(res.iter().map(|e| e.0).collect());
+        decoded.push(res.iter().map(|e| e.1).collect());
+        margins.push(res.iter().map(|e| e.2).collect());
     }
 
     let has_c = colors.is_some();

@@ -80,9 +80,12 @@ pub fn decode_sphere(pc: Vec3, pr: f32, code: u32) -> Option<(Vec3, f32)> {
 /// Relative margin every decoded sphere keeps beyond the true one.
 pub const REL_MARGIN: f64 = 1e-5;
 
-/// The absolute margin for a tree whose coordinates reach `extent` (max |coordinate| +
-/// root radius): `1e-6·extent`, ≈ 8 `f32` ulp of the largest coordinate, so that `f32`
-/// culling of a decoded sphere never rejects a point of the true one.
+/// The absolute margin for a sphere whose coordinates reach `extent` (max |centre
+/// coordinate| + radius): `1e-6·extent`, ≈ 8 `f32` ulp of its largest coordinate, so that
+/// `f32` culling of the decoded sphere never rejects a point of the true one. The build takes
+/// it per sphere (capped by the parent's), not from the root: one stray sample 6,000 km away
+/// would otherwise give every leaf of a 1 km tile a 6 m margin, and the 1/13 radius steps
+/// then keep every sphere below it near that size.
 pub fn abs_margin(extent: f32) -> f64 {
     1e-6 * extent as f64
 }

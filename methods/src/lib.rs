@@ -30,6 +30,7 @@ pub mod qsplat;
 pub mod registry;
 pub mod spt;
 pub mod store;
+pub mod strays;
 
 pub use draw::{
     ChunkId, DrawItem, DrawList, Feedback, IntervalTest, OcclusionCandidate, OcclusionPass,

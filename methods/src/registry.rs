@@ -5,6 +5,7 @@ use std::path::Path;
 
 use scenes::{PointCloud, Progress};
 
+use crate::strays::{self, Strays};
 use crate::{BuildStats, LodMethod, Manifest, MethodError, Params, full, lpc, mwkd, qsplat, spt};
 
 /// Every registered method.
@@ -82,6 +83,7 @@ impl MethodKind {
 
     /// Checks `params` against the method's parameter struct without building.
     pub fn check_params(self, params: &Params) -> Result<(), MethodError> {
+        let (_, params) = &strays::split_params(params)?;
         match self {
             MethodKind::Full => params.to_typed::<full::FullParams>(self.name()).map(drop),
             MethodKind::Qsplat => qsplat::QsplatParams::from_params(params).map(drop),
@@ -101,15 +103,30 @@ impl MethodKind {
         progress: &dyn Progress,
     ) -> Result<BuildStats, MethodError> {
         std::fs::create_dir_all(dir).map_err(|e| MethodError::io(dir, e))?;
-        let stats = match self {
+        let stats = match strays::split_params(params)? {
+            (Strays::In, own) => self.build_method(cloud, &own, scene, dir, progress)?,
+            (Strays::Apart, own) => strays::build(self, cloud, params, &own, scene, dir, progress)?,
+        };
+        stats.write(dir)?;
+        Ok(stats)
+    }
+
+    /// The method's own build (its parameters without [`strays::PARAM`]).
+    pub(crate) fn build_method(
+        self,
+        cloud: &PointCloud,
+        params: &Params,
+        scene: &str,
+        dir: &Path,
+        progress: &dyn Progress,
+    ) -> Result<BuildStats, MethodError> {
+        match self {
             MethodKind::Full => full::build(cloud, params, scene, dir, progress),
             MethodKind::Qsplat => qsplat::build(cloud, params, scene, dir, progress),
             MethodKind::Spt => spt::build(cloud, params, scene, dir, progress),
             MethodKind::Lpc => lpc::build(cloud, params, scene, dir, progress),
             MethodKind::Mwkd => mwkd::build(cloud, params, scene, dir, progress),
-        }?;
-        stats.write(dir)?;
-        Ok(stats)
+        }
     }
 
     /// Parameters that only steer rendering (read at `open`, not used by `build`): a run of
@@ -147,13 +164,19 @@ impl MethodKind {
             }
             manifest.params.0.insert(k.clone(), v.clone());
         }
+        let (rule, own) = strays::split_params(&manifest.params)?;
+        manifest.params = own;
         kind.check_params(&manifest.params)?;
-        match Self::from_name(&manifest.method)? {
-            MethodKind::Full => Ok(Box::new(full::Full::open(dir, manifest)?)),
-            MethodKind::Qsplat => Ok(Box::new(qsplat::Qsplat::open(dir, manifest)?)),
-            MethodKind::Spt => Ok(Box::new(spt::Spt::open(dir, manifest)?)),
-            MethodKind::Lpc => Ok(Box::new(lpc::Lpc::open(dir, manifest)?)),
-            MethodKind::Mwkd => Ok(Box::new(mwkd::Mwkd::open(dir, manifest)?)),
+        let inner: Box<dyn LodMethod> = match kind {
+            MethodKind::Full => Box::new(full::Full::open(dir, manifest)?),
+            MethodKind::Qsplat => Box::new(qsplat::Qsplat::open(dir, manifest)?),
+            MethodKind::Spt => Box::new(spt::Spt::open(dir, manifest)?),
+            MethodKind::Lpc => Box::new(lpc::Lpc::open(dir, manifest)?),
+            MethodKind::Mwkd => Box::new(mwkd::Mwkd::open(dir, manifest)?),
+        };
+        match rule {
+            Strays::In => Ok(inner),
+            Strays::Apart => strays::Apart::open(dir, inner),
         }
     }
 }

@@ -72,15 +72,13 @@ pub fn inlier_origin(world: &[[f64; 3]], lo: glam::DVec3, hi: glam::DVec3) -> Op
     (!inside).then(|| (qlo + qhi) * 0.5)
 }
 
-/// The inlier bounds of `cloud` (see the module docs).
-pub fn framing(cloud: &PointCloud) -> Framing {
+/// The inlier box of `cloud` (the quantile box grown by the margin, see the module docs):
+/// a sample is an inlier when it lies inside it (bounds included). `None` when every sample
+/// does, or the cloud has fewer than 3 samples.
+pub fn inlier_box(cloud: &PointCloud) -> Option<Aabb> {
     let p = cloud.positions();
-    let all = Framing {
-        framed: cloud.bounds(),
-        outside: 0,
-    };
     if p.len() < 3 {
-        return all;
+        return None;
     }
     let (lo, hi) = quantile_box(p, f32::total_cmp);
     let (lo, hi) = (glam::Vec3::from(lo), glam::Vec3::from(hi));
@@ -90,9 +88,25 @@ pub fn framing(cloud: &PointCloud) -> Framing {
         max: hi + m,
     };
     let b = cloud.bounds();
-    if inlier.min.cmple(b.min).all() && inlier.max.cmpge(b.max).all() {
-        return all;
-    }
+    (!(inlier.min.cmple(b.min).all() && inlier.max.cmpge(b.max).all())).then_some(inlier)
+}
+
+/// True if `v` is an inlier of `inlier` ([`inlier_box`]).
+#[inline]
+pub fn is_inlier(inlier: &Aabb, v: [f32; 3]) -> bool {
+    let v = glam::Vec3::from(v);
+    v.cmpge(inlier.min).all() && v.cmple(inlier.max).all()
+}
+
+/// The inlier bounds of `cloud` (see the module docs).
+pub fn framing(cloud: &PointCloud) -> Framing {
+    let p = cloud.positions();
+    let Some(inlier) = inlier_box(cloud) else {
+        return Framing {
+            framed: cloud.bounds(),
+            outside: 0,
+        };
+    };
     use rayon::prelude::*;
     const BLOCK: usize = 1 << 20;
     let (framed, outside) = (0..p.len().div_ceil(BLOCK))
@@ -100,10 +114,9 @@ pub fn framing(cloud: &PointCloud) -> Framing {
         .map(|k| {
             let r = k * BLOCK..((k + 1) * BLOCK).min(p.len());
             let mut acc = (Aabb::EMPTY, 0u64);
-            for v in &p[r.clone()] {
-                let v = glam::Vec3::from(*v);
-                if v.cmpge(inlier.min).all() && v.cmple(inlier.max).all() {
-                    acc.0 = acc.0.grow(v);
+            for &v in &p[r.clone()] {
+                if is_inlier(&inlier, v) {
+                    acc.0 = acc.0.grow(glam::Vec3::from(v));
                 } else {
                     acc.1 += 1;
                 }

@@ -180,6 +180,15 @@ fn quantisation_error_below_half_the_input_spacing() {
         cover.input_spacing,
         info.input_spacing
     );
+    // `area` is the occupancy-area estimate over the samples, exactly (no strays here, so
+    // over the cloud's bounds), and changes r only.
+    let d4 = tempfile::tempdir().unwrap();
+    let (_, _, area) = build_read(&c, &["m=256", "spacing_rule=area"], d4.path(), None);
+    assert_eq!(area.nn_spacing, r, "the rule changes r only");
+    assert_eq!(
+        area.input_spacing,
+        scenes::spacing::area_spacing(c.positions(), c.bounds())
+    );
     assert_eq!(exact_nodes.len(), nodes.len());
     check_tree(&nodes, &coarse, 20_000, 256);
     check_bounds(&nodes, &coarse);

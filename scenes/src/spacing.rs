@@ -285,6 +285,66 @@ impl Knn {
     }
 }
 
+/// At most this many evenly strided samples measure the occupancy area of [`area_spacing`].
+pub const AREA_SAMPLES: usize = 1 << 20;
+
+/// Cells across the largest extent of `bounds` at which [`area_spacing`] measures the area.
+pub const AREA_CELLS: f32 = 64.0;
+
+/// The area per sample `√(A/N)` of the surface the `positions` sample, with `A` measured as
+/// an **occupancy area**: the number of occupied cubic cells of side `c` times `c²`, counted
+/// over at most [`AREA_SAMPLES`] evenly strided samples inside `bounds` (the cloud's bounds,
+/// or the camera framing's inlier box so that far strays do not set the scale; samples
+/// outside are not counted). The cell is `c = max(E / AREA_CELLS, 4·√(F/n))`, with `E` the
+/// largest extent of `bounds`, `F` its largest face's area and `n` the samples counted: fine
+/// enough to follow the surface, and (the second term) about 4× the spacing the samples
+/// would have if they covered that face evenly, so that a surface sampled in lines or
+/// clusters (an aerial tile scanned in lines: 0.15 m along a line, 4.5 m between lines)
+/// still occupies every cell it crosses. Nearest-neighbour estimates see only the spacing
+/// along such a line.
+///
+/// Exact (to the cells cut by the border) for a plane parallel to a face of the cells. A
+/// plane of unit normal `m` crosses `‖m‖₁` cells per `c²` of its area, so a curved surface's
+/// `A` is overestimated by the mean `‖m‖₁` over its normals (1.5 averaged over all
+/// directions, at most √3), and its spacing by the square root of that (≈ 1.22). A surface
+/// thinner than the cell but noisy counts as a surface; a volume-filling cloud (fog, a
+/// dense point set with no surface) counts the cells it fills, each as `c²`.
+///
+/// Returns `NaN` when no sample lies in `bounds` or the bounds have no extent.
+pub fn area_spacing(positions: &[[f32; 3]], bounds: crate::Aabb) -> f32 {
+    let stride = positions.len().div_ceil(AREA_SAMPLES).max(1);
+    let inside = |p: &&[f32; 3]| {
+        let v = glam::Vec3::from(**p);
+        v.cmpge(bounds.min).all() && v.cmple(bounds.max).all()
+    };
+    let n = positions.iter().step_by(stride).filter(inside).count();
+    let size = bounds.size();
+    let extent = size.max_element();
+    if n == 0 || !(extent > 0.0) || !extent.is_finite() {
+        return f32::NAN;
+    }
+    let face = (size.x * size.y).max(size.y * size.z).max(size.z * size.x);
+    let cell = (extent / AREA_CELLS).max(4.0 * (face / n as f32).sqrt());
+    // 21 bits per axis: at most 2²¹ cells across, far more than E / c ≤ AREA_CELLS.
+    let key = |p: &[f32; 3]| {
+        let q = |a: usize| (((p[a] - bounds.min[a]) / cell) as u64).min((1 << 21) - 1);
+        q(0) | q(1) << 21 | q(2) << 42
+    };
+    let mut keys: Vec<u64> = positions
+        .iter()
+        .step_by(stride)
+        .filter(inside)
+        .map(key)
+        .collect();
+    keys.par_sort_unstable();
+    keys.dedup();
+    let area = keys.len() as f64 * (cell as f64).powi(2);
+    // The strided samples stand for all the samples inside: scale the count back.
+    let all = (n as f64 * positions.len() as f64 / positions.iter().step_by(stride).count() as f64)
+        .max(1.0);
+    (area / all).sqrt() as f32
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;

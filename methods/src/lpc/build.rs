@@ -166,6 +166,13 @@ pub fn build_with_budget(
     let bounds = cloud.bounds();
     let probe_count = probes.len() as u64;
     let (r_est, nn_est) = spacing_estimates(&mut probes, params.spacing_rule);
+    let r_est = match params.spacing_rule {
+        SpacingRule::Area => {
+            let framed = scenes::framing::inlier_box(cloud).unwrap_or(bounds);
+            scenes::spacing::area_spacing(cloud.positions(), framed)
+        }
+        _ => r_est,
+    };
     let r = match params.spacing {
         Some(r) => r,
         None => {
@@ -1310,7 +1317,8 @@ pub const MEAN_SPACING_FACTOR: f64 = 120.0 * 64.0 / 10395.0;
 /// `(r, r_nn)` from the probes' `[nearest, LEAF_K-th]` distances. `r` by `rule`:
 /// [`SpacingRule::Mean`] `= MEAN_SPACING_FACTOR × mean d_k` (the paper's average spacing
 /// `√(A/N)`), [`SpacingRule::Cover90`] `= 2 ×` the [`SPACING_QUANTILE`] of `d_k` (the splat
-/// diameter that covers 90 % of the samples' own reference discs). `r_nn` = the mean
+/// diameter that covers 90 % of the samples' own reference discs); NaN for [`SpacingRule::Area`],
+/// which `build` measures on the samples. `r_nn` = the mean
 /// nearest-neighbour distance (quantisation). NaN when there are no probes.
 pub fn spacing_estimates(probes: &mut [[f32; 2]], rule: SpacingRule) -> (f32, f32) {
     if probes.is_empty() {
@@ -1325,6 +1333,8 @@ pub fn spacing_estimates(probes: &mut [[f32; 2]], rule: SpacingRule) -> (f32, f3
             let at = ((probes.len() - 1) as f64 * SPACING_QUANTILE).round() as usize;
             2.0 * probes[at][1]
         }
+        // Measured on the samples, not the probes (`build`).
+        SpacingRule::Area => f32::NAN,
     };
     (r, nn as f32)
 }

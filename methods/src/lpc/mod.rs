@@ -77,6 +77,11 @@ pub enum SpacingRule {
     /// `2 ×` the 90th percentile of the `LEAF_K`-th-neighbour distance: the diameter that
     /// covers 90 % of the reference renderer's per-sample discs.
     Cover90,
+    /// The paper's `√(A/N)` with `A` measured as an occupancy area
+    /// ([`scenes::spacing::area_spacing`] over the camera framing's inlier box): for scans
+    /// sampled in lines or clusters, where nearest neighbours see only the spacing along a
+    /// line (README, "Real aerial LiDAR").
+    Area,
 }
 
 /// Parameters of `lpc` (`--param key=value`).
@@ -97,8 +102,9 @@ pub struct LpcParams {
     /// `spacing_rule` when absent.
     pub spacing: Option<f32>,
     /// How `r` is estimated when `spacing` is not given: `mean` (default, the paper's
-    /// "average spacing between samples") or `cover90` (the departure: the splat diameter
-    /// that covers 90 % of the reference's per-sample discs; fewer holes, more points).
+    /// "average spacing between samples") or a departure: `cover90` (the splat diameter
+    /// that covers 90 % of the reference's per-sample discs; fewer holes, more points) or
+    /// `area` (the area per sample from the occupancy area, for line-scanned tiles).
     pub spacing_rule: SpacingRule,
     /// Average sample spacing (mean nearest-neighbour distance) that bounds the position
     /// quantisation error (< half of it); estimated when absent.

@@ -320,7 +320,7 @@ pub fn area_spacing(positions: &[[f32; 3]], bounds: crate::Aabb) -> f32 {
     let n = positions.iter().step_by(stride).filter(inside).count();
     let size = bounds.size();
     let extent = size.max_element();
-    if n == 0 || !(extent > 0.0) || !extent.is_finite() {
+    if n == 0 || !extent.is_finite() || extent <= 0.0 {
         return f32::NAN;
     }
     let face = (size.x * size.y).max(size.y * size.z).max(size.z * size.x);

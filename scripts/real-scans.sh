@@ -8,8 +8,8 @@
 # NEW_BIN / OLD_BIN are splatbench binaries (e.g. target/release/splatbench and a build of an
 # earlier commit); OLD_BIN runs only on the formats it reads (.las .laz .ply). Each run: orbit,
 # 6 frames, 256×256, ε = 1 px, metrics against the full-resolution reference, default shading
-# (recorded per run). NEW_BIN also runs LPC's `spacing_rule=cover90` departure (`lpc-cover90`)
-# beside the paper's rule, on every file. Needs pip,
+# (recorded per run). Both also run LPC's `spacing_rule=cover90` departure (`lpc-cover90`), and
+# NEW_BIN the other named departures (`departures` below), beside the paper's rule. Needs pip,
 # python3 and network access to PyPI; about 5 minutes per binary on 2 cores with lavapipe.
 set -euo pipefail
 work=$(realpath -m "$1"); new=$(realpath "$2"); old=${3:+$(realpath "$3")}
@@ -21,16 +21,22 @@ for p in "${packages[@]}"; do
 done
 for a in "$work"/dl/*.tar.gz; do tar -xzf "$a" -C "$work/src"; done
 mapfile -t files < <(cd "$work" && find src -type f \( -iname '*.e57' -o -iname '*.pcd' -o -iname '*.las' -o -iname '*.laz' -o -iname '*.ply' \) -size -50M | sort)
+# Named departures run beside the paper's rule: variant → --param. `lpc-cover90` runs on
+# both binaries (OLD_BIN has it since 694b026), the others on NEW_BIN only.
+declare -A departures=(
+  [lpc-cover90]=spacing_rule=cover90 [lpc-area]=spacing_rule=area
+  [qsplat-apart]=strays=apart [lpc-apart]=strays=apart [mwkd-apart]=strays=apart
+)
 run_all() { # TAG BIN
   local tag=$1 bin=$2
   for f in "${files[@]}"; do
     local ext=${f##*.}; ext=${ext,,}
     if [ "$tag" = before ] && [[ ! " las laz ply " =~ " $ext " ]]; then continue; fi
-    local methods=(full qsplat spt lpc mwkd)
-    if [ "$tag" = after ]; then methods+=(lpc-cover90); fi
+    local methods=(full qsplat spt lpc mwkd lpc-cover90)
+    if [ "$tag" = after ]; then methods+=("${!departures[@]}"); fi
     for m in "${methods[@]}"; do
       local out="$work/runs/$tag/$(basename "$f")/$m" extra=()
-      if [ "$m" = lpc-cover90 ]; then extra=(--param spacing_rule=cover90); fi
+      if [ -n "${departures[$m]:-}" ]; then extra=(--param "${departures[$m]}"); fi
       mkdir -p "$out"
       set +e
       NODEVICE_SELECT=1 "$bin" run --method "${m%%-*}" "${extra[@]}" --scene "$work/$f" \
@@ -66,7 +72,8 @@ def cell(r):
 rows, warn, meta = [], {}, {}
 for fdir in sorted(glob.glob(f"{work}/runs/after/*/")):
     name = os.path.basename(fdir.rstrip("/"))
-    for m in ["full", "qsplat", "spt", "lpc", "lpc-cover90", "mwkd"]:
+    for m in ["full", "qsplat", "qsplat-apart", "spt", "lpc", "lpc-cover90", "lpc-area",
+              "lpc-apart", "mwkd", "mwkd-apart"]:
         a = result(f"{work}/runs/after/{name}/{m}")
         b = result(f"{work}/runs/before/{name}/{m}") if os.path.isdir(f"{work}/runs/before/{name}/{m}") else None
         rows.append((name, m, b, a))

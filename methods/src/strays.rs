@@ -18,8 +18,8 @@
 //! draws the method's selection plus every stray, as the reference draws them; they are
 //! counted in `points_drawn`. Under a budget the method is given the budget less the strays,
 //! so the budget stays a hard bound (a budget that does not cover the strays is an error).
-//! A cloud without strays builds exactly as with `strays=in` (an empty `strays.sbc` is not
-//! written; `strays_apart` = 0 in `build.json`).
+//! A cloud without strays builds exactly as with `strays=in` (no `strays.sbc`; `strays.json`
+//! and `build.json` say 0). A build that lost its `strays.sbc` fails to open.
 //!
 //! Cost: the build gathers the inliers into a copy of the cloud's columns (twice its
 //! column bytes while it builds) and runs one k-NN pass over the whole cloud for the strays'
@@ -38,8 +38,16 @@ use crate::{
 
 /// The parameter's key.
 pub const PARAM: &str = "strays";
-/// File of the strays in a build directory.
+/// File of the strays in a build directory (absent when there are none).
 pub const FILE: &str = "strays.sbc";
+/// How many strays the build holds apart (`{"strays": N}`), written by every `strays=apart`
+/// build, so that a missing [`FILE`] is an error, not a build without strays.
+pub const COUNT_FILE: &str = "strays.json";
+
+#[derive(serde::Serialize, serde::Deserialize)]
+struct Count {
+    strays: u64,
+}
 /// Chunk id of the strays' batch: no method numbers its chunks this high.
 pub const CHUNK: ChunkId = u64::MAX;
 
@@ -99,6 +107,10 @@ pub fn build(
 ) -> Result<BuildStats, MethodError> {
     let Some(inlier) = scenes::framing::inlier_box(cloud) else {
         let mut stats = kind.build_method(cloud, own, scene, dir, progress)?;
+        crate::method::write_json(&dir.join(COUNT_FILE), &Count { strays: 0 })?;
+        let mut manifest = Manifest::read(dir)?;
+        manifest.params = params.clone();
+        manifest.write(dir)?;
         stats.extra.insert("strays_apart".into(), 0.into());
         return Ok(stats);
     };
@@ -119,6 +131,12 @@ pub fn build(
     drop(own_cloud);
     let path = dir.join(FILE);
     scenes::colfile::write(&path, &gather(cloud, &strays, Some(&radii))?)?;
+    crate::method::write_json(
+        &dir.join(COUNT_FILE),
+        &Count {
+            strays: strays.len() as u64,
+        },
+    )?;
     // The manifest records every parameter, so `open` knows to draw the strays and a cache
     // keyed on the parameters never mistakes this build for the paper's.
     let mut manifest = Manifest::read(dir)?;
@@ -142,16 +160,25 @@ pub struct Apart {
 }
 
 impl Apart {
-    /// Wraps `inner`, opened from `dir`, with the strays of `dir` (`None` when the build had
-    /// none: then `inner` alone is the build).
+    /// Wraps `inner`, opened from `dir`, with the strays of `dir` (when the build had none,
+    /// `inner` alone is the build).
     pub fn open(dir: &Path, inner: Box<dyn LodMethod>) -> Result<Box<dyn LodMethod>, MethodError> {
-        let path = dir.join(FILE);
-        if !path.exists() {
+        let count: Count = crate::method::read_json(&dir.join(COUNT_FILE))?;
+        if count.strays == 0 {
             return Ok(inner);
         }
+        let path = dir.join(FILE);
         let cloud = scenes::colfile::open(&path)?;
-        if cloud.radii().is_none() {
-            return Err(MethodError::corrupt(&path, "the strays carry no radii"));
+        if cloud.radii().is_none() || cloud.len() as u64 != count.strays {
+            return Err(MethodError::corrupt(
+                &path,
+                format!(
+                    "{} strays (with radii: {}); {COUNT_FILE} says {} with radii",
+                    cloud.len(),
+                    cloud.radii().is_some(),
+                    count.strays
+                ),
+            ));
         }
         let mut batch = SplatBatch::from_cloud_range(&cloud, 0..cloud.len(), cloud.radii());
         // The strays carry what the method's splats carry (and their radii).

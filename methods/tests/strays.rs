@@ -159,3 +159,13 @@ fn an_unknown_strays_rule_is_an_error_naming_it() {
         assert!(err.contains("strays=out"), "{kind}: {err}");
     }
 }
+
+#[test]
+fn a_build_that_lost_its_strays_fails_to_open() {
+    let (_, stray) = clouds();
+    let tmp = tempfile::tempdir().unwrap();
+    build(MethodKind::Qsplat, &stray, &["strays=apart"], tmp.path());
+    std::fs::remove_file(tmp.path().join(strays::FILE)).unwrap();
+    let err = MethodKind::open(tmp.path()).err().unwrap().to_string();
+    assert!(err.contains(strays::FILE), "{err}");
+}

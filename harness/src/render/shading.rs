@@ -195,11 +195,7 @@ mod tests {
         let wgsl = super::super::SPLAT_WGSL;
         let at = wgsl.find("const RAMP").expect("RAMP in splat.wgsl");
         let ramp = &wgsl[at..at + wgsl[at..].find(");").unwrap()];
-        assert_eq!(
-            ramp.matches("vec3<f32>(").count(),
-            stops.len(),
-            "{ramp}"
-        );
+        assert_eq!(ramp.matches("vec3<f32>(").count(), stops.len(), "{ramp}");
         for s in &stops {
             assert!(ramp.contains(s.as_str()), "{s} not in {ramp}");
         }

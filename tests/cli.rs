@@ -1317,3 +1317,42 @@ fn bad_scene_files_fail_the_cli_naming_file_and_field() {
         }
     }
 }
+
+/// A negative value for an unsigned flag is refused naming the flag and the value, as
+/// `--budget -5` is (issue 13, item 7): `--height -5` was "unexpected argument '-5' found",
+/// as if `-5` were a flag (found by `scripts/cli-cases.sh`).
+#[test]
+fn negative_values_of_unsigned_flags_name_the_flag() {
+    let tmp = tempfile::tempdir().unwrap();
+    let out = tmp.path().join("o");
+    let out = out.to_str().unwrap();
+    for (command, flag) in [
+        ("run", "--frames"),
+        ("run", "--width"),
+        ("run", "--height"),
+        ("run", "--gpu-cache-mb"),
+        ("run", "--seed"),
+        ("run", "--sample"),
+        ("sweep", "--frames"),
+        ("build", "--seed"),
+    ] {
+        fails_with(
+            &[
+                command,
+                "--method",
+                "qsplat",
+                "--scene",
+                "statue:1000",
+                "--out",
+                out,
+                flag,
+                "-5",
+            ],
+            &format!("invalid value '-5' for '{flag} <"),
+        );
+    }
+    fails_with(
+        &["demo", "--out", out, "--frames", "-5"],
+        "invalid value '-5' for '--frames <",
+    );
+}

@@ -23,10 +23,10 @@ pub struct SceneArgs {
     #[arg(long)]
     pub scene: String,
     /// Resample a PLY mesh surface to this many points.
-    #[arg(long)]
+    #[arg(long, allow_negative_numbers = true)]
     pub sample: Option<usize>,
     /// Seed for generators and resampling that do not name their own.
-    #[arg(long, default_value_t = 1)]
+    #[arg(long, default_value_t = 1, allow_negative_numbers = true)]
     pub seed: u64,
     /// Keep colour and normal columns that hold one value for every sample (by default they
     /// are dropped with a warning: e.g. LAS RGB left at 0 by the scanner).
@@ -72,16 +72,16 @@ pub struct CacheArgs {
 #[derive(Args, Clone)]
 pub struct RenderArgs {
     /// Image width, pixels.
-    #[arg(long, default_value_t = 512)]
+    #[arg(long, default_value_t = 512, allow_negative_numbers = true)]
     pub width: u32,
     /// Image height, pixels.
-    #[arg(long, default_value_t = 512)]
+    #[arg(long, default_value_t = 512, allow_negative_numbers = true)]
     pub height: u32,
     /// Splat kernel (a method's `--param kernel=` overrides it).
     #[arg(long, value_enum, default_value = "square")]
     pub kernel: Kernel,
     /// GPU chunk-cache budget, MiB.
-    #[arg(long, default_value_t = 512)]
+    #[arg(long, default_value_t = 512, allow_negative_numbers = true)]
     pub gpu_cache_mb: u64,
 }
 

@@ -21,7 +21,7 @@ pub struct DemoArgs {
     #[arg(long, default_value = "results/demo")]
     pub out: PathBuf,
     /// Frames along the orbit.
-    #[arg(long, default_value_t = 24)]
+    #[arg(long, default_value_t = 24, allow_negative_numbers = true)]
     pub frames: usize,
 }
 

@@ -27,7 +27,7 @@ pub struct RunArgs {
     #[arg(long, default_value = "orbit")]
     pub path: String,
     /// Frames along the path.
-    #[arg(long, default_value_t = 60)]
+    #[arg(long, default_value_t = 60, allow_negative_numbers = true)]
     pub frames: usize,
     /// Save every frame and its reference as PNG under images/.
     #[arg(long)]

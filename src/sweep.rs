@@ -30,7 +30,7 @@ pub struct SweepArgs {
     #[arg(long, default_value = "orbit")]
     pub path: String,
     /// Frames along the path.
-    #[arg(long, default_value_t = 60)]
+    #[arg(long, default_value_t = 60, allow_negative_numbers = true)]
     pub frames: usize,
     /// Output directory: build/ (unless --build-dir), one run directory per target
     /// (budget-25000/, eps-2/, …), sweep.csv, sweep.png and sweep.svg.

@@ -1182,3 +1182,177 @@ fn messages_name_the_real_cause() {
         "gpu_limit_mb=18446744073709551615: the number is out of range",
     );
 }
+
+/// A small cloud at UTM-like coordinates, as `scenes/tests/bad_input.rs` makes them.
+fn utm_tile(n: usize) -> scenes::PointCloud {
+    let mut r = scenes::rng::Pcg32::new(5);
+    let pos: Vec<[f32; 3]> = (0..n)
+        .map(|_| {
+            [
+                r.range_f32(-50.0, 50.0),
+                r.range_f32(-50.0, 50.0),
+                r.range_f32(0.0, 5.0),
+            ]
+        })
+        .collect();
+    let origin = glam::DVec3::new(500_000.0, 4_100_000.0, 50.0);
+    scenes::PointCloud::new(origin, pos.into(), None, None, None).unwrap()
+}
+
+/// `bytes` with the first `from` replaced by `to`.
+fn replaced(bytes: &[u8], from: &str, to: &str) -> Vec<u8> {
+    let at = bytes
+        .windows(from.len())
+        .position(|w| w == from.as_bytes())
+        .unwrap();
+    [&bytes[..at], to.as_bytes(), &bytes[at + from.len()..]].concat()
+}
+
+/// Every class of bad input of issue 13, item 5, through the binary: `build` (and `run`,
+/// where an adapter exists) of each file exits non-zero, names the file and the element or
+/// field (with its byte or line), and leaves no `build.json` or `summary.json` to pass the
+/// output off as complete. The reader refuses the file before anything is built or drawn.
+#[test]
+fn bad_scene_files_fail_the_cli_naming_file_and_field() {
+    let d = tempfile::tempdir().unwrap();
+    let dir = d.path();
+    let gpu = have_gpu("bad_scene_files_fail_the_cli_naming_file_and_field");
+    let las = dir.join("ok.las");
+    scenes::las::write(&las, &utm_tile(200)).unwrap();
+    let las = std::fs::read(&las).unwrap();
+    let ply_bin = dir.join("ok.ply");
+    scenes::ply::write(
+        &ply_bin,
+        &utm_tile(100),
+        scenes::ply::PlyFormat::BinaryLittleEndian,
+    )
+    .unwrap();
+    let ply_bin = std::fs::read(&ply_bin).unwrap();
+    let ply_ascii = dir.join("ok-ascii.ply");
+    scenes::ply::write(&ply_ascii, &utm_tile(50), scenes::ply::PlyFormat::Ascii).unwrap();
+    let ply_ascii = std::fs::read(&ply_ascii).unwrap();
+    let points_at = u32::from_le_bytes(las[96..100].try_into().unwrap()) as usize;
+
+    let mut under_las = las.clone();
+    under_las[107..111].copy_from_slice(&150u32.to_le_bytes());
+    let mut scale0 = las.clone();
+    scale0[131..139].copy_from_slice(&0f64.to_le_bytes());
+    let truncated = las[..points_at + 120 * 20 + 7].to_vec();
+    let mut trailing_ply = ply_bin.clone();
+    trailing_ply.extend_from_slice(b"\n\n\n\n");
+    let head = "ply\nformat ascii 1.0\nelement vertex 2\nproperty float x\nproperty float y\n\
+                property float z\nproperty char flag\nend_header\n";
+    let cases: Vec<(&str, Vec<u8>, Vec<&str>)> = vec![
+        (
+            "under.ply",
+            replaced(&ply_bin, "element vertex 100", "element vertex 90"),
+            vec!["240 bytes follow the last element 'vertex'", "from byte"],
+        ),
+        (
+            "trailing.ply",
+            trailing_ply,
+            vec!["4 bytes follow the last element 'vertex'"],
+        ),
+        (
+            "under.las",
+            under_las,
+            vec!["1000 bytes follow the last of the 150 point records"],
+        ),
+        (
+            "ascii-body.ply",
+            replaced(
+                &ply_ascii,
+                "format ascii 1.0",
+                "format binary_little_endian 1.0",
+            ),
+            vec![
+                "declares format binary_little_endian but the body",
+                "is ascii text",
+            ],
+        ),
+        (
+            "scale0.las",
+            scale0,
+            vec!["x scale factor is 0 (header byte 131)"],
+        ),
+        (
+            "frac.ply",
+            format!("{head}0 0 0 0.302\n1 1 1 0\n").into_bytes(),
+            vec!["line 9 (vertex 0): property 'flag' (char): '0.302' is not an integer"],
+        ),
+        ("truncated.las", truncated, vec!["only 120 of 200"]),
+    ];
+    for (name, bytes, needles) in &cases {
+        let file = write(dir, name, bytes);
+        let out = dir.join(format!("out-{name}"));
+        let mut commands = vec![("build", "build.json")];
+        if gpu {
+            commands.push(("run", "summary.json"));
+        }
+        for (command, marker) in commands {
+            let mut cmd = bin();
+            cmd.args([command, "--method", "full", "--scene", &file, "--out"])
+                .arg(&out)
+                .arg("--cache")
+                .arg(dir.join("cache"));
+            if command == "run" {
+                cmd.args(["--frames", "1", "--width", "16", "--height", "16"]);
+            }
+            let o = cmd.output().unwrap();
+            let err = String::from_utf8_lossy(&o.stderr);
+            let what = format!("{command} {name}");
+            assert!(!o.status.success(), "{what} must fail: {err}");
+            assert!(!err.contains("panicked"), "{what} panicked: {err}");
+            assert!(
+                err.contains(name),
+                "{what}: the message names no file: {err}"
+            );
+            for n in needles {
+                assert!(err.contains(n), "{what}: '{n}' missing from: {err}");
+            }
+            assert!(
+                !out.join(marker).exists(),
+                "{what}: {marker} left as if the output were complete"
+            );
+        }
+    }
+}
+
+/// A negative value for an unsigned flag is refused naming the flag and the value, as
+/// `--budget -5` is (issue 13, item 7): `--height -5` was "unexpected argument '-5' found",
+/// as if `-5` were a flag (found by `scripts/cli-cases.sh`).
+#[test]
+fn negative_values_of_unsigned_flags_name_the_flag() {
+    let tmp = tempfile::tempdir().unwrap();
+    let out = tmp.path().join("o");
+    let out = out.to_str().unwrap();
+    for (command, flag) in [
+        ("run", "--frames"),
+        ("run", "--width"),
+        ("run", "--height"),
+        ("run", "--gpu-cache-mb"),
+        ("run", "--seed"),
+        ("run", "--sample"),
+        ("sweep", "--frames"),
+        ("build", "--seed"),
+    ] {
+        fails_with(
+            &[
+                command,
+                "--method",
+                "qsplat",
+                "--scene",
+                "statue:1000",
+                "--out",
+                out,
+                flag,
+                "-5",
+            ],
+            &format!("invalid value '-5' for '{flag} <"),
+        );
+    }
+    fails_with(
+        &["demo", "--out", out, "--frames", "-5"],
+        "invalid value '-5' for '--frames <",
+    );
+}

@@ -480,3 +480,168 @@ fn qsplat_inside_the_model() {
         two.1
     );
 }
+
+/// The statue scaled about the origin to extents 1e-9 … 1e9 (issue 13, item 4): positions,
+/// spacing and paths are relative to the model, so every method renders the extent-1
+/// statue's images up to rasterisation, on the orbit and on the nine numerical extremes
+/// (sub-pixel, 1° and 170° fov, grazing, corner, contact, centre). The scaled `f32`
+/// positions, radii and cameras differ from exact multiples by ≈ 6e-8 relative (the factors
+/// are not powers of two), which moves a splat's edge by ~1e-5 px, so a pixel centre on an
+/// edge may flip and a selection on a threshold may change: the same points drawn in every
+/// frame (measured: equal for every method, frame and extent), and against the extent-1
+/// image at most 0.2 % of its covered pixels gained or lost (measured: none) and a FLIP of
+/// 0.001, 0.01 with the eye at or in the model (see below). With R floored at 1e-6
+/// (before), the 1e-9 statue was framed as if 1,000 times larger (99.9 % of the covered
+/// pixels lost in orbit frame 0).
+#[test]
+fn a_model_renders_the_same_at_every_scale() {
+    let Some(gpu) = harness::gpu::gpu_for_test("a_model_renders_the_same_at_every_scale") else {
+        return;
+    };
+    let tmp = tempfile::tempdir().unwrap();
+    let unit = scenes::generators::Generator::Statue
+        .generate(5_000, 3)
+        .unwrap();
+    let extent = f64::from(unit.bounds().size().max_element());
+    let extents = [1e-9, 1e-6, 1.0, 1e3, 1e9];
+    let files: Vec<std::path::PathBuf> = extents
+        .iter()
+        .enumerate()
+        .map(|(k, e)| {
+            let f = e / extent;
+            let (origin, p, n, c, radii) = unit.clone().into_columns();
+            let scale = |x: f32| (f64::from(x) * f) as f32;
+            let p: Vec<[f32; 3]> = p.iter().map(|v| v.map(scale)).collect();
+            let radii = radii.map(|r| r.iter().map(|&x| scale(x)).collect::<Vec<f32>>().into());
+            let cloud = scenes::PointCloud::new(origin * f, p.into(), n, c, radii).unwrap();
+            let file = tmp.path().join(format!("statue-{k}.sbc"));
+            scenes::colfile::write(&file, &cloud).unwrap();
+            file
+        })
+        .collect();
+    for &method in MethodKind::ALL {
+        for (path, frames) in [("orbit", 3), ("extremes", 9)] {
+            let runs: Vec<_> = files
+                .iter()
+                .enumerate()
+                .map(|(k, file)| {
+                    let name = format!("{method}-{path}-{k}");
+                    let cfg = RunConfig {
+                        save_images: true,
+                        ..config(
+                            method,
+                            &[],
+                            file.to_str().unwrap(),
+                            path,
+                            frames,
+                            128,
+                            tmp.path(),
+                            &name,
+                        )
+                    };
+                    run(&cfg, &gpu, &scenes::NoProgress).unwrap_or_else(|e| {
+                        panic!("{method} {path} at extent {:e}: {e:#}", extents[k])
+                    });
+                    let dir = tmp.path().join(&name);
+                    let images: Vec<harness::image::Image> = (0..frames)
+                        .map(|i| {
+                            let png = dir.join(format!("images/frame_{i:04}.png"));
+                            harness::image::Image::load_png(&png).unwrap()
+                        })
+                        .collect();
+                    (column(&dir, "points_drawn"), images)
+                })
+                .collect();
+            let (unit_points, unit_images) = &runs[2];
+            for (k, (points, images)) in runs.iter().enumerate() {
+                for i in 0..frames {
+                    let m = harness::metrics::compare(&unit_images[i], &images[i]).unwrap();
+                    let what = format!("{method} {path} frame {i} at extent {:e}", extents[k]);
+                    assert_eq!(points[i], unit_points[i], "{what}: points drawn");
+                    // Shots 6–8 put the eye at or in the model: splats a few R/1000 from
+                    // the eye overlap at nearly equal depths, and the depth test's ties pick
+                    // another splat's colour (measured FLIP up to 0.006 there, 1.3e-4
+                    // elsewhere; no pixel's coverage changes).
+                    let flip_max = if path == "extremes" && i >= 6 {
+                        0.01
+                    } else {
+                        0.001
+                    };
+                    assert!(
+                        m.hole_ratio + m.extra_coverage <= 0.002 && m.flip_mean <= flip_max,
+                        "{what} against extent 1: {:.5} of the covered pixels lost, {:.5} \
+                         gained, FLIP {:.5}",
+                        m.hole_ratio,
+                        m.extra_coverage,
+                        m.flip_mean
+                    );
+                }
+            }
+        }
+    }
+}
+
+/// SPT, LPC and MWKD from inside a closed model (issue 13, item 2, the other methods): on
+/// the views where QSplat's per-leaf back-face culling empties the frame (the last three
+/// frames of `zoom`, eye 0.27 R to 0.05 R from the centre, and `flythrough`, mostly inside
+/// the box), each draws and keeps its hole bound ([`hole_bound`]; measured: 0 holes in every
+/// such frame for all three). Their back-face tests are conservative node tests
+/// (`methods::cull::cone_backfacing`): never true for a node whose bounding sphere contains
+/// the eye, and no splat is culled by its own normal, so the inside of the surface is drawn
+/// as the reference draws it. SPT's `normal_clusters=true` skips whole back-facing normal
+/// clusters, the paper's back-face culling: from inside, what is in view faces away, so a
+/// skipped cluster leaves holes where the reference draws the inside of the surface
+/// (measured 3.5–12.1 % on flythrough frames 2–8, 0 on zoom's inside frames and from
+/// outside): bound 15 %, points still drawn.
+#[test]
+fn spt_lpc_and_mwkd_inside_the_model() {
+    let Some(gpu) = harness::gpu::gpu_for_test("spt_lpc_and_mwkd_inside_the_model") else {
+        return;
+    };
+    let tmp = tempfile::tempdir().unwrap();
+    for (method, params) in [
+        (MethodKind::Spt, vec![]),
+        (MethodKind::Spt, vec!["normal_clusters=true"]),
+        (MethodKind::Lpc, vec![]),
+        (MethodKind::Mwkd, vec![]),
+    ] {
+        for (path, inside) in [("zoom", 7..10), ("flythrough", 0..10)] {
+            let name = format!("{method}-{}-{path}", params.len());
+            let cfg = config(
+                method,
+                &params,
+                "statue:20000:3",
+                path,
+                10,
+                128,
+                tmp.path(),
+                &name,
+            );
+            run(&cfg, &gpu, &scenes::NoProgress).unwrap();
+            let dir = tmp.path().join(&name);
+            let (points, holes) = (column(&dir, "points_drawn"), column(&dir, "hole_ratio"));
+            let bound = if params.is_empty() {
+                hole_bound(method, &[], "statue")
+            } else {
+                HoleBound {
+                    max: 0.15,
+                    why: "back-facing normal clusters skipped (the paper's culling) while the \
+                          reference draws the inside of the surface: measured 12.1 % worst",
+                }
+            };
+            for i in inside {
+                assert!(
+                    points[i] > 0.0,
+                    "{method} {params:?} {path} frame {i}: nothing drawn"
+                );
+                assert!(
+                    holes[i] <= bound.max,
+                    "{method} {params:?} {path} frame {i}: hole ratio {:.4} > {:.4} ({})",
+                    holes[i],
+                    bound.max,
+                    bound.why
+                );
+            }
+        }
+    }
+}

@@ -274,6 +274,72 @@ fn degenerate_bounds_still_give_valid_cameras() {
     }
 }
 
+/// Paths are relative to the model at every scale (issue 13, item 4): a box scaled by
+/// 1e-9 … 1e9 about the origin (centred on it, as the readers store clouds, or with a corner
+/// on it) gets the cameras of the unit box scaled by the same factor — positions, targets
+/// and planes within 1e-5 of R plus the coordinates' size (f32 rounding of the scaled box
+/// and of the eye is ≈ 6e-8 relative), the same fov and up, so the same ratio of camera distance to R. The old
+/// absolute floor of 1e-6 on R framed a 1e-9 model as if it were 1,000 times larger.
+#[test]
+fn paths_frame_a_model_the_same_at_every_scale() {
+    let units = [
+        Aabb {
+            min: Vec3::new(-0.4, -0.3, -1.0),
+            max: Vec3::new(0.4, 0.3, 1.0),
+        },
+        Aabb {
+            min: Vec3::ZERO,
+            max: Vec3::new(0.8, 0.6, 2.0),
+        },
+    ];
+    let pause = PathSpec::parse(example("pause.toml").to_str().unwrap()).unwrap();
+    let paths = [
+        PathSpec::Orbit,
+        PathSpec::Zoom,
+        PathSpec::Flythrough,
+        PathSpec::Extremes,
+        pause,
+    ];
+    for unit in &units {
+        let r1 = unit.radius();
+        for s in [1e-9f32, 1e-6, 1e-3, 1e3, 1e6, 1e9] {
+            let scaled = Aabb {
+                min: unit.min * s,
+                max: unit.max * s,
+            };
+            for p in &paths {
+                for i in 0..27 {
+                    let (a, b) = (p.camera(i, 27, unit), p.camera(i, 27, &scaled));
+                    let what = format!("{p} frame {i} at scale {s:e} of {unit:?}");
+                    assert!(b.is_valid(), "{what}: {b:?}");
+                    // f32 rounding grows with the coordinates (the far shot is at 10⁴ R).
+                    let tol = 1e-5 * (r1 + a.position.length() + a.target.length());
+                    assert_vec_close(b.position / s, a.position, tol, &format!("{what}: eye"));
+                    assert_vec_close(b.target / s, a.target, tol, &format!("{what}: target"));
+                    assert!(
+                        (b.far / s - a.far).abs() <= tol && (b.near / s - a.near).abs() <= tol,
+                        "{what}: planes {}..{} vs {}..{} scaled",
+                        b.near / s,
+                        b.far / s,
+                        a.near,
+                        a.far
+                    );
+                    assert_eq!((b.fov_y, b.up), (a.fov_y, a.up), "{what}");
+                    let ratio =
+                        |c: &Camera, bb: &Aabb| c.position.distance(bb.center()) / bb.radius();
+                    assert!(
+                        (ratio(&b, &scaled) - ratio(&a, unit)).abs()
+                            <= 1e-5 * ratio(&a, unit).max(1.0),
+                        "{what}: distance / R {} vs {}",
+                        ratio(&b, &scaled),
+                        ratio(&a, unit)
+                    );
+                }
+            }
+        }
+    }
+}
+
 #[test]
 fn out_of_range_frames_do_not_panic() {
     let b = bounds();

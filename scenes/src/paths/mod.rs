@@ -50,7 +50,11 @@
 //! with `d = |eye − c|`, `far = d + 1.01 R` and `near = max(d − 1.01 R, 10⁻⁴ R)` — tight when
 //! the eye is outside the sphere, tiny but positive inside. Degenerate bounds are made
 //! usable: empty or non-finite bounds are treated as the cube `[−1, 1]³`, and R is raised to
-//! at least `max(10⁻³ · max|c_k|, 10⁻⁶)` so eye offsets stay representable in `f32`. Every
+//! at least `max(16 ε · s, 10⁻¹⁵)`, where `ε` is `f32::EPSILON` and `s = max_k(|c_k| + h_k)`
+//! the magnitude of the box's coordinates: only a box whose extent `f32` cannot resolve
+//! (a single point, or a few ulps) is enlarged, so every path is the same relative to the
+//! model at any scale an `f32` cloud holds (tested from 10⁻⁹ to 10⁹); `10⁻¹⁵` is the least R
+//! whose shortest eye offset still normalises in `f32` (a point at the origin). Every
 //! camera returned satisfies [`Camera::is_valid`]: should rounding ever make the eye equal the
 //! target or the view direction parallel to up, the target is moved one R along the intended
 //! direction and up is replaced by the coordinate axis least aligned with the view; should
@@ -268,13 +272,25 @@ fn open_time(i: usize, frames: usize) -> f64 {
     }
 }
 
+/// The bounding radius is raised to at least this many `f32` epsilons of the coordinates'
+/// magnitude: a box whose diagonal spans fewer representable steps has no extent `f32` can
+/// resolve (it is one point, or a few ulps), and its cameras still need eye offsets that do
+/// not round to the centre.
+const R_FLOOR_ULPS: f64 = 16.0;
+
+/// The least bounding radius, for a box at the origin with no extent: the smallest R whose
+/// shortest camera offset (the contact shot's `10⁻³ R`) still has a normal `f32` squared
+/// length (`10⁻³⁶ > f32::MIN_POSITIVE`), so view directions normalise; f32 view maths cannot
+/// frame a smaller model, and no reader's cloud is one.
+const R_FLOOR_MIN: f64 = 1e-15;
+
 /// The scene frame paths are defined in: centre, radius and half-extents, in `f64`,
 /// sanitised so that every path can produce a valid camera.
 #[derive(Debug, Clone, Copy)]
 struct Frame {
     /// Centre of the bounds.
     c: DVec3,
-    /// Bounding radius (half the diagonal), floored.
+    /// Bounding radius (half the diagonal), floored ([`R_FLOOR_ULPS`], [`R_FLOOR_MIN`]).
     r: f64,
     /// Half-extents.
     h: DVec3,
@@ -290,7 +306,9 @@ impl Frame {
         } else {
             (DVec3::ZERO, DVec3::ONE)
         };
-        let floor = (1e-3 * c.abs().max_element()).max(1e-6);
+        // The coordinates' magnitude: the box's farthest corner from the local origin.
+        let scale = (c.abs() + h).max_element();
+        let floor = (R_FLOOR_ULPS * f64::from(f32::EPSILON) * scale).max(R_FLOOR_MIN);
         Frame {
             c,
             r: h.length().max(floor),

@@ -388,8 +388,40 @@ pub struct ColumnWriter {
     written: u64,
 }
 
+/// Refuses to start a file of `bytes` where the file system holding `path` has less room:
+/// the file is sparse until written, so without this a 100-billion-point scene would fill
+/// the disk at write speed before failing. Where the free space cannot be read (not unix,
+/// or the call fails) the write goes ahead and fails as the OS says.
+fn check_free_space(path: &Path, bytes: u64) -> Result<(), SceneError> {
+    #[cfg(unix)]
+    {
+        let dir = match path.parent() {
+            Some(d) if !d.as_os_str().is_empty() => d,
+            _ => Path::new("."),
+        };
+        if let Ok(st) = rustix::fs::statvfs(dir) {
+            let free = st.f_bavail.saturating_mul(st.f_frsize);
+            if bytes > free {
+                return Err(SceneError::format(
+                    path,
+                    format!(
+                        "needs {bytes} bytes ({:.1} GiB) and {} has {free} free ({:.1} GiB)",
+                        bytes as f64 / f64::from(1u32 << 30),
+                        dir.display(),
+                        free as f64 / f64::from(1u32 << 30)
+                    ),
+                ));
+            }
+        }
+    }
+    #[cfg(not(unix))]
+    let _ = (path, bytes);
+    Ok(())
+}
+
 impl ColumnWriter {
-    /// Creates `<path>.tmp`, sized for `count` points with the columns `attrs` declares.
+    /// Creates `<path>.tmp`, sized for `count` points with the columns `attrs` declares,
+    /// after checking that the file system has room for it ([`check_free_space`]).
     pub fn create(
         path: &Path,
         attrs: Attributes,
@@ -412,6 +444,7 @@ impl ColumnWriter {
             SceneError::format(path, format!("{count} points overflow a 64-bit file size"))
         })?;
         let tmp = temp_path(path);
+        check_free_space(path, header.file_len)?;
         let file = File::create(&tmp).map_err(|e| SceneError::io(&tmp, e))?;
         let mut w = ColumnWriter {
             path: path.to_path_buf(),

@@ -1,0 +1,260 @@
+//! The splat draw path: recording one phase of splat draws (interval-counting compute pass
+//! and render passes, per kernel) and the depth attachment the passes share.
+
+use super::*;
+
+impl Renderer<'_> {
+    /// Records one phase of splat draws into `enc`: the interval-counting compute pass (if any
+    /// draw has a test) and the render pass(es). Adds the splats sent and chunks drawn to
+    /// `stats`; returns the interval counters' readback buffer, if any. The items' chunks must
+    /// be cached ([`Self::upload_items`]) and the draw buffer large enough.
+    pub(super) fn encode_splats(
+        &self,
+        shape: Kernel,
+        items: &[&DrawItem],
+        streams: &[GpuBatch],
+        stats: &mut FrameStats,
+        enc: &mut wgpu::CommandEncoder,
+        target: PhaseTarget,
+    ) -> anyhow::Result<Option<(wgpu::Buffer, u64)>> {
+        let n = items.len() as u64;
+        let mut draws = vec![0u8; (self.draw_stride * n.max(1)) as usize];
+        let mut resolved: Vec<(&GpuBatch, u32)> = Vec::with_capacity(items.len());
+        // Draws whose splats pass an interval test: (draw index, splats sent); counter slot
+        // = position in this list.
+        let mut tested: Vec<(usize, u32)> = Vec::new();
+        let mut s = streams.iter();
+        for (i, item) in items.iter().enumerate() {
+            let cached = |id: &ChunkId| {
+                self.cache
+                    .peek(id)
+                    .with_context(|| format!("chunk {id} vanished from the cache"))
+            };
+            let size = item.size();
+            let (g, count, test) = match item.cached() {
+                Some((id, sent, test)) => {
+                    let g = cached(&id)?;
+                    if test.is_some() && !g.lod {
+                        bail!(
+                            "draw item {i} has an interval test but chunk {id} carries no lod column"
+                        );
+                    }
+                    stats.chunks += 1;
+                    (g, sent.min(g.len), test)
+                }
+                None => {
+                    let g = s.next().context("stream buffers out of step")?;
+                    (g, g.len, None)
+                }
+            };
+            if matches!(size, SplatSize::Radius { .. }) && !g.attrs.radii {
+                bail!("draw item {i} asks for per-splat radii but its splats carry none");
+            }
+            let mut u = DrawUniform::new(size, g.attrs, g.lod, test);
+            if test.is_some() {
+                u.count = count;
+                u.slot = tested.len() as u32;
+                tested.push((i, count));
+            }
+            let off = i * self.draw_stride as usize;
+            draws[off..off + std::mem::size_of::<DrawUniform>()]
+                .copy_from_slice(bytemuck::bytes_of(&u));
+            stats.points += count as u64;
+            resolved.push((g, count));
+        }
+        self.gpu.queue.write_buffer(&self.draw_ubo, 0, &draws);
+        let bg0 = self
+            .gpu
+            .device
+            .create_bind_group(&wgpu::BindGroupDescriptor {
+                label: Some("frame+draw"),
+                layout: &self.bgl0,
+                entries: &[
+                    wgpu::BindGroupEntry {
+                        binding: 0,
+                        resource: self.frame_ubo.as_entire_binding(),
+                    },
+                    wgpu::BindGroupEntry {
+                        binding: 1,
+                        resource: wgpu::BindingResource::Buffer(wgpu::BufferBinding {
+                            buffer: &self.draw_ubo,
+                            offset: 0,
+                            size: wgpu::BufferSize::new(std::mem::size_of::<DrawUniform>() as u64),
+                        }),
+                    },
+                ],
+            });
+        // Interval-tested draws: count the splats that pass, in a compute pass before drawing
+        // (the same `splat_passes` as the vertex stage; outside the render-pass timestamps).
+        let counters = if tested.is_empty() {
+            None
+        } else {
+            let d = &self.gpu.device;
+            let bytes = tested.len() as u64 * 4;
+            let counters = d.create_buffer_init(&wgpu::util::BufferInitDescriptor {
+                label: Some("interval counters"),
+                contents: &vec![0u8; bytes as usize],
+                usage: wgpu::BufferUsages::STORAGE | wgpu::BufferUsages::COPY_SRC,
+            });
+            let readback = d.create_buffer(&wgpu::BufferDescriptor {
+                label: Some("interval counters readback"),
+                size: bytes,
+                usage: wgpu::BufferUsages::MAP_READ | wgpu::BufferUsages::COPY_DST,
+                mapped_at_creation: false,
+            });
+            let bg2 = d.create_bind_group(&wgpu::BindGroupDescriptor {
+                label: Some("counters"),
+                layout: &self.bgl2,
+                entries: &[wgpu::BindGroupEntry {
+                    binding: 0,
+                    resource: counters.as_entire_binding(),
+                }],
+            });
+            let pipeline = self.count.as_ref().context("counting pipeline missing")?;
+            let mut pass = enc.begin_compute_pass(&wgpu::ComputePassDescriptor {
+                label: Some("interval count"),
+                timestamp_writes: None,
+            });
+            pass.set_pipeline(pipeline);
+            pass.set_bind_group(2, &bg2, &[]);
+            for &(i, count) in &tested {
+                pass.set_bind_group(0, &bg0, &[(i as u64 * self.draw_stride) as u32]);
+                pass.set_bind_group(1, &resolved[i].0.bind_group, &[]);
+                pass.dispatch_workgroups(count.div_ceil(64), 1, 1);
+            }
+            drop(pass);
+            enc.copy_buffer_to_buffer(&counters, 0, &readback, 0, bytes);
+            Some((readback, bytes))
+        };
+        let (b, e) = target.ts;
+        let ts = |begin: bool, end: bool| {
+            self.timestamps.as_ref().filter(|_| begin || end).map(|t| {
+                wgpu::RenderPassTimestampWrites {
+                    query_set: &t.set,
+                    beginning_of_pass_write_index: begin.then_some(b),
+                    end_of_pass_write_index: end.then_some(e),
+                }
+            })
+        };
+        let color = |view, clear: bool| {
+            Some(wgpu::RenderPassColorAttachment {
+                view,
+                depth_slice: None,
+                resolve_target: None,
+                ops: wgpu::Operations {
+                    load: if clear {
+                        wgpu::LoadOp::Clear(wgpu::Color::TRANSPARENT)
+                    } else {
+                        wgpu::LoadOp::Load
+                    },
+                    store: wgpu::StoreOp::Store,
+                },
+            })
+        };
+        let depth = |clear: bool, store: bool| self.depth_attachment(clear, store);
+        let splats = Splats {
+            bg0: &bg0,
+            stride: self.draw_stride,
+            indices: &self.quad_indices,
+            batches: &resolved,
+        };
+        let pipeline = |k: PassKind| {
+            self.pipelines
+                .get(&k)
+                .with_context(|| format!("pipeline {k:?} missing"))
+        };
+        match (shape, &self.gauss) {
+            (Kernel::Gaussian, Some(g)) => {
+                let mut p1 = enc.begin_render_pass(&wgpu::RenderPassDescriptor {
+                    label: Some("gaussian depth"),
+                    color_attachments: &[],
+                    depth_stencil_attachment: depth(target.clear, true),
+                    timestamp_writes: ts(true, false),
+                    occlusion_query_set: None,
+                    multiview_mask: None,
+                });
+                splats.record(&mut p1, pipeline(PassKind::GaussDepth)?);
+                drop(p1);
+                let mut p2 = enc.begin_render_pass(&wgpu::RenderPassDescriptor {
+                    label: Some("gaussian accumulate"),
+                    color_attachments: &[color(&g.accum_view, target.clear)],
+                    depth_stencil_attachment: depth(false, target.store_depth),
+                    timestamp_writes: None,
+                    occlusion_query_set: None,
+                    multiview_mask: None,
+                });
+                splats.record(&mut p2, pipeline(PassKind::GaussAccum)?);
+                drop(p2);
+                let mut p3 = enc.begin_render_pass(&wgpu::RenderPassDescriptor {
+                    label: Some("gaussian normalize"),
+                    color_attachments: &[color(&self.color_view, true)],
+                    depth_stencil_attachment: None,
+                    timestamp_writes: ts(false, true),
+                    occlusion_query_set: None,
+                    multiview_mask: None,
+                });
+                p3.set_pipeline(&g.normalize);
+                p3.set_bind_group(0, &g.normalize_bg, &[]);
+                p3.draw(0..3, 0..1);
+            }
+            _ => {
+                let mut pass = enc.begin_render_pass(&wgpu::RenderPassDescriptor {
+                    label: Some("splats"),
+                    color_attachments: &[color(&self.color_view, target.clear)],
+                    depth_stencil_attachment: depth(target.clear, target.store_depth),
+                    timestamp_writes: ts(true, true),
+                    occlusion_query_set: None,
+                    multiview_mask: None,
+                });
+                splats.record(&mut pass, pipeline(PassKind::Opaque(shape))?);
+            }
+        }
+        Ok(counters)
+    }
+
+    pub(super) fn depth_attachment(
+        &self,
+        clear: bool,
+        store: bool,
+    ) -> Option<wgpu::RenderPassDepthStencilAttachment<'_>> {
+        Some(wgpu::RenderPassDepthStencilAttachment {
+            view: &self.depth_view,
+            depth_ops: Some(wgpu::Operations {
+                load: if clear {
+                    wgpu::LoadOp::Clear(1.0)
+                } else {
+                    wgpu::LoadOp::Load
+                },
+                store: if store {
+                    wgpu::StoreOp::Store
+                } else {
+                    wgpu::StoreOp::Discard
+                },
+            }),
+            stencil_ops: None,
+        })
+    }
+}
+
+/// One frame's splat draws, recorded identically into every pass that needs them.
+struct Splats<'a> {
+    bg0: &'a wgpu::BindGroup,
+    stride: u64,
+    indices: &'a wgpu::Buffer,
+    batches: &'a [(&'a GpuBatch, u32)],
+}
+
+impl Splats<'_> {
+    fn record(&self, pass: &mut wgpu::RenderPass<'_>, pipeline: &wgpu::RenderPipeline) {
+        pass.set_pipeline(pipeline);
+        pass.set_index_buffer(self.indices.slice(..), wgpu::IndexFormat::Uint16);
+        for (i, (g, count)) in self.batches.iter().enumerate() {
+            if *count == 0 {
+                continue;
+            }
+            pass.set_bind_group(0, self.bg0, &[(i as u64 * self.stride) as u32]);
+            pass.set_bind_group(1, &g.bind_group, &[]);
+            pass.draw_indexed(0..6, 0, 0..*count);
+        }
+    }
+}

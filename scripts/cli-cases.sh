@@ -204,6 +204,8 @@ for c in "${cases[@]}"; do
   tally[$verdict]=$(( ${tally[$verdict]:-0} + 1 ))
   shown=${c//$f/F}; shown=${shown//$cache/C}; shown=${shown//$out/OUT}
   first=${first//$f/F}; first=${first//$cache/C}; first=${first//$out/OUT}
+  # A cache file is the script's own output, not an input a reader has: name it generically.
+  first=$(sed -E 's#C/scenes/[^: ]+#C/scenes/<cache file>#g' <<<"$first")
   esc() { sed -e 's/|/\\|/g' -e 's/`/'"'"'/g' <<<"$1"; }
   printf '| %d | `BIN %s` | %d | %s | %s |\n' "$n" "$(esc "$shown")" "$rc" "$(esc "$first")" "$verdict" >>"$md"
 done

@@ -107,11 +107,7 @@ pub fn build(
 ) -> Result<BuildStats, MethodError> {
     let Some(inlier) = scenes::framing::inlier_box(cloud) else {
         let mut stats = kind.build_method(cloud, own, scene, dir, progress)?;
-        crate::method::write_json(&dir.join(COUNT_FILE), &Count { strays: 0 })?;
-        let mut manifest = Manifest::read(dir)?;
-        manifest.params = params.clone();
-        manifest.write(dir)?;
-        stats.extra.insert("strays_apart".into(), 0.into());
+        record(dir, params, 0, &mut stats)?;
         return Ok(stats);
     };
     let (mut inliers, mut strays) = (Vec::new(), Vec::new());
@@ -131,26 +127,30 @@ pub fn build(
     drop(own_cloud);
     let path = dir.join(FILE);
     scenes::colfile::write(&path, &gather(cloud, &strays, Some(&radii))?)?;
-    crate::method::write_json(
-        &dir.join(COUNT_FILE),
-        &Count {
-            strays: strays.len() as u64,
-        },
-    )?;
-    // The manifest records every parameter, so `open` knows to draw the strays and a cache
-    // keyed on the parameters never mistakes this build for the paper's.
-    let mut manifest = Manifest::read(dir)?;
-    manifest.params = params.clone();
-    manifest.write(dir)?;
+    record(dir, params, strays.len() as u64, &mut stats)?;
     stats.points_in = cloud.len() as u64;
     stats.bytes_in = cloud.column_bytes();
     stats.bytes_out += std::fs::metadata(&path)
         .map_err(|e| MethodError::io(&path, e))?
         .len();
-    stats
-        .extra
-        .insert("strays_apart".into(), (strays.len() as u64).into());
     Ok(stats.finish())
+}
+
+/// Records a `strays=apart` build of `strays` strays in `dir`: [`COUNT_FILE`], every
+/// parameter in the manifest (so `open` knows to draw the strays, and a cache keyed on the
+/// parameters never mistakes this build for the paper's), `strays_apart` in `stats`.
+fn record(
+    dir: &Path,
+    params: &Params,
+    strays: u64,
+    stats: &mut BuildStats,
+) -> Result<(), MethodError> {
+    crate::method::write_json(&dir.join(COUNT_FILE), &Count { strays })?;
+    let mut manifest = Manifest::read(dir)?;
+    manifest.params = params.clone();
+    manifest.write(dir)?;
+    stats.extra.insert("strays_apart".into(), strays.into());
+    Ok(())
 }
 
 /// An opened build with its strays held apart.

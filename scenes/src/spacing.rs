@@ -339,9 +339,10 @@ pub fn area_spacing(positions: &[[f32; 3]], bounds: crate::Aabb) -> f32 {
     keys.par_sort_unstable();
     keys.dedup();
     let area = keys.len() as f64 * (cell as f64).powi(2);
-    // The strided samples stand for all the samples inside: scale the count back.
-    let all = (n as f64 * positions.len() as f64 / positions.iter().step_by(stride).count() as f64)
-        .max(1.0);
+    // The strided samples stand for all the samples inside: scale the count back
+    // (`step_by(stride)` visits `⌈len / stride⌉` samples).
+    let strided = positions.len().div_ceil(stride);
+    let all = (n as f64 * positions.len() as f64 / strided as f64).max(1.0);
     (area / all).sqrt() as f32
 }
 

@@ -231,6 +231,43 @@ fn delay_counts_frames_from_the_request() {
     assert!(l0.available(2));
 }
 
+/// With a delay of d ≥ 1 frames a chunk arrives in exactly d frames however slow the source
+/// is: `begin_frame` waits for the chunks due in the new frame, so a run's counts repeat.
+#[test]
+fn a_delay_is_exact_even_when_the_source_is_slow() {
+    let src = Arc::new(MemSource::uniform(4, 10).closed());
+    let l = loader(&src, u64::MAX, 1);
+    l.begin_frame(); // Frame f = 1.
+    l.request(0);
+    l.request(1);
+    assert!(
+        !l.available(0),
+        "frame f: nothing arrives in the frame of the request"
+    );
+    let opener = {
+        let src = Arc::clone(&src);
+        std::thread::spawn(move || {
+            // The source answers long after the frame would have ended.
+            std::thread::sleep(std::time::Duration::from_millis(200));
+            src.open();
+        })
+    };
+    let t = std::time::Instant::now();
+    l.begin_frame(); // Frame f + 1: both are due, so it waits for them.
+    assert!(t.elapsed() >= std::time::Duration::from_millis(150));
+    assert!(
+        l.available(0) && l.available(1),
+        "frame f + 1: both arrived"
+    );
+    assert_eq!(l.pending(), 0);
+    opener.join().unwrap();
+    // A chunk requested later is not waited for before its own frame.
+    l.request(2);
+    assert!(!l.available(2));
+    l.begin_frame();
+    assert!(l.available(2));
+}
+
 #[test]
 fn repeated_requests_fetch_once() {
     let src = Arc::new(MemSource::uniform(4, 10).closed());

@@ -113,8 +113,9 @@ pub struct LpcParams {
     pub fetch_per_frame: u32,
     /// Decoded clouds kept in core, MiB.
     pub core_mb: u64,
-    /// Frames between a request and the moment its cloud counts as available (simulated
-    /// latency; 0 = as soon as the loader thread has decoded it).
+    /// Frames between a request and the moment its cloud counts as available: simulated
+    /// latency, exact for d ≥ 1 (the frame waits for a late decode, so counts repeat); 0 = as
+    /// soon as the loader thread has decoded it.
     pub delay_frames: u32,
     /// Three-phase occlusion culling with occlusion queries.
     pub occlusion: bool,

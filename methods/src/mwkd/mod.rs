@@ -137,8 +137,9 @@ pub struct MwkdParams {
     pub c2: f32,
     /// Decoded nodes kept in core, MiB.
     pub core_mb: u64,
-    /// Frames between a request and the moment its node counts as available (simulated
-    /// latency; 0 = as soon as the loader thread has decoded it).
+    /// Frames between a request and the moment its node counts as available: simulated
+    /// latency, exact for d ≥ 1 (the frame waits for a late decode, so counts repeat); 0 = as
+    /// soon as the loader thread has decoded it.
     pub delay_frames: u32,
     /// Occlusion culling with occlusion queries (as LPC's three phases).
     pub occlusion: bool,

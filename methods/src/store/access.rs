@@ -14,8 +14,9 @@ use std::collections::{BTreeMap, HashMap};
 use std::panic::AssertUnwindSafe;
 use std::sync::atomic::{AtomicBool, Ordering};
 use std::sync::mpsc::{self, Receiver, Sender};
-use std::sync::{Arc, Mutex, MutexGuard};
+use std::sync::{Arc, Condvar, Mutex, MutexGuard};
 use std::thread::JoinHandle;
+use std::time::{Duration, Instant};
 
 use crate::store::{ChunkRef, Repository};
 use crate::{MethodError, SplatBatch};
@@ -98,9 +99,14 @@ pub struct LoaderOptions {
     /// Bytes of decoded chunks kept in core (least recently used dropped beyond).
     pub core_bytes: u64,
     /// Frames ([`DataAccess::begin_frame`] calls) between a request and the moment its
-    /// chunk counts as available: simulated latency; 0 = as soon as it is decoded.
+    /// chunk counts as available: simulated latency, exactly d frames for d ≥ 1 (see
+    /// [`Loader`], "Delay"); 0 = as soon as it is decoded.
     pub delay_frames: u32,
 }
+
+/// The longest [`DataAccess::begin_frame`] waits for the chunks due in its frame (delay ≥ 1)
+/// before the frame goes on without them: a source that hangs must not hang the run.
+pub const DUE_WAIT: Duration = Duration::from_secs(30);
 
 /// What the cache knows about one chunk.
 enum Entry {
@@ -219,6 +225,8 @@ struct Shared {
     decode: Decoder,
     delay_frames: u32,
     state: Mutex<State>,
+    /// Notified whenever the loader thread finishes a request (installed or failed).
+    served: Condvar,
     /// Set by [`Loader`]'s `Drop`: the thread stops before its next request.
     stop: AtomicBool,
 }
@@ -260,6 +268,8 @@ impl Shared {
                 // Loaded meanwhile by a synchronous `get` (or loaded, evicted and requested
                 // again, then served by an earlier message).
                 st.pending -= 1;
+                drop(st);
+                self.served.notify_all();
                 return;
             }
         }
@@ -274,6 +284,8 @@ impl Shared {
                 }
             }
         }
+        drop(st);
+        self.served.notify_all();
     }
 
     /// The loader thread: serves requests in the order they were sent until the sender is
@@ -306,8 +318,14 @@ impl Shared {
 /// With [`LoaderOptions::delay_frames`] = d, a chunk requested during frame f (the value of
 /// the frame counter, advanced by each [`DataAccess::begin_frame`]; frame 0 before the first
 /// call) is [`available`](DataAccess::available) from frame f + d on, and only once decoded:
-/// the loader simulates a source whose answer takes d frames. With d = 0 it is available as
-/// soon as it is decoded. A chunk read by [`DataAccess::get`] without a pending request is
+/// the loader simulates a source whose answer takes d frames. For d ≥ 1 the answer takes
+/// exactly d frames: [`DataAccess::begin_frame`] waits (at most [`DUE_WAIT`]) until every
+/// chunk due in the new frame is decoded or has failed, so which chunks are available in
+/// which frame does not depend on how fast the machine decodes, and a run's per-frame counts
+/// repeat exactly (as long as the core budget holds the working set: evictions happen when
+/// the thread installs a chunk). The loader still decodes while the frame renders; a frame
+/// only waits when decoding is slower than the simulated latency. With d = 0 a chunk is
+/// available as soon as it is decoded: as fast as the machine allows, and timing-dependent. A chunk read by [`DataAccess::get`] without a pending request is
 /// available at once; one that was pending keeps the frame of its request.
 ///
 /// # Core budget
@@ -364,6 +382,7 @@ impl Loader {
             source,
             decode,
             delay_frames: options.delay_frames,
+            served: Condvar::new(),
             state: Mutex::new(State {
                 frame: 0,
                 entries: HashMap::new(),
@@ -492,7 +511,29 @@ impl DataAccess for Loader {
     }
 
     fn begin_frame(&self) {
-        self.shared.state().frame += 1;
+        let mut st = self.shared.state();
+        st.frame += 1;
+        if self.shared.delay_frames == 0 || self.tx.is_none() {
+            return;
+        }
+        // A simulated latency of exactly d frames: wait for the chunks due now.
+        let frame = st.frame;
+        let due = |st: &State| {
+            st.entries
+                .values()
+                .any(|e| matches!(e, Entry::Loading { ready } if *ready <= frame))
+        };
+        let deadline = Instant::now() + DUE_WAIT;
+        while due(&st) {
+            let left = deadline.saturating_duration_since(Instant::now());
+            if left.is_zero() {
+                break;
+            }
+            st = match self.shared.served.wait_timeout(st, left) {
+                Ok((guard, _)) => guard,
+                Err(e) => e.into_inner().0,
+            };
+        }
     }
 
     fn resident_bytes(&self) -> u64 {

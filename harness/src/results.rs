@@ -152,6 +152,28 @@ pub fn write_json<T: serde::Serialize>(path: &Path, value: &T) -> anyhow::Result
     std::fs::rename(&tmp, path).with_context(|| format!("renaming to {}", path.display()))
 }
 
+/// The command line of this process as a shell would take it back: `splatbench` and its
+/// arguments, each quoted where it holds anything but `[A-Za-z0-9_./:=,@%+-]`. Results files
+/// record it as the command that produced them.
+pub fn invocation() -> String {
+    std::iter::once("splatbench".to_string())
+        .chain(std::env::args().skip(1).map(|a| shell_quote(&a)))
+        .collect::<Vec<_>>()
+        .join(" ")
+}
+
+/// `s` quoted for a POSIX shell where needed.
+pub fn shell_quote(s: &str) -> String {
+    let plain = !s.is_empty()
+        && s.chars()
+            .all(|c| c.is_ascii_alphanumeric() || "_./:=,@%+-".contains(c));
+    if plain {
+        s.to_string()
+    } else {
+        format!("'{}'", s.replace('\'', "'\\''"))
+    }
+}
+
 /// Median of the finite values, if any.
 pub fn median(values: impl IntoIterator<Item = f64>) -> Option<f64> {
     let mut v: Vec<f64> = values.into_iter().filter(|x| x.is_finite()).collect();
@@ -179,6 +201,14 @@ mod tests {
              wall_ms,cpu_select_ms,upload_bytes,splats_per_s,rss_bytes,gpu_cache_bytes,psnr_db,\
              ssim,flip_mean,hole_ratio,extra_coverage"
         );
+    }
+
+    #[test]
+    fn shell_quoting() {
+        assert_eq!(shell_quote("statue:20000:1"), "statue:20000:1");
+        assert_eq!(shell_quote("a b"), "'a b'");
+        assert_eq!(shell_quote("it's"), "'it'\\''s'");
+        assert_eq!(shell_quote(""), "''");
     }
 
     #[test]

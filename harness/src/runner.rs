@@ -5,7 +5,7 @@
 //! The **reference** for a view is the `full` method (every sample a splat of its own leaf
 //! radius, ≥ 1 px) rendered with the same renderer settings. Reference images are cached in
 //! `<cache>/refs/` under a key hashing the scene's content, the camera, the resolution, the
-//! kernel and [`REFERENCE_VERSION`]; the `full` build they need lives in
+//! kernel, the adapter (name and backend) and [`REFERENCE_VERSION`]; the `full` build they need lives in
 //! `<cache>/full/<scene hash>/` and is made only when an image is missing.
 //!
 //! Timing: one untimed warm-up frame (shader compilation) precedes the path. `splats_per_s`
@@ -187,6 +187,8 @@ pub struct Summary {
     pub adapter: AdapterDesc,
     /// Git commit of the binary (`-dirty` when built from a modified tree).
     pub git_commit: String,
+    /// The command line of the process that ran it ([`crate::results::invocation`]).
+    pub command: String,
     /// Seed.
     pub seed: u64,
     /// Resolution.
@@ -372,6 +374,9 @@ impl<'g> Reference<'g> {
             .write(&view.camera.near.to_le_bytes())
             .write(&view.camera.far.to_le_bytes())
             .write_str(self.settings.kernel.name())
+            // Rasterisers differ by a pixel here and there: a reference is its adapter's.
+            .write_str(&self.gpu.adapter.name)
+            .write_str(&self.gpu.adapter.backend)
             .write(&REFERENCE_VERSION.to_le_bytes());
         format!("{:016x}", h.finish())
     }
@@ -532,6 +537,7 @@ pub fn run(cfg: &RunConfig, gpu: &Gpu, progress: &dyn Progress) -> anyhow::Resul
         complete: false,
         adapter: gpu.adapter.clone(),
         git_commit: GIT_COMMIT.into(),
+        command: crate::results::invocation(),
         seed: cfg.seed,
         width: cfg.render.width,
         height: cfg.render.height,
@@ -678,7 +684,9 @@ pub fn run(cfg: &RunConfig, gpu: &Gpu, progress: &dyn Progress) -> anyhow::Resul
     if !summary.complete {
         let first = &summary.failed_chunks[0];
         anyhow::bail!(
-            "{failed} chunk(s) of {} failed to load (first, in frame {}: {}): the frames drew              without them, so {} is not a faithful measurement (summary.json says              \"complete\": false and lists them; --allow-missing-chunks accepts them)",
+            "{failed} chunk(s) of {} failed to load (first, in frame {}: {}): the frames drew \
+             without them, so {} is not a faithful measurement (summary.json says \
+             \"complete\": false and lists them; --allow-missing-chunks accepts them)",
             cfg.method,
             first.frame,
             first.error,

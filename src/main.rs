@@ -4,11 +4,13 @@
 //! One file per subcommand (its argument struct and its function); shared argument groups
 //! are in [`args`]. What a command computes lives in the library crates.
 //!
-//! Errors print as `Error: {:#}` (the whole context chain) and exit with status 1.
+//! Errors print as `Error: {:#}` (the whole context chain) and exit with status 1 (`check`:
+//! 1 on a regression, 2 on input it cannot compare).
 
 mod args;
 mod build;
 mod cache;
+mod check;
 mod demo;
 mod export;
 mod list;
@@ -62,17 +64,26 @@ enum Command {
     Reproduce(reproduce::ReproduceArgs),
     /// Where the cache is (scenes, reference images and builds), its size, and --clear.
     Cache(cache::CacheCommandArgs),
+    /// Compare a run, sweep, tune or reproduction (or a regression suite, run first) with a
+    /// baseline: a table of what changed; exit 0 when all holds, 1 on a regression, 2 on
+    /// input that cannot be compared. `--bless` writes the baseline.
+    Check(check::CheckArgs),
 }
 
 fn main() {
-    if let Err(e) = real_main() {
+    let cli = Cli::parse();
+    // `check` has three outcomes (holds, regression, unusable input): its own exit status.
+    if let Command::Check(a) = &cli.command {
+        std::process::exit(check::main(a));
+    }
+    if let Err(e) = real_main(cli.command) {
         eprintln!("Error: {e:#}");
         std::process::exit(1);
     }
 }
 
-fn real_main() -> anyhow::Result<()> {
-    match Cli::parse().command {
+fn real_main(command: Command) -> anyhow::Result<()> {
+    match command {
         Command::List => list::main(),
         Command::Build(a) => build::main(&a),
         Command::Run(a) => run::main(&a),
@@ -84,5 +95,6 @@ fn real_main() -> anyhow::Result<()> {
         Command::Demo(a) => demo::main(&a),
         Command::Cache(a) => cache::main(&a),
         Command::Reproduce(a) => reproduce::main(&a),
+        Command::Check(_) => unreachable!("handled in main"),
     }
 }

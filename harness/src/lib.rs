@@ -5,6 +5,7 @@
 //! lists; everything GPU lives here.
 
 pub mod cache;
+pub mod check;
 pub mod gpu;
 pub mod image;
 pub mod metrics;

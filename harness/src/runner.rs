@@ -381,6 +381,41 @@ impl<'g> Reference<'g> {
         format!("{:016x}", h.finish())
     }
 
+    /// Builds the `full` reference into `dir` through a temporary directory of this process,
+    /// renamed into place: processes sharing a cache (parallel jobs) never write into one
+    /// directory, and a reader sees a complete build or none. A directory left without a
+    /// manifest (an interrupted build) is replaced; one that appeared meanwhile is kept.
+    fn build_full(&self, dir: &Path, progress: &dyn Progress) -> anyhow::Result<()> {
+        let mut tmp = dir.as_os_str().to_owned();
+        tmp.push(format!(".tmp.{}", std::process::id()));
+        let tmp = PathBuf::from(tmp);
+        if tmp.exists() {
+            std::fs::remove_dir_all(&tmp)
+                .with_context(|| format!("removing the old {}", tmp.display()))?;
+        }
+        MethodKind::Full
+            .build(
+                self.cloud,
+                &Params::default(),
+                &self.scene_label,
+                &tmp,
+                progress,
+            )
+            .context("building the full-resolution reference")?;
+        if dir.exists() && methods::Manifest::read(dir).is_err() {
+            std::fs::remove_dir_all(dir)
+                .with_context(|| format!("removing the unfinished {}", dir.display()))?;
+        }
+        if std::fs::rename(&tmp, dir).is_err() {
+            // Another process put its (identical) build there first.
+            methods::Manifest::read(dir).with_context(|| {
+                format!("moving the reference build {} into place", tmp.display())
+            })?;
+            std::fs::remove_dir_all(&tmp).ok();
+        }
+        Ok(())
+    }
+
     /// The reference image of `view` (rendered and cached if missing).
     pub fn image(&mut self, view: &View, progress: &dyn Progress) -> anyhow::Result<Image> {
         let path = self
@@ -396,15 +431,7 @@ impl<'g> Reference<'g> {
         if self.full.is_none() {
             let dir = self.full_dir();
             if methods::Manifest::read(&dir).is_err() {
-                MethodKind::Full
-                    .build(
-                        self.cloud,
-                        &Params::default(),
-                        &self.scene_label,
-                        &dir,
-                        progress,
-                    )
-                    .context("building the full-resolution reference")?;
+                self.build_full(&dir, progress)?;
             }
             let m = MethodKind::open(&dir)?;
             let r = Renderer::new(

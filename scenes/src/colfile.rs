@@ -34,7 +34,7 @@
 //!   touching a column, and reports a [`SceneError::Format`] naming the file and what is wrong
 //!   (a truncated file names the column that is cut short); it never panics.
 //! - [`ColumnWriter`] streams blocks of points into a pre-sized file, each column at its
-//!   offset, so a cloud larger than RAM can be written. It writes to `<path>.tmp` (see
+//!   offset, so a cloud larger than RAM can be written. It writes to `<path>.tmp.<pid>` (see
 //!   [`temp_path`]) and renames only after the header is written and synced, so an interrupted
 //!   write never leaves a file at `path` that looks complete. Dropping an unfinished writer
 //!   removes the temporary file.
@@ -146,11 +146,13 @@ pub fn open(path: &Path) -> Result<PointCloud, SceneError> {
     Ok(cloud)
 }
 
-/// The temporary file a [`ColumnWriter`] for `path` writes to: `path` with `.tmp` appended
-/// (`scene.sbc` → `scene.sbc.tmp`).
+/// The temporary file a [`ColumnWriter`] for `path` writes to: `path` with `.tmp.` and the
+/// process id appended (`scene.sbc` → `scene.sbc.tmp.4242`), so that two processes writing
+/// the same cached scene at once (parallel jobs sharing a cache) never write into one file:
+/// each writes its own, and the last rename wins with identical content.
 pub fn temp_path(path: &Path) -> PathBuf {
     let mut s = path.as_os_str().to_owned();
-    s.push(".tmp");
+    s.push(format!(".tmp.{}", std::process::id()));
     PathBuf::from(s)
 }
 

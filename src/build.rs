@@ -28,7 +28,8 @@ pub fn main(a: &BuildArgs) -> anyhow::Result<()> {
     Ok(())
 }
 
-/// Loads the scene and builds the method into `out` (`sweep` builds through it too).
+/// Loads the scene and builds the method into `out` (`sweep` builds through it too);
+/// `build.json`'s `extra` records the process's peak RSS (`peak_rss_bytes`).
 pub fn build(
     m: &MethodArgs,
     s: &SceneArgs,
@@ -43,5 +44,13 @@ pub fn build(
         .load(Some(cache), &bar)
         .with_context(|| format!("loading scene '{}'", s.scene))?
         .warn();
-    Ok(m.method.build(&cloud, &params, &spec.label(), out, &bar)?)
+    let mut stats = m.method.build(&cloud, &params, &spec.label(), out, &bar)?;
+    // The process's peak memory: the scene's load and the build (a `tune` builds in a
+    // process of its own, so this is the build's).
+    stats.extra.insert(
+        "peak_rss_bytes".into(),
+        serde_json::Value::from(harness::rss::peak_bytes()),
+    );
+    stats.write(out)?;
+    Ok(stats)
 }

@@ -13,13 +13,16 @@ mod cache;
 mod check;
 mod demo;
 mod export;
+mod jobs;
 mod list;
+mod merge;
 mod plan;
 mod plot;
 mod reproduce;
 mod run;
 mod shared;
 mod sweep;
+mod tune;
 
 use clap::{Parser, Subcommand};
 
@@ -68,6 +71,13 @@ enum Command {
     /// baseline: a table of what changed; exit 0 when all holds, 1 on a regression, 2 on
     /// input that cannot be compared. `--bless` writes the baseline.
     Check(check::CheckArgs),
+    /// A grid over a method's parameters (build and runtime alike, each build made once):
+    /// one run per setting and target, tune.csv, the Pareto front over (FLIP, cost), a
+    /// recommendation per target (recommendation.md) and its plot.
+    Tune(tune::TuneArgs),
+    /// Assemble the parts written by jobs that `--emit-jobs` listed into the output a local
+    /// run writes.
+    Merge(merge::MergeArgs),
 }
 
 fn main() {
@@ -95,6 +105,8 @@ fn real_main(command: Command) -> anyhow::Result<()> {
         Command::Demo(a) => demo::main(&a),
         Command::Cache(a) => cache::main(&a),
         Command::Reproduce(a) => reproduce::main(&a),
+        Command::Tune(a) => tune::main(&a),
+        Command::Merge(a) => merge::main(&a),
         Command::Check(_) => unreachable!("handled in main"),
     }
 }

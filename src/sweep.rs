@@ -111,7 +111,10 @@ pub fn main(a: &SweepArgs) -> anyhow::Result<()> {
 /// The targets of `--budgets` or `--eps` (exactly one of them), in the order given. Empty
 /// lists and items, non-numbers, a budget of 0, a negative or non-finite tolerance and a
 /// target given twice are errors naming the flag.
-fn sweep_targets(budgets: Option<&str>, eps: Option<&str>) -> anyhow::Result<Vec<SweepTarget>> {
+pub(crate) fn sweep_targets(
+    budgets: Option<&str>,
+    eps: Option<&str>,
+) -> anyhow::Result<Vec<SweepTarget>> {
     let (flag, list) = match (budgets, eps) {
         (Some(_), Some(_)) => {
             bail!("--budgets and --eps are exclusive: a sweep varies one kind of target")

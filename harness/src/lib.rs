@@ -17,3 +17,4 @@ pub mod results;
 pub mod rss;
 pub mod runner;
 pub mod sweep;
+pub mod tune;

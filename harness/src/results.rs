@@ -174,6 +174,40 @@ pub fn shell_quote(s: &str) -> String {
     }
 }
 
+/// Puts the tree `from` at `to` (directories created, files hard-linked where the file
+/// system allows, else copied; symbolic links are not followed and are an error). A file
+/// that exists at `to` already is an error naming it: trees merged this way must not
+/// overlap.
+pub fn link_tree(from: &Path, to: &Path) -> anyhow::Result<()> {
+    std::fs::create_dir_all(to).with_context(|| format!("creating {}", to.display()))?;
+    for e in std::fs::read_dir(from).with_context(|| format!("reading {}", from.display()))? {
+        let e = e.with_context(|| format!("reading {}", from.display()))?;
+        let (src, dst) = (e.path(), to.join(e.file_name()));
+        let t = e
+            .file_type()
+            .with_context(|| format!("reading {}", src.display()))?;
+        if t.is_dir() {
+            link_tree(&src, &dst)?;
+        } else if t.is_file() {
+            if dst.exists() {
+                anyhow::bail!(
+                    "{} and {} would both be {}",
+                    src.display(),
+                    dst.display(),
+                    dst.display()
+                );
+            }
+            if std::fs::hard_link(&src, &dst).is_err() {
+                std::fs::copy(&src, &dst)
+                    .with_context(|| format!("copying {} to {}", src.display(), dst.display()))?;
+            }
+        } else {
+            anyhow::bail!("{}: not a file or directory", src.display());
+        }
+    }
+    Ok(())
+}
+
 /// Median of the finite values, if any.
 pub fn median(values: impl IntoIterator<Item = f64>) -> Option<f64> {
     let mut v: Vec<f64> = values.into_iter().filter(|x| x.is_finite()).collect();

@@ -129,6 +129,36 @@ impl MethodKind {
         }
     }
 
+    /// Every parameter's default value as text (`m` → `2048`), the way `--param` would give
+    /// it; parameters whose default is "absent" (estimated, or off) are left out. The
+    /// defaults are the papers' choices unless the method's README says otherwise, so `tune`
+    /// marks them in its recommendation.
+    pub fn defaults(self) -> std::collections::BTreeMap<String, String> {
+        let value = match self {
+            MethodKind::Full => serde_json::to_value(full::FullParams::default()),
+            MethodKind::Qsplat => serde_json::to_value(qsplat::QsplatParams::default()),
+            MethodKind::Spt => serde_json::to_value(spt::SptParams::default()),
+            MethodKind::Lpc => serde_json::to_value(lpc::LpcParams::default()),
+            MethodKind::Mwkd => serde_json::to_value(mwkd::MwkdParams::default()),
+        };
+        let mut out = std::collections::BTreeMap::new();
+        if let Ok(serde_json::Value::Object(map)) = value {
+            for (k, v) in map {
+                match v {
+                    serde_json::Value::Null => {}
+                    serde_json::Value::String(s) => {
+                        out.insert(k, s);
+                    }
+                    other => {
+                        out.insert(k, other.to_string());
+                    }
+                }
+            }
+        }
+        out.insert(strays::PARAM.into(), "in".into());
+        out
+    }
+
     /// Parameters that only steer rendering (read at `open`, not used by `build`): a run of
     /// an existing build may change these and no others.
     pub fn runtime_params(self) -> &'static [&'static str] {
@@ -184,5 +214,31 @@ impl MethodKind {
 impl std::fmt::Display for MethodKind {
     fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
         f.write_str(self.name())
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn defaults_are_the_parameters_and_check_as_given() {
+        let lpc = MethodKind::Lpc.defaults();
+        assert_eq!(lpc["m"], "2048");
+        assert_eq!(lpc["spacing_rule"], "mean");
+        assert!(!lpc.contains_key("spacing"), "absent defaults are left out");
+        let mwkd = MethodKind::Mwkd.defaults();
+        assert_eq!(
+            (mwkd["fanout"].as_str(), mwkd["vbo"].as_str()),
+            ("4", "8192")
+        );
+        for kind in MethodKind::ALL {
+            let d = kind.defaults();
+            assert_eq!(d["strays"], "in");
+            let pairs: Vec<String> = d.iter().map(|(k, v)| format!("{k}={v}")).collect();
+            let params = Params::parse(&pairs).unwrap_or_else(|e| panic!("{kind}: {e}"));
+            kind.check_params(&params)
+                .unwrap_or_else(|e| panic!("{kind}: {pairs:?}: {e}"));
+        }
     }
 }

@@ -61,6 +61,7 @@ mod comparison;
 mod sweep;
 mod table;
 mod timeline;
+mod tune;
 
 use comparison::*;
 use sweep::*;
@@ -69,6 +70,7 @@ pub use sweep::{
 };
 use table::*;
 use timeline::*;
+pub use tune::{TUNE_SIZE, TuneFigure, plot_tune};
 
 /// The leading columns of every `frames.csv`, in the order runs write them.
 pub const FRAME_COLUMNS: [&str; 21] = [

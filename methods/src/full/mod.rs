@@ -26,7 +26,7 @@ pub const FORMAT_VERSION: u32 = 1;
 const POINTS_FILE: &str = "points.sbc";
 
 /// Parameters of `full`.
-#[derive(Debug, Clone, Default, serde::Deserialize)]
+#[derive(Debug, Clone, Default, serde::Deserialize, serde::Serialize)]
 #[serde(deny_unknown_fields, default)]
 pub struct FullParams {
     /// Seed of the sample order.

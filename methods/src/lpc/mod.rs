@@ -85,7 +85,7 @@ pub enum SpacingRule {
 }
 
 /// Parameters of `lpc` (`--param key=value`).
-#[derive(Debug, Clone, serde::Deserialize)]
+#[derive(Debug, Clone, serde::Deserialize, serde::Serialize)]
 #[serde(deny_unknown_fields, default)]
 pub struct LpcParams {
     /// Samples per cloud `M` (paper: 512–8192, tables with 2048).

@@ -46,7 +46,7 @@ pub const COLUMNS: &[&str] = &[
 ];
 
 /// Parameters of `qsplat`.
-#[derive(Debug, Clone, Default, PartialEq, serde::Deserialize)]
+#[derive(Debug, Clone, Default, PartialEq, serde::Deserialize, serde::Serialize)]
 #[serde(deny_unknown_fields, default)]
 pub struct QsplatParams {
     /// Splat kernel asked of the renderer (`square|circle|ellipse|gaussian`); none = the

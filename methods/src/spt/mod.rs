@@ -82,7 +82,7 @@ pub enum SptBound {
 }
 
 /// Parameters of `spt`.
-#[derive(Debug, Clone, serde::Deserialize)]
+#[derive(Debug, Clone, serde::Deserialize, serde::Serialize)]
 #[serde(deny_unknown_fields, default)]
 pub struct SptParams {
     /// `unified` or `split`.

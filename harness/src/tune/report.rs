@@ -1,0 +1,400 @@
+//! `recommendation.md`: per target the settings ranked by error at a common cost (see
+//! [`super::pareto`]), the best and the runner-up with its margin and whether that margin is
+//! larger than run-to-run noise, the method's default marked; then the Pareto front.
+
+use std::fmt::Write as _;
+
+use super::pareto::{self, Ranking};
+use super::{Plan, TuneRow};
+
+/// Whether grid value `v` is the default `d` (as text, or as the same number).
+fn same_value(v: &str, d: &str) -> bool {
+    v == d
+        || matches!((v.parse::<f64>(), d.parse::<f64>()), (Ok(a), Ok(b)) if a == b)
+        || v.trim_matches('"') == d
+}
+
+/// The setting whose every gridded value is the method's default, if the grid has it.
+fn default_setting(plan: &Plan, rows: &[TuneRow]) -> Option<usize> {
+    let defaults = plan.kind().ok()?.defaults();
+    rows.iter()
+        .find(|r| {
+            plan.grid
+                .axes
+                .iter()
+                .zip(&r.values)
+                .all(|(a, v)| defaults.get(&a.key).is_some_and(|d| same_value(v, d)))
+        })
+        .map(|r| r.setting)
+}
+
+fn num(v: f64) -> String {
+    if v == 0.0 {
+        return "0".into();
+    }
+    let a = v.abs();
+    if a >= 1000.0 {
+        let s = format!("{:.0}", v.abs());
+        let mut out = String::new();
+        for (i, c) in s.chars().enumerate() {
+            if i > 0 && (s.len() - i) % 3 == 0 {
+                out.push(',');
+            }
+            out.push(c);
+        }
+        if v < 0.0 { format!("-{out}") } else { out }
+    } else {
+        let digits = (3 - a.log10().floor() as i32).clamp(0, 8) as usize;
+        format!("{v:.digits$}")
+    }
+}
+
+/// The text of `recommendation.md` for `rows` of `plan` (ran on `adapter` at `commit`).
+pub fn recommendation(
+    plan: &Plan,
+    rows: &[TuneRow],
+    adapter: &str,
+    commit: &str,
+) -> anyhow::Result<String> {
+    let settings = plan.grid.settings();
+    let n_t = plan.targets.len();
+    let row = |s: usize, t: usize| rows.iter().find(|r| r.setting == s && r.target == t);
+    let curves: Vec<Vec<Option<(f64, f64)>>> = settings
+        .iter()
+        .map(|s| {
+            (0..n_t)
+                .map(|t| row(s.index, t).and_then(|r| Some((r.cost, r.sweep.flip_mean_median?))))
+                .collect()
+        })
+        .collect();
+    let default = default_setting(plan, rows);
+    let defaults = plan.kind()?.defaults();
+    let mut o = String::new();
+    writeln!(o, "# Tune: {} on {}\n", plan.method, plan.scene)?;
+    writeln!(o, "`{}`\n", plan.command)?;
+    let axes: Vec<String> = plan
+        .grid
+        .axes
+        .iter()
+        .map(|a| {
+            format!(
+                "{} ∈ {{{}}} ({})",
+                a.key,
+                a.values.join(", "),
+                if a.runtime { "runtime" } else { "build" }
+            )
+        })
+        .collect();
+    writeln!(
+        o,
+        "Adapter {adapter}, commit {commit}. Grid: {}{}. Path {}; targets {}. Cost: {}. \
+         Error: the median over the frames of the mean FLIP against the full-resolution \
+         reference. Each run made {} time(s): run-to-run noise is the largest change of a \
+         setting's error at the common cost when a repeat replaces the run.\n",
+        axes.join("; "),
+        if plan.grid.fixed.is_empty() {
+            String::new()
+        } else {
+            format!(
+                "; fixed {}",
+                plan.grid
+                    .fixed
+                    .iter()
+                    .map(|(k, v)| format!("{k}={v}"))
+                    .collect::<Vec<_>>()
+                    .join(" ")
+            )
+        },
+        plan.path,
+        plan.targets
+            .iter()
+            .map(|t| t.label())
+            .collect::<Vec<_>>()
+            .join(", "),
+        plan.cost.describe(),
+        plan.repeats
+    )?;
+    let default_text: Vec<String> = plan
+        .grid
+        .axes
+        .iter()
+        .map(|a| {
+            format!(
+                "{}={}",
+                a.key,
+                defaults.get(&a.key).map_or("(estimated)", String::as_str)
+            )
+        })
+        .collect();
+    match default {
+        Some(s) => writeln!(
+            o,
+            "The method's default ({}; the paper's choice unless its README says otherwise) \
+             is setting `{}`, marked ✓.\n",
+            default_text.join(" "),
+            settings[s].label()
+        )?,
+        None => writeln!(
+            o,
+            "The method's default ({}) is not in the grid.\n",
+            default_text.join(" ")
+        )?,
+    }
+    for (t, target) in plan.targets.iter().enumerate() {
+        writeln!(o, "## {}\n", target.label())?;
+        let Some(Ranking {
+            cost,
+            ranked,
+            unreachable,
+        }) = pareto::rank(&curves, t)
+        else {
+            writeln!(o, "No setting has an error measured at this target.\n")?;
+            continue;
+        };
+        // Run-to-run noise of a setting at the common cost: its curve with a repeat in
+        // place of this target's run.
+        let noise = |s: usize| -> Option<f64> {
+            let r = row(s, t)?;
+            if plan.repeats < 2 || r.repeats.is_empty() {
+                return None;
+            }
+            let base: Vec<(f64, f64)> = curves[s].iter().flatten().copied().collect();
+            let e0 = pareto::error_at(&base, cost)?;
+            r.repeats
+                .iter()
+                .map(|&(c, f)| {
+                    let mut curve = curves[s].clone();
+                    curve[t] = f.map(|f| (c, f));
+                    let pts: Vec<(f64, f64)> = curve.iter().flatten().copied().collect();
+                    pareto::error_at(&pts, cost).map_or(f64::INFINITY, |e| (e - e0).abs())
+                })
+                .reduce(f64::max)
+        };
+        match ranked.as_slice() {
+            [] => writeln!(o, "No setting reaches the common cost {}.\n", num(cost))?,
+            [(best, e)] => writeln!(
+                o,
+                "**Recommended: {}**, FLIP {} at the common cost {} (the only setting that \
+                 reaches it).\n",
+                settings[*best].label(),
+                num(*e),
+                num(cost)
+            )?,
+            [(best, e1), (second, e2), ..] => {
+                let margin = e2 - e1;
+                let (n1, n2) = (noise(*best), noise(*second));
+                let verdict = match pareto::beyond_noise(margin, n1.zip(n2)) {
+                    Some(true) if n1 == Some(0.0) && n2 == Some(0.0) => {
+                        "the repeats reproduced both exactly, so the margin is not noise".into()
+                    }
+                    Some(true) => format!(
+                        "larger than run-to-run noise ({} + {})",
+                        num(n1.unwrap_or(0.0)),
+                        num(n2.unwrap_or(0.0))
+                    ),
+                    Some(false) => format!(
+                        "**not** larger than run-to-run noise ({} + {}): the two are tied \
+                         within what a repeat changes",
+                        num(n1.unwrap_or(0.0)),
+                        num(n2.unwrap_or(0.0))
+                    ),
+                    None => "run-to-run noise not measured (--repeats 1)".into(),
+                };
+                writeln!(
+                    o,
+                    "**Recommended: {}**, FLIP {} at the common cost {}; runner-up {} at {}: \
+                     margin {} ({:.1} %), {verdict}.\n",
+                    settings[*best].label(),
+                    num(*e1),
+                    num(cost),
+                    settings[*second].label(),
+                    num(*e2),
+                    num(margin),
+                    if *e1 > 0.0 { 100.0 * margin / e1 } else { 0.0 }
+                )?;
+            }
+        }
+        writeln!(
+            o,
+            "| rank | setting | FLIP at cost {} | measured FLIP | cost | points | holes | noise | default |",
+            num(cost)
+        )?;
+        writeln!(o, "|---|---|---|---|---|---|---|---|---|")?;
+        for (i, (s, e)) in ranked.iter().enumerate() {
+            let Some(r) = row(*s, t) else { continue };
+            writeln!(
+                o,
+                "| {} | {} | {} | {} | {} | {} | {} | {} | {} |",
+                i + 1,
+                settings[*s].label(),
+                num(*e),
+                r.sweep.flip_mean_median.map_or("-".into(), num),
+                num(r.cost),
+                num(r.sweep.points_drawn_median),
+                r.sweep.hole_ratio_median.map_or("-".into(), num),
+                noise(*s).map_or("-".into(), num),
+                if default == Some(*s) { "✓" } else { "" }
+            )?;
+        }
+        if !unreachable.is_empty() {
+            writeln!(
+                o,
+                "\nNot comparable at this cost (no target of theirs within {:.0} % of it): {}.",
+                100.0 * pareto::REACH,
+                unreachable
+                    .iter()
+                    .map(|s| settings[*s].label())
+                    .collect::<Vec<_>>()
+                    .join(", ")
+            )?;
+        }
+        writeln!(o)?;
+    }
+    writeln!(
+        o,
+        "## Pareto front over (cost, FLIP), every setting and target\n"
+    )?;
+    writeln!(o, "| setting | target | cost | FLIP | points |")?;
+    writeln!(o, "|---|---|---|---|---|")?;
+    let mut front: Vec<&TuneRow> = rows.iter().filter(|r| r.pareto).collect();
+    front.sort_by(|a, b| a.cost.total_cmp(&b.cost));
+    for r in front {
+        writeln!(
+            o,
+            "| {} | {} | {} | {} | {} |",
+            r.label,
+            plan.targets[r.target].label(),
+            num(r.cost),
+            r.sweep.flip_mean_median.map_or("-".into(), num),
+            num(r.sweep.points_drawn_median)
+        )?;
+    }
+    Ok(o)
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::plot::SweepRow;
+    use crate::tune::{Cost, Grid, PlanTarget};
+
+    fn plan(repeats: usize) -> Plan {
+        let grids = vec!["m=1024,2048,4096".to_string()];
+        Plan {
+            method: "lpc".into(),
+            scene: "statue:1000:1".into(),
+            path: "orbit".into(),
+            grid: Grid::parse(methods::MethodKind::Lpc, &grids, &Default::default(), false)
+                .unwrap_or_else(|e| panic!("{e:#}")),
+            targets: vec![
+                PlanTarget::of(
+                    &crate::sweep::SweepTarget::budget(1000).unwrap_or_else(|e| panic!("{e}")),
+                ),
+                PlanTarget::of(
+                    &crate::sweep::SweepTarget::budget(2000).unwrap_or_else(|e| panic!("{e}")),
+                ),
+            ],
+            cost: Cost::Points,
+            repeats,
+            scene_args: vec![],
+            run_args: vec![],
+            build_dir: None,
+            cache: "c".into(),
+            command: "splatbench tune …".into(),
+        }
+    }
+
+    /// Setting `s` (m = 1024, 2048, 4096) at target `t`: `(points, FLIP)`, and its repeat's.
+    fn row(s: usize, t: usize, (cost, flip): (f64, f64), repeat: Option<(f64, f64)>) -> TuneRow {
+        TuneRow {
+            setting: s,
+            label: format!("m={}", [1024, 2048, 4096][s]),
+            values: vec![[1024, 2048, 4096][s].to_string()],
+            target: t,
+            target_name: format!("budget-{}", [1000, 2000][t]),
+            value: [1000.0, 2000.0][t],
+            sweep: SweepRow {
+                method: "lpc".into(),
+                params: String::new(),
+                scene: "s".into(),
+                path: "orbit".into(),
+                target: "budget".into(),
+                value: [1000.0, 2000.0][t],
+                frames: 2,
+                points_drawn_median: cost,
+                splats_per_s_median: 1.0,
+                gpu_ms_median: None,
+                cpu_select_ms_median: 0.1,
+                flip_mean_median: Some(flip),
+                flip_mean_max: Some(flip),
+                hole_ratio_median: Some(0.0),
+                hole_ratio_max: Some(0.0),
+                psnr_db_median: None,
+                rss_bytes_max: 0,
+            },
+            wall_ms_median: 1.0,
+            cost,
+            flip_noise: None,
+            cost_noise: None,
+            repeats: repeat.map(|(c, f)| vec![(c, Some(f))]).unwrap_or_default(),
+            build_seconds: None,
+            bytes_per_sample: None,
+            build_peak_rss_bytes: None,
+            peak_rss_bytes: None,
+            pareto: false,
+        }
+    }
+
+    #[test]
+    fn the_recommendation_on_hand_made_rows() {
+        // m=2048 beats m=1024 by 0.02 at both budgets; m=4096 never gets near 1000 points.
+        let rows = |noise: f64| {
+            vec![
+                row(0, 0, (1000.0, 0.30), Some((1000.0, 0.30 + noise))),
+                row(0, 1, (2000.0, 0.20), Some((2000.0, 0.20))),
+                row(1, 0, (1000.0, 0.28), Some((1000.0, 0.28))),
+                row(1, 1, (2000.0, 0.18), Some((2000.0, 0.18))),
+                row(2, 0, (4096.0, 0.10), None),
+                row(2, 1, (4096.0, 0.10), None),
+            ]
+        };
+        let text = recommendation(&plan(2), &rows(0.0), "llvmpipe (Vulkan)", "abc").unwrap();
+        assert!(
+            text.contains(
+                "**Recommended: m=2048**, FLIP 0.2800 at the common cost 1,000; runner-up \
+                 m=1024 at 0.3000: margin 0.02000 (7.1 %), the repeats reproduced both exactly"
+            ),
+            "{text}"
+        );
+        assert!(
+            text.contains("| 1 | m=2048 | 0.2800 | 0.2800 | 1,000 | 1,000 | 0 | 0 | ✓ |"),
+            "{text}"
+        );
+        assert!(
+            text.contains(
+                "Not comparable at this cost (no target of theirs within 10 % of it): m=4096."
+            ),
+            "{text}"
+        );
+        // A repeat of m=1024 that moves by 0.03 makes the margin of 0.02 noise.
+        let text = recommendation(&plan(2), &rows(0.03), "llvmpipe (Vulkan)", "abc").unwrap();
+        assert!(
+            text.contains(
+                "margin 0.02000 (7.1 %), **not** larger than run-to-run noise (0 + 0.03000)"
+            ),
+            "{text}"
+        );
+        let text = recommendation(&plan(1), &rows(0.0), "x", "abc").unwrap();
+        assert!(text.contains("noise not measured (--repeats 1)"), "{text}");
+    }
+
+    #[test]
+    fn numbers_and_defaults() {
+        assert_eq!(num(12345.6), "12,346");
+        assert_eq!(num(0.041234), "0.04123");
+        assert_eq!(num(12.34), "12.34");
+        assert!(same_value("2048", "2048"));
+        assert!(same_value("2", "2.0"));
+        assert!(!same_value("1024", "2048"));
+    }
+}

@@ -1,8 +1,9 @@
 //! `splatbench merge DIR… --out DIR`: the parts that jobs emitted by `--emit-jobs` wrote
 //! (`sweep`, `tune` or `reproduce`), assembled into the output a local run of the same
-//! command writes.
+//! command writes: the same files, laid out the same way, every figure that does not depend
+//! on timing equal byte for byte.
 
-use std::path::PathBuf;
+use std::path::{Path, PathBuf};
 
 use anyhow::bail;
 use clap::Args;
@@ -19,43 +20,98 @@ pub struct MergeArgs {
     pub out: PathBuf,
 }
 
+/// What a part is, by the record it holds.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+enum Kind {
+    Sweep,
+    Tune,
+    Reproduce,
+}
+
+impl Kind {
+    fn of(dir: &Path) -> Option<Self> {
+        [
+            (Kind::Sweep, harness::sweep::SweepPart::FILE),
+            (Kind::Tune, "tune.json"),
+            (Kind::Reproduce, harness::reproduce::PartRecord::FILE),
+        ]
+        .into_iter()
+        .find(|(_, f)| dir.join(f).is_file())
+        .map(|(k, _)| k)
+    }
+
+    fn name(self) -> &'static str {
+        match self {
+            Kind::Sweep => "sweep",
+            Kind::Tune => "tune",
+            Kind::Reproduce => "reproduction",
+        }
+    }
+}
+
 /// `splatbench merge`.
 pub fn main(a: &MergeArgs) -> anyhow::Result<()> {
-    let kind = |d: &PathBuf| {
-        if d.join("tune.json").is_file() {
-            Some("tune")
-        } else {
-            None
+    let mut kinds = Vec::new();
+    for d in &a.dirs {
+        match Kind::of(d) {
+            Some(k) => kinds.push(k),
+            None => bail!(
+                "{}: not a part written by an emitted job (no {}, tune.json or {})",
+                d.display(),
+                harness::sweep::SweepPart::FILE,
+                harness::reproduce::PartRecord::FILE
+            ),
         }
-    };
-    let kinds: Vec<Option<&str>> = a.dirs.iter().map(kind).collect();
-    if let Some((d, _)) = a.dirs.iter().zip(&kinds).find(|(_, k)| k.is_none()) {
+    }
+    let kind = kinds[0];
+    if let Some((d, k)) = a.dirs.iter().zip(&kinds).find(|(_, k)| **k != kind) {
         bail!(
-            "{}: not a part written by an emitted job (no tune.json, sweep-part.json or \
-             reproduce-part.json)",
-            d.display()
+            "{} is a part of a {}, {} of a {}: merge the parts of one command",
+            d.display(),
+            k.name(),
+            a.dirs[0].display(),
+            kind.name()
         );
     }
-    match kinds[0] {
-        Some("tune") => {
-            if let Some((d, _)) = a.dirs.iter().zip(&kinds).find(|(_, k)| **k != Some("tune")) {
-                bail!(
-                    "{}: not a part of a tune, as {} is",
-                    d.display(),
-                    a.dirs[0].display()
-                );
-            }
+    match kind {
+        Kind::Sweep => {
+            jobs::prepare_out(&a.out, "sweep.csv", None)?;
+            let rows = harness::sweep::merge(&a.dirs, &a.out)?;
+            println!(
+                "merged {} parts into {}: sweep.csv ({} targets), sweep.png, sweep.svg",
+                a.dirs.len(),
+                a.out.display(),
+                rows.len()
+            );
+        }
+        Kind::Tune => {
             jobs::prepare_out(&a.out, "tune.json", None)?;
             let done = harness::tune::merge(&a.dirs, &a.out)?;
             print!("{}", done.recommendation);
             println!(
-                "merged {} parts into {}: tune.csv ({} rows), recommendation.md, tune.png, tune.svg",
+                "merged {} parts into {}: tune.csv ({} rows), recommendation.md, tune.png, \
+                 tune.svg",
                 a.dirs.len(),
                 a.out.display(),
                 done.rows.len()
             );
         }
-        _ => bail!("unreachable: every directory has a kind"),
+        Kind::Reproduce => {
+            jobs::prepare_out(&a.out, "report.md", None)?;
+            let outcome = harness::reproduce::merge(&a.dirs, &a.out)?;
+            println!("wrote {}", outcome.report.display());
+            for p in &outcome.published {
+                println!("published {}", p.display());
+            }
+            if outcome.failed() > 0 {
+                bail!(
+                    "{} of {} tables failed (see {})",
+                    outcome.failed(),
+                    outcome.tables.len(),
+                    outcome.report.display()
+                );
+            }
+        }
     }
     Ok(())
 }

@@ -4,7 +4,7 @@
 
 use std::path::PathBuf;
 
-use anyhow::bail;
+use anyhow::{Context as _, bail};
 use clap::{Args, ValueEnum};
 use harness::reproduce::{self, Options, Profile};
 
@@ -44,7 +44,18 @@ pub struct ReproduceArgs {
     /// Load and check every spec for both profiles, list them, and run nothing.
     #[arg(long)]
     pub check: bool,
+    /// Write one command line per spec (its builds and runs) to this file instead of
+    /// running: for `parallel < FILE` or a Slurm array; then `splatbench merge
+    /// OUT/parts/* --out OUT` writes the report (and publishes, with --publish).
+    #[arg(long, value_name = "FILE")]
+    pub emit_jobs: Option<PathBuf>,
+    /// Run only the K-th selected spec (0-based) into --out: what an emitted job line does.
+    #[arg(long, value_name = "K", hide = true)]
+    pub part: Option<usize>,
 }
+
+/// The flags a part's job line replaces.
+const PART_FLAGS: [&str; 3] = ["--part", "--emit-jobs", "--out"];
 
 /// `splatbench reproduce`.
 pub fn main(a: &ReproduceArgs) -> anyhow::Result<()> {
@@ -52,7 +63,7 @@ pub fn main(a: &ReproduceArgs) -> anyhow::Result<()> {
         ProfileArg::Quick => Profile::Quick,
         ProfileArg::Full => Profile::Full,
     };
-    let opts = Options {
+    let mut opts = Options {
         specs: a.specs.clone(),
         root: PathBuf::from("."),
         profile,
@@ -82,8 +93,69 @@ pub fn main(a: &ReproduceArgs) -> anyhow::Result<()> {
         }
         return Ok(());
     }
+    if opts.publish.is_some() && opts.only.is_some() {
+        bail!("--publish regenerates the whole report: it cannot be combined with --only");
+    }
+    let specs: Vec<String> = reproduce::select(&opts)?
+        .into_iter()
+        .map(|s| s.id)
+        .collect();
+    if let Some(file) = &a.emit_jobs {
+        anyhow::ensure!(a.part.is_none(), "--emit-jobs and --part are exclusive");
+        let exe = std::env::current_exe().context("finding the splatbench binary")?;
+        let lines: Vec<String> = (0..specs.len())
+            .map(|k| {
+                crate::jobs::job_line(
+                    &exe,
+                    &PART_FLAGS,
+                    &[
+                        "--part".into(),
+                        k.to_string(),
+                        "--out".into(),
+                        crate::jobs::part_dir(&opts.out, k).display().to_string(),
+                    ],
+                )
+            })
+            .collect();
+        crate::jobs::write_jobs(file, &lines)?;
+        println!(
+            "wrote {} ({} jobs: one per spec, {}); run them from this directory, then: \
+             splatbench merge {}/parts/part-* --out {}",
+            file.display(),
+            lines.len(),
+            specs.join(", "),
+            opts.out.display(),
+            opts.out.display()
+        );
+        return Ok(());
+    }
+    let mut part = None;
+    if let Some(k) = a.part {
+        let spec = specs.get(k).ok_or_else(|| {
+            anyhow::anyhow!("--part {k}: this reproduction has {} specs", specs.len())
+        })?;
+        let record = reproduce::PartRecord {
+            command: crate::jobs::command_without(&PART_FLAGS),
+            profile,
+            specs: specs.clone(),
+            part: k,
+            partial: opts.only.is_some(),
+            publish: opts.publish.take(),
+            complete: false,
+            commit: harness::runner::GIT_COMMIT.into(),
+        };
+        opts.only = Some(vec![spec.clone()]);
+        std::fs::create_dir_all(&opts.out)
+            .with_context(|| format!("creating {}", opts.out.display()))?;
+        record.write(&opts.out)?;
+        part = Some(record);
+    }
     let multi = indicatif::MultiProgress::new();
     let outcome = reproduce::reproduce(&opts, &multi)?;
+    if let Some(mut record) = part {
+        record.complete = true;
+        record.write(&opts.out)?;
+    }
     println!("wrote {}", outcome.report.display());
     for p in &outcome.published {
         println!("published {}", p.display());

@@ -42,7 +42,18 @@ pub struct SweepArgs {
     /// OUT/build; `--param` may then change only runtime parameters.
     #[arg(long)]
     pub build_dir: Option<PathBuf>,
+    /// Write one command line per target (its build, then its run) to this file instead of
+    /// running: for `parallel < FILE` or a Slurm array; then `splatbench merge
+    /// OUT/parts/* --out OUT`.
+    #[arg(long, value_name = "FILE")]
+    pub emit_jobs: Option<PathBuf>,
+    /// Run only target K (0-based) into --out: what an emitted job line does.
+    #[arg(long, value_name = "K", hide = true)]
+    pub part: Option<usize>,
 }
+
+/// The flags a part's job line replaces.
+const PART_FLAGS: [&str; 3] = ["--part", "--emit-jobs", "--out"];
 
 /// `splatbench sweep`: targets, parameters, scene spec, path and frames are checked before
 /// anything is built or rendered; then one build (or `--build-dir`, checked by the runner at
@@ -50,7 +61,104 @@ pub struct SweepArgs {
 /// [`run_config`] with `build_dir` set, so the runner's `--build-dir` path opens it), then
 /// `sweep.csv` and its plot.
 pub fn main(a: &SweepArgs) -> anyhow::Result<()> {
-    let targets = sweep_targets(a.budgets.as_deref(), a.eps.as_deref())?;
+    let all = sweep_targets(a.budgets.as_deref(), a.eps.as_deref())?;
+    if let Some(file) = &a.emit_jobs {
+        anyhow::ensure!(a.part.is_none(), "--emit-jobs and --part are exclusive");
+        // Checks every flag as a sweep would, without running.
+        base_config(a, &all)?;
+        let exe = std::env::current_exe().context("finding the splatbench binary")?;
+        let lines: Vec<String> = (0..all.len())
+            .map(|k| {
+                crate::jobs::job_line(
+                    &exe,
+                    &PART_FLAGS,
+                    &[
+                        "--part".into(),
+                        k.to_string(),
+                        "--out".into(),
+                        crate::jobs::part_dir(&a.out, k).display().to_string(),
+                    ],
+                )
+            })
+            .collect();
+        crate::jobs::write_jobs(file, &lines)?;
+        println!(
+            "wrote {} ({} jobs: one per target, each {}its run); run them, then: \
+             splatbench merge {}/parts/part-* --out {}",
+            file.display(),
+            lines.len(),
+            if a.build_dir.is_some() {
+                ""
+            } else {
+                "making its own (identical) build, then "
+            },
+            a.out.display(),
+            a.out.display()
+        );
+        return Ok(());
+    }
+    let targets = match a.part {
+        None => all.clone(),
+        Some(k) => vec![
+            all.get(k)
+                .ok_or_else(|| {
+                    anyhow::anyhow!(
+                        "--part {k}: this sweep has {} targets (parts 0 to {})",
+                        all.len(),
+                        all.len() - 1
+                    )
+                })?
+                .clone(),
+        ],
+    };
+    let (base, build_dir) = base_config(a, &targets)?;
+    let gpu = open_gpu()?;
+    std::fs::create_dir_all(&a.out).with_context(|| format!("creating {}", a.out.display()))?;
+    // A sweep.csv (or plot) of an earlier sweep must not outlive a failure of this one.
+    harness::sweep::remove_stale(&a.out)?;
+    if a.build_dir.is_none() {
+        eprintln!("building {} into {}", a.method.method, build_dir.display());
+        build(&a.method, &a.scene, &build_dir, &a.cache.dir)?;
+    }
+    let bar = harness::progress::Bar::new();
+    let mut part = a.part.map(|k| harness::sweep::SweepPart {
+        command: crate::jobs::command_without(&PART_FLAGS),
+        targets: all.iter().map(harness::sweep::TargetRecord::of).collect(),
+        part: k,
+        builds: a.build_dir.is_none(),
+        complete: false,
+        commit: harness::runner::GIT_COMMIT.into(),
+    });
+    if let Some(p) = &part {
+        p.write(&a.out)?;
+    }
+    let rows = harness::sweep::run_targets(&base, &targets, &a.out, &gpu, &bar, print_summary)?;
+    if let Some(p) = part.as_mut() {
+        p.complete = true;
+        p.write(&a.out)?;
+    }
+    let csv = a.out.join("sweep.csv");
+    let plots = [a.out.join("sweep.png"), a.out.join("sweep.svg")];
+    println!(
+        "wrote {} ({} targets), {} and {} run directories",
+        csv.display(),
+        rows.len(),
+        plots
+            .iter()
+            .map(|p| p.display().to_string())
+            .collect::<Vec<_>>()
+            .join(", "),
+        targets.len()
+    );
+    Ok(())
+}
+
+/// The runner's configuration shared by the sweep's targets (the first target's), and the
+/// build directory: every flag checked, nothing run.
+fn base_config(
+    a: &SweepArgs,
+    targets: &[SweepTarget],
+) -> anyhow::Result<(harness::runner::RunConfig, PathBuf)> {
     anyhow::ensure!(a.frames >= 1, "--frames must be at least 1");
     let params = Params::parse(&a.method.params)?;
     a.method.method.check_params(&params)?;
@@ -82,30 +190,7 @@ pub fn main(a: &SweepArgs) -> anyhow::Result<()> {
         build_dir: Some(build_dir.clone()),
         allow_missing_chunks: false,
     })?;
-    let gpu = open_gpu()?;
-    std::fs::create_dir_all(&a.out).with_context(|| format!("creating {}", a.out.display()))?;
-    // A sweep.csv (or plot) of an earlier sweep must not outlive a failure of this one.
-    harness::sweep::remove_stale(&a.out)?;
-    if a.build_dir.is_none() {
-        eprintln!("building {} into {}", a.method.method, build_dir.display());
-        build(&a.method, &a.scene, &build_dir, &a.cache.dir)?;
-    }
-    let bar = harness::progress::Bar::new();
-    let rows = harness::sweep::run_targets(&base, &targets, &a.out, &gpu, &bar, print_summary)?;
-    let csv = a.out.join("sweep.csv");
-    let plots = [a.out.join("sweep.png"), a.out.join("sweep.svg")];
-    println!(
-        "wrote {} ({} targets), {} and {} run directories",
-        csv.display(),
-        rows.len(),
-        plots
-            .iter()
-            .map(|p| p.display().to_string())
-            .collect::<Vec<_>>()
-            .join(", "),
-        targets.len()
-    );
-    Ok(())
+    Ok((base, build_dir))
 }
 
 /// The targets of `--budgets` or `--eps` (exactly one of them), in the order given. Empty

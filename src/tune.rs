@@ -8,7 +8,7 @@ use std::path::PathBuf;
 
 use anyhow::Context as _;
 use clap::Args;
-use harness::tune::{self, Cost, Grid, Plan, PlanTarget, Record};
+use harness::tune::{self, Cost, Grid, Plan, Record, TargetRecord};
 use methods::Params;
 use scenes::paths::PathSpec;
 
@@ -129,7 +129,7 @@ pub fn plan(a: &TuneArgs) -> anyhow::Result<Plan> {
         scene: spec.label(),
         path: path.name(),
         grid,
-        targets: targets.iter().map(PlanTarget::of).collect(),
+        targets: targets.iter().map(TargetRecord::of).collect(),
         cost: a.cost,
         repeats: a.repeats,
         scene_args,

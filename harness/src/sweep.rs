@@ -2,7 +2,7 @@
 //! directory of its own, `sweep.csv` with one row of medians per target, and its plot.
 //! `splatbench sweep` and `splatbench reproduce` both run sweeps through [`run_targets`].
 
-use std::path::Path;
+use std::path::{Path, PathBuf};
 
 use anyhow::Context as _;
 use methods::{MethodError, Target};
@@ -46,6 +46,49 @@ impl SweepTarget {
     }
 }
 
+/// A sweep target as plans and part records keep it (JSON).
+#[derive(Debug, Clone, PartialEq, serde::Serialize, serde::Deserialize)]
+pub struct TargetRecord {
+    /// `eps` or `budget`.
+    pub kind: String,
+    /// Pixels or points.
+    pub value: f64,
+    /// Run directory name (`budget-25000`).
+    pub name: String,
+    /// The run flag and its value (`--budget 25000`).
+    pub flag: [String; 2],
+}
+
+impl TargetRecord {
+    /// The plan's record of a sweep target.
+    pub fn of(t: &SweepTarget) -> Self {
+        let (kind, flag) = match (t.target.eps_px(), t.target.budget_points()) {
+            (_, Some(b)) => ("budget", ["--budget".to_string(), b.to_string()]),
+            (e, None) => ("eps", ["--eps".to_string(), e.unwrap_or(1.0).to_string()]),
+        };
+        Self {
+            kind: kind.into(),
+            value: t.value,
+            name: t.name.clone(),
+            flag,
+        }
+    }
+
+    /// `budget 25000`, `eps 2`.
+    pub fn label(&self) -> String {
+        format!("{} {}", self.kind, self.flag[1])
+    }
+
+    /// The sweep target again.
+    pub fn target(&self) -> Result<SweepTarget, MethodError> {
+        if self.kind == "budget" {
+            SweepTarget::budget(self.value as u64)
+        } else {
+            SweepTarget::tolerance(self.value as f32)
+        }
+    }
+}
+
 /// Removes an earlier sweep's `sweep.csv` and plot from `dir`, so that they cannot outlive a
 /// failure of this one.
 pub fn remove_stale(dir: &Path) -> anyhow::Result<()> {
@@ -63,7 +106,7 @@ pub fn remove_stale(dir: &Path) -> anyhow::Result<()> {
 
 /// Runs `base` once per target, each into `dir/<target name>` with `base`'s `build_dir`
 /// (which must be set: a sweep runs one build), calling `each` with every run's summary;
-/// then writes `dir/sweep.csv` and `dir/sweep.png/.svg`. Returns the rows in target order.
+/// then [`assemble`]s `dir/sweep.csv` and its plot. Returns the rows in target order.
 pub fn run_targets(
     base: &RunConfig,
     targets: &[SweepTarget],
@@ -79,7 +122,6 @@ pub fn run_targets(
     anyhow::ensure!(!targets.is_empty(), "a sweep needs at least one target");
     std::fs::create_dir_all(dir).with_context(|| format!("creating {}", dir.display()))?;
     remove_stale(dir)?;
-    let mut rows = Vec::with_capacity(targets.len());
     for t in targets {
         let cfg = RunConfig {
             target: t.target,
@@ -90,19 +132,156 @@ pub fn run_targets(
             .and_then(|s| crate::plot::plot_run(&cfg.out).map(|_| s))
             .with_context(|| format!("sweep target {}", t.name))?;
         each(&s);
-        let frames = read_frames(&cfg.out.join("frames.csv"))?;
-        let params = s
-            .params
-            .0
-            .iter()
-            .map(|(k, v)| format!("{k}={v}"))
-            .collect::<Vec<_>>()
-            .join(" ");
+    }
+    assemble(dir, targets)
+}
+
+/// Writes `dir/sweep.csv` and `dir/sweep.png/.svg` from the run directories
+/// `dir/<target name>/` (their `frames.csv` and the parameters in their `summary.json`):
+/// what a sweep does once its runs are done, and what `merge` does with runs that jobs made.
+pub fn assemble(dir: &Path, targets: &[SweepTarget]) -> anyhow::Result<Vec<SweepRow>> {
+    remove_stale(dir)?;
+    let mut rows = Vec::with_capacity(targets.len());
+    for t in targets {
+        let run = dir.join(&t.name);
+        let frames = read_frames(&run.join("frames.csv"))?;
+        let summary_path = run.join("summary.json");
+        let summary: serde_json::Value = serde_json::from_str(
+            &std::fs::read_to_string(&summary_path)
+                .with_context(|| format!("reading {}", summary_path.display()))?,
+        )
+        .with_context(|| format!("parsing {}", summary_path.display()))?;
+        if summary["complete"] != true {
+            anyhow::bail!("{}: the run did not complete", summary_path.display());
+        }
+        let params = summary["params"]
+            .as_object()
+            .map(|p| {
+                p.iter()
+                    .map(|(k, v)| format!("{k}={}", v.as_str().unwrap_or_default()))
+                    .collect::<Vec<_>>()
+                    .join(" ")
+            })
+            .unwrap_or_default();
         rows.push(SweepRow::of_run(&frames, &params, t.value)?);
     }
     write_sweep(&dir.join("sweep.csv"), &rows)?;
     plot_sweep(dir)?;
     Ok(rows)
+}
+
+/// What a part of a sweep run by an emitted job records (`sweep-part.json`): the sweep (its
+/// command without `--part`, `--out` and `--emit-jobs`, and every target), the part (the
+/// index of its one target) and whether it finished.
+#[derive(Debug, Clone, PartialEq, serde::Serialize, serde::Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct SweepPart {
+    /// The sweep's command.
+    pub command: String,
+    /// Every target of the sweep, in order.
+    pub targets: Vec<TargetRecord>,
+    /// The target this part ran.
+    pub part: usize,
+    /// Whether the sweep builds (no `--build-dir`): the part then holds `build/`.
+    pub builds: bool,
+    /// False until the part's run finished.
+    pub complete: bool,
+    /// Commit of the binary.
+    pub commit: String,
+}
+
+impl SweepPart {
+    /// The file name.
+    pub const FILE: &'static str = "sweep-part.json";
+
+    /// Reads `dir/sweep-part.json`.
+    pub fn read(dir: &Path) -> anyhow::Result<Self> {
+        let p = dir.join(Self::FILE);
+        let text =
+            std::fs::read_to_string(&p).with_context(|| format!("reading {}", p.display()))?;
+        serde_json::from_str(&text).with_context(|| format!("parsing {}", p.display()))
+    }
+
+    /// Writes `dir/sweep-part.json` atomically.
+    pub fn write(&self, dir: &Path) -> anyhow::Result<()> {
+        crate::results::write_json(&dir.join(Self::FILE), self)
+    }
+}
+
+/// Assembles the parts in `dirs` (each a `sweep … --part K` output) into `out` as the local
+/// sweep would have: one sweep, every target present once and complete; the run
+/// directories (and the first part's build) put under `out`, then [`assemble`]d. Errors
+/// name the directory and what is wrong.
+pub fn merge(dirs: &[PathBuf], out: &Path) -> anyhow::Result<Vec<SweepRow>> {
+    let parts = dirs
+        .iter()
+        .map(|d| SweepPart::read(d).map(|p| (d, p)))
+        .collect::<anyhow::Result<Vec<_>>>()?;
+    let Some((first_dir, first)) = parts.first() else {
+        anyhow::bail!("merge: no directories given");
+    };
+    let mut by_target: Vec<Option<&PathBuf>> = vec![None; first.targets.len()];
+    for (d, p) in &parts {
+        if !p.complete {
+            anyhow::bail!(
+                "{}: this part did not finish (sweep-part.json says \"complete\": false)",
+                d.display()
+            );
+        }
+        if (&p.command, &p.targets) != (&first.command, &first.targets) {
+            anyhow::bail!(
+                "{} is a part of another sweep than {} (`{}` against `{}`)",
+                d.display(),
+                first_dir.display(),
+                p.command,
+                first.command
+            );
+        }
+        match by_target.get_mut(p.part) {
+            None => anyhow::bail!(
+                "{}: part {} of a sweep of {} targets",
+                d.display(),
+                p.part,
+                first.targets.len()
+            ),
+            Some(Some(other)) => anyhow::bail!(
+                "part {} ({}) is in both {} and {}",
+                p.part,
+                first.targets[p.part].name,
+                other.display(),
+                d.display()
+            ),
+            Some(slot) => *slot = Some(d),
+        }
+    }
+    let missing: Vec<String> = by_target
+        .iter()
+        .zip(&first.targets)
+        .filter(|(d, _)| d.is_none())
+        .map(|(_, t)| t.name.clone())
+        .collect();
+    if !missing.is_empty() {
+        anyhow::bail!(
+            "merge: the sweep's target(s) {} missing (did their jobs run?)",
+            missing.join(", ")
+        );
+    }
+    std::fs::create_dir_all(out).with_context(|| format!("creating {}", out.display()))?;
+    for (t, d) in first.targets.iter().zip(&by_target) {
+        let d = d.context("every part is present")?;
+        crate::results::link_tree(&d.join(&t.name), &out.join(&t.name))?;
+    }
+    if first.builds
+        && let Some(d) = by_target[0]
+    {
+        crate::results::link_tree(&d.join("build"), &out.join("build"))?;
+    }
+    let targets = first
+        .targets
+        .iter()
+        .map(TargetRecord::target)
+        .collect::<Result<Vec<_>, _>>()?;
+    assemble(out, &targets)
 }
 
 #[cfg(test)]

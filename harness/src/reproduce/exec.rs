@@ -53,7 +53,7 @@ pub struct MeasureResult {
 }
 
 /// One target of a sweep as the report lists it.
-#[derive(Debug, Clone, serde::Serialize)]
+#[derive(Debug, Clone, serde::Serialize, serde::Deserialize)]
 pub struct SweepLine {
     /// `eps-2`, `budget-25000`.
     pub target: String,
@@ -70,7 +70,7 @@ pub struct SweepLine {
 }
 
 /// One evaluated row.
-#[derive(Debug, Clone, serde::Serialize)]
+#[derive(Debug, Clone, serde::Serialize, serde::Deserialize)]
 pub struct RowResult {
     /// What is compared.
     pub what: String,

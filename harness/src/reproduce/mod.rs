@@ -27,7 +27,7 @@ use std::collections::BTreeMap;
 use std::path::{Path, PathBuf};
 use std::time::Instant;
 
-use anyhow::{Context as _, bail};
+use anyhow::{Context as _, anyhow, bail};
 use indicatif::{MultiProgress, ProgressBar, ProgressStyle};
 
 pub use spec::{Profile, Spec, SpecError};
@@ -59,7 +59,7 @@ pub struct Options {
 }
 
 /// One table of the report.
-#[derive(Debug, Clone, serde::Serialize)]
+#[derive(Debug, Clone, serde::Serialize, serde::Deserialize)]
 pub struct TableResult {
     /// Spec id.
     pub id: String,
@@ -88,7 +88,7 @@ pub struct TableResult {
 }
 
 /// One measure as the report describes it.
-#[derive(Debug, Clone, serde::Serialize)]
+#[derive(Debug, Clone, serde::Serialize, serde::Deserialize)]
 pub struct MeasureLine {
     /// Id.
     pub id: String,
@@ -326,6 +326,194 @@ fn run_spec(
         sweeps,
         figures,
     })
+}
+
+/// What a part of a reproduction run by an emitted job records (`reproduce-part.json`): the
+/// reproduction (its command without `--part`, `--out` and `--emit-jobs`, its profile, the
+/// specs it selected, where it publishes), the part (the index of its one spec) and whether
+/// it finished.
+#[derive(Debug, Clone, PartialEq, serde::Serialize, serde::Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct PartRecord {
+    /// The reproduction's command.
+    pub command: String,
+    /// Its profile.
+    pub profile: Profile,
+    /// Every spec it selected, in report order.
+    pub specs: Vec<String>,
+    /// The spec this part ran.
+    pub part: usize,
+    /// Whether the command picked specs with `--only` (the report is then partial).
+    pub partial: bool,
+    /// `--publish`, done by the merge.
+    pub publish: Option<PathBuf>,
+    /// False until the part's reproduction returned.
+    pub complete: bool,
+    /// Commit of the binary.
+    pub commit: String,
+}
+
+impl PartRecord {
+    /// The file name.
+    pub const FILE: &'static str = "reproduce-part.json";
+
+    /// Reads `dir/reproduce-part.json`.
+    pub fn read(dir: &Path) -> anyhow::Result<Self> {
+        let p = dir.join(Self::FILE);
+        let text =
+            std::fs::read_to_string(&p).with_context(|| format!("reading {}", p.display()))?;
+        serde_json::from_str(&text).with_context(|| format!("parsing {}", p.display()))
+    }
+
+    /// Writes `dir/reproduce-part.json` atomically.
+    pub fn write(&self, dir: &Path) -> anyhow::Result<()> {
+        crate::results::write_json(&dir.join(Self::FILE), self)
+    }
+}
+
+/// Assembles the parts in `dirs` (each a `reproduce … --part K` output) into `out` as the
+/// local reproduction would have: one reproduction, every spec present once, on one adapter
+/// and commit; `report.md` and `results.json` of all the tables in report order, their
+/// figures, their runs (`runs/`; each part's builds stay in its directory), and the
+/// publication when the command asked for one. The date is the merge's; `seconds` the sum
+/// of the parts'.
+pub fn merge(dirs: &[PathBuf], out: &Path) -> anyhow::Result<Outcome> {
+    let parts = dirs
+        .iter()
+        .map(|d| PartRecord::read(d).map(|p| (d, p)))
+        .collect::<anyhow::Result<Vec<_>>>()?;
+    let Some((first_dir, first)) = parts.first() else {
+        bail!("merge: no directories given");
+    };
+    let identity = |p: &PartRecord| {
+        (
+            p.command.clone(),
+            p.profile,
+            p.specs.clone(),
+            p.partial,
+            p.publish.clone(),
+            p.commit.clone(),
+        )
+    };
+    let mut by_spec: Vec<Option<&PathBuf>> = vec![None; first.specs.len()];
+    for (d, p) in &parts {
+        if !p.complete {
+            bail!(
+                "{}: this part did not finish (reproduce-part.json says \"complete\": false)",
+                d.display()
+            );
+        }
+        if identity(p) != identity(first) {
+            bail!(
+                "{} is a part of another reproduction than {} (`{}` at {} against `{}` at {})",
+                d.display(),
+                first_dir.display(),
+                p.command,
+                p.commit,
+                first.command,
+                first.commit
+            );
+        }
+        match by_spec.get_mut(p.part) {
+            None => bail!(
+                "{}: part {} of {} specs",
+                d.display(),
+                p.part,
+                first.specs.len()
+            ),
+            Some(Some(other)) => bail!(
+                "part {} ({}) is in both {} and {}",
+                p.part,
+                first.specs[p.part],
+                other.display(),
+                d.display()
+            ),
+            Some(slot) => *slot = Some(d),
+        }
+    }
+    let missing: Vec<&str> = by_spec
+        .iter()
+        .zip(&first.specs)
+        .filter(|(d, _)| d.is_none())
+        .map(|(_, s)| s.as_str())
+        .collect();
+    if !missing.is_empty() {
+        bail!(
+            "merge: the spec(s) {} missing (did their jobs run?)",
+            missing.join(", ")
+        );
+    }
+    std::fs::create_dir_all(out).with_context(|| format!("creating {}", out.display()))?;
+    let mut tables = Vec::new();
+    let mut adapter: Option<crate::gpu::AdapterDesc> = None;
+    let (mut seconds, mut cpus) = (0.0, 0);
+    for (spec, d) in first.specs.iter().zip(&by_spec) {
+        let d = d.context("every part is present")?;
+        let path = d.join("results.json");
+        let v: serde_json::Value = serde_json::from_str(
+            &std::fs::read_to_string(&path)
+                .with_context(|| format!("reading {}", path.display()))?,
+        )
+        .with_context(|| format!("parsing {}", path.display()))?;
+        let meta: report::Meta = serde_json::from_value(v["meta"].clone())
+            .with_context(|| format!("{}: field 'meta'", path.display()))?;
+        let part_tables: Vec<TableResult> = serde_json::from_value(v["tables"].clone())
+            .with_context(|| format!("{}: field 'tables'", path.display()))?;
+        match (&adapter, &meta.adapter) {
+            (Some(a), Some(b)) if a != b => bail!(
+                "{} ran on {} ({}), another part on {} ({}): a report is of one adapter",
+                d.display(),
+                b.name,
+                b.backend,
+                a.name,
+                a.backend
+            ),
+            (None, Some(b)) => adapter = Some(b.clone()),
+            _ => {}
+        }
+        seconds += meta.seconds;
+        cpus = cpus.max(meta.cpus);
+        let t = part_tables
+            .into_iter()
+            .find(|t| &t.id == spec)
+            .ok_or_else(|| anyhow!("{}: no table '{spec}'", path.display()))?;
+        for sub in ["runs", "figures"] {
+            if d.join(sub).is_dir() {
+                crate::results::link_tree(&d.join(sub), &out.join(sub))?;
+            }
+        }
+        tables.push(t);
+    }
+    let meta = report::Meta {
+        profile: first.profile,
+        command: first.command.clone(),
+        commit: first.commit.clone(),
+        date: report::utc_now(),
+        adapter,
+        cpus,
+        seconds,
+        partial: first.partial,
+    };
+    let report_path = out.join("report.md");
+    report::write(&report_path, &meta, &tables, "figures")?;
+    crate::results::write_json(&out.join("results.json"), &report::results(&meta, &tables))?;
+    let mut outcome = Outcome {
+        tables,
+        report: report_path,
+        published: Vec::new(),
+    };
+    if let Some(dir) = &first.publish {
+        if outcome.failed() > 0 {
+            bail!(
+                "{} table(s) failed: nothing published to {} (see {})",
+                outcome.failed(),
+                dir.display(),
+                outcome.report.display()
+            );
+        }
+        outcome.published = publish(dir, &meta, &outcome.tables, &out.join("figures"))?;
+    }
+    Ok(outcome)
 }
 
 /// Overlays the sweeps of `dirs` into `out/<stem>.png` and `.svg`.

@@ -11,7 +11,7 @@ use super::{TableResult, Verdict};
 use crate::gpu::AdapterDesc;
 
 /// What the report says about the reproduction as a whole.
-#[derive(Debug, Clone, serde::Serialize)]
+#[derive(Debug, Clone, serde::Serialize, serde::Deserialize)]
 pub struct Meta {
     /// Profile.
     pub profile: Profile,

@@ -62,7 +62,7 @@ use crate::render::Kernel;
 use crate::sweep::SweepTarget;
 
 /// Which sizes a reproduction uses.
-#[derive(Debug, Clone, Copy, PartialEq, Eq, Hash, serde::Serialize)]
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Hash, serde::Serialize, serde::Deserialize)]
 #[serde(rename_all = "lowercase")]
 pub enum Profile {
     /// Small scenes: the whole reproduction in minutes on 2 cores with lavapipe.

@@ -63,7 +63,7 @@ pub enum Paper {
 }
 
 /// The outcome of a row (or a table: the worst of its rows).
-#[derive(Debug, Clone, PartialEq, serde::Serialize)]
+#[derive(Debug, Clone, PartialEq, serde::Serialize, serde::Deserialize)]
 #[serde(rename_all = "snake_case", tag = "verdict", content = "detail")]
 pub enum Verdict {
     /// The paper's shape holds.

@@ -35,7 +35,7 @@ use anyhow::{Context as _, anyhow, bail};
 use methods::MethodKind;
 
 use crate::plot::{FrameRecord, SweepRow, read_frames};
-use crate::sweep::SweepTarget;
+pub use crate::sweep::TargetRecord;
 pub use grid::{Axis, Grid, Setting};
 pub use report::recommendation;
 
@@ -69,40 +69,6 @@ impl Cost {
     }
 }
 
-/// One target as the plan records it.
-#[derive(Debug, Clone, PartialEq, serde::Serialize, serde::Deserialize)]
-pub struct PlanTarget {
-    /// `eps` or `budget`.
-    pub kind: String,
-    /// Pixels or points.
-    pub value: f64,
-    /// Run directory name (`budget-25000`).
-    pub name: String,
-    /// The run flag and its value (`--budget 25000`).
-    pub flag: [String; 2],
-}
-
-impl PlanTarget {
-    /// The plan's record of a sweep target.
-    pub fn of(t: &SweepTarget) -> Self {
-        let (kind, flag) = match (t.target.eps_px(), t.target.budget_points()) {
-            (_, Some(b)) => ("budget", ["--budget".to_string(), b.to_string()]),
-            (e, None) => ("eps", ["--eps".to_string(), e.unwrap_or(1.0).to_string()]),
-        };
-        Self {
-            kind: kind.into(),
-            value: t.value,
-            name: t.name.clone(),
-            flag,
-        }
-    }
-
-    /// `budget 25000`, `eps 2`.
-    pub fn label(&self) -> String {
-        format!("{} {}", self.kind, self.flag[1])
-    }
-}
-
 /// A tune, as data (written to `tune.json`).
 #[derive(Debug, Clone, PartialEq, serde::Serialize, serde::Deserialize)]
 #[serde(deny_unknown_fields)]
@@ -116,7 +82,7 @@ pub struct Plan {
     /// The grid.
     pub grid: Grid,
     /// Targets, in the order given.
-    pub targets: Vec<PlanTarget>,
+    pub targets: Vec<TargetRecord>,
     /// What "equal cost" compares.
     pub cost: Cost,
     /// Runs per setting and target (≥ 2 measures run-to-run noise).
@@ -168,7 +134,7 @@ impl Plan {
     }
 
     /// The run directory of setting `s`, target `t`, repeat `rep` (0: the run itself).
-    pub fn run_dir(out: &Path, s: &Setting, t: &PlanTarget, rep: usize) -> PathBuf {
+    pub fn run_dir(out: &Path, s: &Setting, t: &TargetRecord, rep: usize) -> PathBuf {
         if rep == 0 {
             out.join("runs").join(s.folder()).join(&t.name)
         } else {
@@ -248,7 +214,7 @@ pub fn run_args(
     plan: &Plan,
     out: &Path,
     s: &Setting,
-    t: &PlanTarget,
+    t: &TargetRecord,
     rep: usize,
 ) -> anyhow::Result<Vec<String>> {
     let kind = plan.kind()?;

@@ -276,7 +276,7 @@ pub fn recommendation(
 mod tests {
     use super::*;
     use crate::plot::SweepRow;
-    use crate::tune::{Cost, Grid, PlanTarget};
+    use crate::tune::{Cost, Grid, TargetRecord};
 
     fn plan(repeats: usize) -> Plan {
         let grids = vec!["m=1024,2048,4096".to_string()];
@@ -287,10 +287,10 @@ mod tests {
             grid: Grid::parse(methods::MethodKind::Lpc, &grids, &Default::default(), false)
                 .unwrap_or_else(|e| panic!("{e:#}")),
             targets: vec![
-                PlanTarget::of(
+                TargetRecord::of(
                     &crate::sweep::SweepTarget::budget(1000).unwrap_or_else(|e| panic!("{e}")),
                 ),
-                PlanTarget::of(
+                TargetRecord::of(
                     &crate::sweep::SweepTarget::budget(2000).unwrap_or_else(|e| panic!("{e}")),
                 ),
             ],

@@ -1,0 +1,198 @@
+//! `--emit-jobs` and `merge` for `sweep` and `reproduce` (the tune's round trip is in
+//! tests/tune.rs): the job lines run two at a time by `xargs -P 2`, merged, equal the local
+//! command's output wherever it does not depend on timing; merging parts of different
+//! commands or kinds is refused.
+#![allow(clippy::unwrap_used)]
+
+mod common;
+
+use std::path::{Path, PathBuf};
+
+use common::{bin, fails};
+
+/// Runs every line of `jobs` with `xargs -P 2 … sh -c`; returns the parts' directories.
+fn run_jobs(jobs: &Path, out: &Path) -> Vec<PathBuf> {
+    let o = std::process::Command::new("xargs")
+        .args(["-P", "2", "-d", "\n", "-n", "1", "sh", "-c"])
+        .stdin(std::fs::File::open(jobs).unwrap())
+        .output()
+        .unwrap();
+    assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+    let mut parts: Vec<PathBuf> = std::fs::read_dir(out.join("parts"))
+        .unwrap()
+        .map(|e| e.unwrap().path())
+        .collect();
+    parts.sort();
+    parts
+}
+
+fn csv_rows(path: &Path) -> Vec<Vec<(String, String)>> {
+    let mut rd = csv::Reader::from_path(path).unwrap();
+    let h = rd.headers().unwrap().clone();
+    rd.records()
+        .map(|r| {
+            h.iter()
+                .zip(r.unwrap().iter())
+                .map(|(k, v)| (k.to_string(), v.to_string()))
+                .collect()
+        })
+        .collect()
+}
+
+#[test]
+fn a_sweep_as_jobs_merges_into_the_local_sweep() {
+    if harness::gpu::gpu_for_test("a_sweep_as_jobs_merges_into_the_local_sweep").is_none() {
+        return;
+    }
+    let tmp = tempfile::tempdir().unwrap();
+    let cache = tmp.path().join("cache");
+    let sweep = |out: &Path| {
+        let mut c = bin();
+        c.args(["sweep", "--method", "mwkd", "--scene", "statue:5000:1"])
+            .args(["--param", "vbo=1000", "--param", "delay_frames=1"])
+            .args(["--frames", "2", "--width", "64", "--height", "64"])
+            .args(["--budgets", "1500,3000,6000", "--out"])
+            .arg(out)
+            .arg("--cache")
+            .arg(&cache);
+        c
+    };
+    let (local, emitted) = (tmp.path().join("local"), tmp.path().join("emitted"));
+    sweep(&local).assert().success();
+    let jobs = tmp.path().join("jobs.txt");
+    sweep(&emitted)
+        .arg("--emit-jobs")
+        .arg(&jobs)
+        .assert()
+        .success();
+    assert_eq!(std::fs::read_to_string(&jobs).unwrap().lines().count(), 3);
+    let parts = run_jobs(&jobs, &emitted);
+    assert_eq!(parts.len(), 3);
+    fails(
+        bin()
+            .arg("merge")
+            .args(&parts[..2])
+            .arg("--out")
+            .arg(&emitted),
+        "target(s) budget-6000 missing",
+    );
+    bin()
+        .arg("merge")
+        .args(&parts)
+        .arg("--out")
+        .arg(&emitted)
+        .assert()
+        .success();
+    let (a, b) = (
+        csv_rows(&local.join("sweep.csv")),
+        csv_rows(&emitted.join("sweep.csv")),
+    );
+    assert_eq!(a.len(), 3);
+    let timing = [
+        "splats_per_s_median",
+        "gpu_ms_median",
+        "cpu_select_ms_median",
+        "rss_bytes_max",
+    ];
+    for (ra, rb) in a.iter().zip(&b) {
+        for (x, y) in ra.iter().zip(rb) {
+            if !timing.contains(&x.0.as_str()) {
+                assert_eq!(x, y, "merged sweep.csv equals the local one");
+            }
+        }
+    }
+    for f in [
+        "sweep.png",
+        "sweep.svg",
+        "build/method.json",
+        "budget-3000/frames.csv",
+    ] {
+        assert!(emitted.join(f).is_file(), "{f}");
+    }
+    // Parts of a tune and of a sweep do not merge.
+    let tune = tmp.path().join("tune");
+    bin()
+        .args(["tune", "--method", "mwkd", "--scene", "statue:5000:1"])
+        .args(["--grid", "vbo=1000", "--budgets", "1500", "--frames", "1"])
+        .args(["--width", "32", "--height", "32", "--part", "0", "--out"])
+        .arg(&tune)
+        .arg("--cache")
+        .arg(&cache)
+        .assert()
+        .success();
+    fails(
+        bin()
+            .arg("merge")
+            .arg(&parts[0])
+            .arg(&tune)
+            .arg("--out")
+            .arg(tmp.path().join("x")),
+        "merge the parts of one command",
+    );
+}
+
+#[test]
+fn a_reproduction_as_jobs_merges_into_the_local_report() {
+    let tmp = tempfile::tempdir().unwrap();
+    let cache = tmp.path().join("cache");
+    let reproduce = |out: &Path| {
+        let mut c = bin();
+        c.args(["reproduce", "--only", "mwkd-table2,qsplat-fig6", "--out"])
+            .arg(out)
+            .arg("--cache")
+            .arg(&cache);
+        c
+    };
+    let (local, emitted) = (tmp.path().join("local"), tmp.path().join("emitted"));
+    reproduce(&local).assert().success();
+    let jobs = tmp.path().join("jobs.txt");
+    reproduce(&emitted)
+        .arg("--emit-jobs")
+        .arg(&jobs)
+        .assert()
+        .success();
+    let parts = run_jobs(&jobs, &emitted);
+    assert_eq!(parts.len(), 2, "one job per spec");
+    bin()
+        .arg("merge")
+        .args(&parts)
+        .arg("--out")
+        .arg(&emitted)
+        .assert()
+        .success();
+    let tables = |dir: &Path| -> Vec<serde_json::Value> {
+        let v: serde_json::Value =
+            serde_json::from_str(&std::fs::read_to_string(dir.join("results.json")).unwrap())
+                .unwrap();
+        v["tables"]
+            .as_array()
+            .unwrap()
+            .iter()
+            .map(|t| {
+                // What the tables say; their seconds are the machine's.
+                serde_json::json!({"id": t["id"], "rows": t["rows"], "verdict": t["verdict"]})
+            })
+            .collect()
+    };
+    assert_eq!(tables(&local), tables(&emitted));
+    let report = std::fs::read_to_string(emitted.join("report.md")).unwrap();
+    assert!(
+        report.contains("| N = 6, VBO 4,009: nodes | 55,987 | 55,987 | 1.00 | exact | holds |"),
+        "{report}"
+    );
+    assert!(
+        report.contains("Generated by `splatbench reproduce --only mwkd-table2,qsplat-fig6"),
+        "the reproduction's command, not a part's: {report}"
+    );
+    // A part run twice is named.
+    fails(
+        bin()
+            .arg("merge")
+            .arg(&parts[0])
+            .arg(&parts[0])
+            .arg(&parts[1])
+            .arg("--out")
+            .arg(tmp.path().join("twice")),
+        "part 0 (qsplat-fig6) is in both",
+    );
+}

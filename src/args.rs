@@ -115,3 +115,27 @@ impl TargetArgs {
         })
     }
 }
+
+/// The targets and camera path of a sweep or tune: one run per target.
+#[derive(Args, Clone)]
+pub struct SweepTargetArgs {
+    /// Point budgets per frame, comma-separated, one run each (e.g. 25000,50000,100k).
+    #[arg(long, value_name = "POINTS,...", allow_hyphen_values = true)]
+    pub budgets: Option<String>,
+    /// Pixel tolerances, comma-separated, one run each (e.g. 8,4,2,1).
+    #[arg(long, value_name = "PX,...", allow_hyphen_values = true)]
+    pub eps: Option<String>,
+    /// Camera path: orbit, zoom, flythrough, or a keyframe .toml file.
+    #[arg(long, default_value = "orbit")]
+    pub path: String,
+    /// Frames along the path.
+    #[arg(long, default_value_t = 60, allow_negative_numbers = true)]
+    pub frames: usize,
+}
+
+impl SweepTargetArgs {
+    /// The targets of `--budgets` or `--eps` ([`crate::sweep::sweep_targets`]).
+    pub fn list(&self) -> anyhow::Result<Vec<harness::sweep::SweepTarget>> {
+        crate::sweep::sweep_targets(self.budgets.as_deref(), self.eps.as_deref())
+    }
+}

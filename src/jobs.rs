@@ -50,7 +50,7 @@ pub fn command_without(drop: &[&str]) -> String {
 }
 
 /// One job line: `exe`, the command's arguments without `drop`, then `add`.
-pub fn job_line(exe: &Path, drop: &[&str], add: &[String]) -> String {
+fn job_line(exe: &Path, drop: &[&str], add: &[String]) -> String {
     std::iter::once(shell_quote(&exe.display().to_string()))
         .chain(args_without(drop).iter().map(|a| shell_quote(a)))
         .chain(add.iter().map(|a| shell_quote(a)))
@@ -63,8 +63,33 @@ pub fn part_dir(out: &Path, k: usize) -> PathBuf {
     out.join("parts").join(format!("part-{k:03}"))
 }
 
+/// The flags a part's job line replaces.
+pub const PART_FLAGS: [&str; 3] = ["--part", "--emit-jobs", "--out"];
+
+/// Writes `parts` job lines to `file`, line `k` running part `k` into
+/// [`part_dir`]`(out, k)`; returns how many.
+pub fn emit(file: &Path, out: &Path, parts: usize) -> anyhow::Result<usize> {
+    let exe = std::env::current_exe().context("finding the splatbench binary")?;
+    let lines: Vec<String> = (0..parts)
+        .map(|k| {
+            job_line(
+                &exe,
+                &PART_FLAGS,
+                &[
+                    "--part".into(),
+                    k.to_string(),
+                    "--out".into(),
+                    part_dir(out, k).display().to_string(),
+                ],
+            )
+        })
+        .collect();
+    write_jobs(file, &lines)?;
+    Ok(lines.len())
+}
+
 /// Writes the job lines to `file` (atomically, one per line).
-pub fn write_jobs(file: &Path, lines: &[String]) -> anyhow::Result<()> {
+fn write_jobs(file: &Path, lines: &[String]) -> anyhow::Result<()> {
     if let Some(d) = file.parent().filter(|d| !d.as_os_str().is_empty()) {
         std::fs::create_dir_all(d).with_context(|| format!("creating {}", d.display()))?;
     }

@@ -54,9 +54,6 @@ pub struct ReproduceArgs {
     pub part: Option<usize>,
 }
 
-/// The flags a part's job line replaces.
-const PART_FLAGS: [&str; 3] = ["--part", "--emit-jobs", "--out"];
-
 /// `splatbench reproduce`.
 pub fn main(a: &ReproduceArgs) -> anyhow::Result<()> {
     let profile = match a.profile {
@@ -102,27 +99,12 @@ pub fn main(a: &ReproduceArgs) -> anyhow::Result<()> {
         .collect();
     if let Some(file) = &a.emit_jobs {
         anyhow::ensure!(a.part.is_none(), "--emit-jobs and --part are exclusive");
-        let exe = std::env::current_exe().context("finding the splatbench binary")?;
-        let lines: Vec<String> = (0..specs.len())
-            .map(|k| {
-                crate::jobs::job_line(
-                    &exe,
-                    &PART_FLAGS,
-                    &[
-                        "--part".into(),
-                        k.to_string(),
-                        "--out".into(),
-                        crate::jobs::part_dir(&opts.out, k).display().to_string(),
-                    ],
-                )
-            })
-            .collect();
-        crate::jobs::write_jobs(file, &lines)?;
+        let n = crate::jobs::emit(file, &opts.out, specs.len())?;
         println!(
             "wrote {} ({} jobs: one per spec, {}); run them from this directory, then: \
              splatbench merge {}/parts/part-* --out {}",
             file.display(),
-            lines.len(),
+            n,
             specs.join(", "),
             opts.out.display(),
             opts.out.display()
@@ -135,7 +117,7 @@ pub fn main(a: &ReproduceArgs) -> anyhow::Result<()> {
             anyhow::anyhow!("--part {k}: this reproduction has {} specs", specs.len())
         })?;
         let record = reproduce::PartRecord {
-            command: crate::jobs::command_without(&PART_FLAGS),
+            command: crate::jobs::command_without(&crate::jobs::PART_FLAGS),
             profile,
             specs: specs.clone(),
             part: k,

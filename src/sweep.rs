@@ -7,7 +7,7 @@ use clap::Args;
 use harness::sweep::SweepTarget;
 use methods::Params;
 
-use crate::args::{CacheArgs, MethodArgs, RenderArgs, SceneArgs, TargetArgs};
+use crate::args::{CacheArgs, MethodArgs, RenderArgs, SceneArgs, SweepTargetArgs, TargetArgs};
 use crate::build::build;
 use crate::run::{RunArgs, run_config};
 use crate::shared::{open_gpu, print_summary};
@@ -20,18 +20,8 @@ pub struct SweepArgs {
     pub scene: SceneArgs,
     #[command(flatten)]
     pub render: RenderArgs,
-    /// Point budgets per frame, comma-separated, one run each (e.g. 25000,50000,100k).
-    #[arg(long, value_name = "POINTS,...", allow_hyphen_values = true)]
-    pub budgets: Option<String>,
-    /// Pixel tolerances, comma-separated, one run each (e.g. 8,4,2,1).
-    #[arg(long, value_name = "PX,...", allow_hyphen_values = true)]
-    pub eps: Option<String>,
-    /// Camera path: orbit, zoom, flythrough, or a keyframe .toml file.
-    #[arg(long, default_value = "orbit")]
-    pub path: String,
-    /// Frames along the path.
-    #[arg(long, default_value_t = 60, allow_negative_numbers = true)]
-    pub frames: usize,
+    #[command(flatten)]
+    pub targets: SweepTargetArgs,
     /// Output directory: build/ (unless --build-dir), one run directory per target
     /// (budget-25000/, eps-2/, …), sweep.csv, sweep.png and sweep.svg.
     #[arg(long)]
@@ -52,41 +42,23 @@ pub struct SweepArgs {
     pub part: Option<usize>,
 }
 
-/// The flags a part's job line replaces.
-const PART_FLAGS: [&str; 3] = ["--part", "--emit-jobs", "--out"];
-
 /// `splatbench sweep`: targets, parameters, scene spec, path and frames are checked before
 /// anything is built or rendered; then one build (or `--build-dir`, checked by the runner at
 /// the first target), one ordinary run per target ([`harness::sweep::run_targets`] on a
 /// [`run_config`] with `build_dir` set, so the runner's `--build-dir` path opens it), then
 /// `sweep.csv` and its plot.
 pub fn main(a: &SweepArgs) -> anyhow::Result<()> {
-    let all = sweep_targets(a.budgets.as_deref(), a.eps.as_deref())?;
+    let all = a.targets.list()?;
     if let Some(file) = &a.emit_jobs {
         anyhow::ensure!(a.part.is_none(), "--emit-jobs and --part are exclusive");
         // Checks every flag as a sweep would, without running.
         base_config(a, &all)?;
-        let exe = std::env::current_exe().context("finding the splatbench binary")?;
-        let lines: Vec<String> = (0..all.len())
-            .map(|k| {
-                crate::jobs::job_line(
-                    &exe,
-                    &PART_FLAGS,
-                    &[
-                        "--part".into(),
-                        k.to_string(),
-                        "--out".into(),
-                        crate::jobs::part_dir(&a.out, k).display().to_string(),
-                    ],
-                )
-            })
-            .collect();
-        crate::jobs::write_jobs(file, &lines)?;
+        let n = crate::jobs::emit(file, &a.out, all.len())?;
         println!(
             "wrote {} ({} jobs: one per target, each {}its run); run them, then: \
              splatbench merge {}/parts/part-* --out {}",
             file.display(),
-            lines.len(),
+            n,
             if a.build_dir.is_some() {
                 ""
             } else {
@@ -122,7 +94,7 @@ pub fn main(a: &SweepArgs) -> anyhow::Result<()> {
     }
     let bar = harness::progress::Bar::new();
     let mut part = a.part.map(|k| harness::sweep::SweepPart {
-        command: crate::jobs::command_without(&PART_FLAGS),
+        command: crate::jobs::command_without(&crate::jobs::PART_FLAGS),
         targets: all.iter().map(harness::sweep::TargetRecord::of).collect(),
         part: k,
         builds: a.build_dir.is_none(),
@@ -159,7 +131,7 @@ fn base_config(
     a: &SweepArgs,
     targets: &[SweepTarget],
 ) -> anyhow::Result<(harness::runner::RunConfig, PathBuf)> {
-    anyhow::ensure!(a.frames >= 1, "--frames must be at least 1");
+    anyhow::ensure!(a.targets.frames >= 1, "--frames must be at least 1");
     let params = Params::parse(&a.method.params)?;
     a.method.method.check_params(&params)?;
     let build_dir = a.build_dir.clone().unwrap_or_else(|| a.out.join("build"));
@@ -181,8 +153,8 @@ fn base_config(
             eps: first.and_then(|t| t.eps_px()).map(f64::from),
             budget: first.and_then(|t| t.budget_points()),
         },
-        path: a.path.clone(),
-        frames: a.frames,
+        path: a.targets.path.clone(),
+        frames: a.targets.frames,
         save_images: false,
         no_metrics: false,
         out: a.out.clone(),

@@ -12,7 +12,7 @@ use harness::tune::{self, Cost, Grid, Plan, Record, TargetRecord};
 use methods::Params;
 use scenes::paths::PathSpec;
 
-use crate::args::{CacheArgs, MethodArgs, RenderArgs, SceneArgs};
+use crate::args::{CacheArgs, MethodArgs, RenderArgs, SceneArgs, SweepTargetArgs};
 use crate::jobs;
 
 #[derive(Args, Clone)]
@@ -31,18 +31,8 @@ pub struct TuneArgs {
         allow_hyphen_values = true
     )]
     pub grids: Vec<String>,
-    /// Point budgets per frame, comma-separated (e.g. 25000,50000,100k).
-    #[arg(long, value_name = "POINTS,...", allow_hyphen_values = true)]
-    pub budgets: Option<String>,
-    /// Pixel tolerances, comma-separated (e.g. 8,4,2,1).
-    #[arg(long, value_name = "PX,...", allow_hyphen_values = true)]
-    pub eps: Option<String>,
-    /// Camera path: orbit, zoom, flythrough, or a keyframe .toml file.
-    #[arg(long, default_value = "orbit")]
-    pub path: String,
-    /// Frames along the path.
-    #[arg(long, default_value_t = 60, allow_negative_numbers = true)]
-    pub frames: usize,
+    #[command(flatten)]
+    pub targets: SweepTargetArgs,
     /// What settings are compared at: `time` (median GPU ms per frame, wall ms without
     /// timestamps) or `points` (median points drawn).
     #[arg(long, value_enum, default_value = "time")]
@@ -75,8 +65,8 @@ const MAX_REPEATS: usize = 20;
 
 /// The plan of `a`: every flag checked before anything runs.
 pub fn plan(a: &TuneArgs) -> anyhow::Result<Plan> {
-    let targets = crate::sweep::sweep_targets(a.budgets.as_deref(), a.eps.as_deref())?;
-    anyhow::ensure!(a.frames >= 1, "--frames must be at least 1");
+    let targets = a.targets.list()?;
+    anyhow::ensure!(a.targets.frames >= 1, "--frames must be at least 1");
     anyhow::ensure!(
         (1..=MAX_REPEATS).contains(&a.repeats),
         "--repeats {}: give 1 to {MAX_REPEATS}",
@@ -87,7 +77,7 @@ pub fn plan(a: &TuneArgs) -> anyhow::Result<Plan> {
     kind.check_params(&fixed)?;
     let grid = Grid::parse(kind, &a.grids, &fixed, a.build_dir.is_some())?;
     let spec = a.scene.spec()?;
-    let path = PathSpec::parse(&a.path)?;
+    let path = PathSpec::parse(&a.targets.path)?;
     if let Some(d) = &a.build_dir {
         let m =
             methods::Manifest::read(d).with_context(|| format!("--build-dir {}", d.display()))?;
@@ -112,9 +102,9 @@ pub fn plan(a: &TuneArgs) -> anyhow::Result<Plan> {
     scene_args.extend(["--shading".into(), a.scene.shading.name().into()]);
     let run_args = vec![
         "--path".to_string(),
-        a.path.clone(),
+        a.targets.path.clone(),
         "--frames".into(),
-        a.frames.to_string(),
+        a.targets.frames.to_string(),
         "--width".into(),
         a.render.width.to_string(),
         "--height".into(),
@@ -136,7 +126,7 @@ pub fn plan(a: &TuneArgs) -> anyhow::Result<Plan> {
         run_args,
         build_dir: a.build_dir.clone(),
         cache: a.cache.dir.clone(),
-        command: jobs::command_without(&["--part", "--emit-jobs", "--out"]),
+        command: jobs::command_without(&jobs::PART_FLAGS),
     })
 }
 
@@ -146,26 +136,12 @@ pub fn main(a: &TuneArgs) -> anyhow::Result<()> {
     let exe = std::env::current_exe().context("finding the splatbench binary")?;
     if let Some(file) = &a.emit_jobs {
         anyhow::ensure!(a.part.is_none(), "--emit-jobs and --part are exclusive");
-        let lines: Vec<String> = (0..plan.parts())
-            .map(|k| {
-                jobs::job_line(
-                    &exe,
-                    &["--part", "--emit-jobs", "--out"],
-                    &[
-                        "--part".into(),
-                        k.to_string(),
-                        "--out".into(),
-                        jobs::part_dir(&a.out, k).display().to_string(),
-                    ],
-                )
-            })
-            .collect();
-        jobs::write_jobs(file, &lines)?;
+        let n = jobs::emit(file, &a.out, plan.parts())?;
         println!(
             "wrote {} ({} jobs: one per build, each building then running its {} runs); run \
              them, then: splatbench merge {}/parts/part-* --out {}",
             file.display(),
-            lines.len(),
+            n,
             plan.targets.len() * plan.repeats,
             a.out.display(),
             a.out.display()

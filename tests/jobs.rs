@@ -6,38 +6,9 @@
 
 mod common;
 
-use std::path::{Path, PathBuf};
+use std::path::Path;
 
-use common::{bin, fails};
-
-/// Runs every line of `jobs` with `xargs -P 2 … sh -c`; returns the parts' directories.
-fn run_jobs(jobs: &Path, out: &Path) -> Vec<PathBuf> {
-    let o = std::process::Command::new("xargs")
-        .args(["-P", "2", "-d", "\n", "-n", "1", "sh", "-c"])
-        .stdin(std::fs::File::open(jobs).unwrap())
-        .output()
-        .unwrap();
-    assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
-    let mut parts: Vec<PathBuf> = std::fs::read_dir(out.join("parts"))
-        .unwrap()
-        .map(|e| e.unwrap().path())
-        .collect();
-    parts.sort();
-    parts
-}
-
-fn csv_rows(path: &Path) -> Vec<Vec<(String, String)>> {
-    let mut rd = csv::Reader::from_path(path).unwrap();
-    let h = rd.headers().unwrap().clone();
-    rd.records()
-        .map(|r| {
-            h.iter()
-                .zip(r.unwrap().iter())
-                .map(|(k, v)| (k.to_string(), v.to_string()))
-                .collect()
-        })
-        .collect()
-}
+use common::{bin, fails, read_csv, run_jobs};
 
 #[test]
 fn a_sweep_as_jobs_merges_into_the_local_sweep() {
@@ -74,7 +45,7 @@ fn a_sweep_as_jobs_merges_into_the_local_sweep() {
             .args(&parts[..2])
             .arg("--out")
             .arg(&emitted),
-        "target(s) budget-6000 missing",
+        "part(s) target budget-6000 missing",
     );
     bin()
         .arg("merge")
@@ -84,8 +55,8 @@ fn a_sweep_as_jobs_merges_into_the_local_sweep() {
         .assert()
         .success();
     let (a, b) = (
-        csv_rows(&local.join("sweep.csv")),
-        csv_rows(&emitted.join("sweep.csv")),
+        read_csv(&local.join("sweep.csv")),
+        read_csv(&emitted.join("sweep.csv")),
     );
     assert_eq!(a.len(), 3);
     let timing = [

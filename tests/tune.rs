@@ -7,7 +7,7 @@ mod common;
 
 use std::path::Path;
 
-use common::{bin, fails};
+use common::{bin, fails, read_csv, run_jobs};
 
 /// The flags every tune here shares (a small scene, few frames, a small image).
 fn tune_args(out: &Path, cache: &Path) -> Vec<String> {
@@ -36,19 +36,6 @@ fn tune_args(out: &Path, cache: &Path) -> Vec<String> {
     a.extend(["--out".into(), out.display().to_string()]);
     a.extend(["--cache".into(), cache.display().to_string()]);
     a
-}
-
-fn read_csv(path: &Path) -> Vec<std::collections::BTreeMap<String, String>> {
-    let mut rd = csv::Reader::from_path(path).unwrap();
-    let h = rd.headers().unwrap().clone();
-    rd.records()
-        .map(|r| {
-            h.iter()
-                .zip(r.unwrap().iter())
-                .map(|(k, v)| (k.to_string(), v.to_string()))
-                .collect()
-        })
-        .collect()
 }
 
 /// Columns of `tune.csv` that are times or memory: they differ between any two runs.
@@ -153,25 +140,11 @@ fn a_tune_of_lpc_m_over_two_budgets_and_its_jobs_merged() {
     let lines = std::fs::read_to_string(&jobs).unwrap();
     assert_eq!(lines.lines().count(), 2, "one job per build: {lines}");
     assert!(!emitted.join("tune.csv").exists(), "emitting runs nothing");
-    let status = std::process::Command::new("xargs")
-        .args(["-P", "2", "-d", "\n", "-n", "1", "sh", "-c"])
-        .stdin(std::fs::File::open(&jobs).unwrap())
-        .output()
-        .unwrap();
-    assert!(
-        status.status.success(),
-        "{}",
-        String::from_utf8_lossy(&status.stderr)
-    );
-    let mut parts: Vec<_> = std::fs::read_dir(emitted.join("parts"))
-        .unwrap()
-        .map(|e| e.unwrap().path())
-        .collect();
-    parts.sort();
+    let parts = run_jobs(&jobs, &emitted);
     // A merge without one part names it, and writes no tune.csv.
     fails(
         bin().arg("merge").arg(&parts[0]).arg("--out").arg(&emitted),
-        "part(s) 1 of 2 missing",
+        "part(s) build 1 missing",
     );
     assert!(!emitted.join("tune.csv").exists());
     bin()

@@ -174,6 +174,54 @@ pub fn shell_quote(s: &str) -> String {
     }
 }
 
+/// Reads a JSON file into `T`; errors name the file.
+pub fn read_json<T: serde::de::DeserializeOwned>(path: &Path) -> anyhow::Result<T> {
+    let text =
+        std::fs::read_to_string(path).with_context(|| format!("reading {}", path.display()))?;
+    serde_json::from_str(&text).with_context(|| format!("parsing {}", path.display()))
+}
+
+/// The parts of an experiment that emitted jobs wrote, checked for a merge: `parts` holds
+/// each directory with the part numbers it ran and whether it finished; `n` parts exist,
+/// `name(k)` says which part `k` is in messages. Returns the directory of each part in
+/// order. An unfinished part, a part number out of range, a part given twice and a part
+/// missing are errors naming the directories and parts.
+pub fn cover<'a>(
+    parts: &[(&'a PathBuf, Vec<usize>, bool)],
+    n: usize,
+    name: impl Fn(usize) -> String,
+) -> anyhow::Result<Vec<&'a PathBuf>> {
+    let mut seen: Vec<Option<&'a PathBuf>> = vec![None; n];
+    for (d, ks, complete) in parts {
+        if !complete {
+            anyhow::bail!(
+                "{}: this part did not finish (its record says \"complete\": false)",
+                d.display()
+            );
+        }
+        for &k in ks {
+            match seen.get_mut(k) {
+                None => anyhow::bail!("{}: part {k} of {n} parts", d.display()),
+                Some(Some(other)) => anyhow::bail!(
+                    "part {k} ({}) is in both {} and {}",
+                    name(k),
+                    other.display(),
+                    d.display()
+                ),
+                Some(slot) => *slot = Some(*d),
+            }
+        }
+    }
+    let missing: Vec<String> = (0..n).filter(|&k| seen[k].is_none()).map(&name).collect();
+    if !missing.is_empty() {
+        anyhow::bail!(
+            "merge: part(s) {} missing (did their jobs run?)",
+            missing.join(", ")
+        );
+    }
+    Ok(seen.into_iter().flatten().collect())
+}
+
 /// Puts the tree `from` at `to` (directories created, files hard-linked where the file
 /// system allows, else copied; symbolic links are not followed and are an error). A file
 /// that exists at `to` already is an error naming it: trees merged this way must not

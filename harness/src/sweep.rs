@@ -196,10 +196,7 @@ impl SweepPart {
 
     /// Reads `dir/sweep-part.json`.
     pub fn read(dir: &Path) -> anyhow::Result<Self> {
-        let p = dir.join(Self::FILE);
-        let text =
-            std::fs::read_to_string(&p).with_context(|| format!("reading {}", p.display()))?;
-        serde_json::from_str(&text).with_context(|| format!("parsing {}", p.display()))
+        crate::results::read_json(&dir.join(Self::FILE))
     }
 
     /// Writes `dir/sweep-part.json` atomically.
@@ -220,14 +217,7 @@ pub fn merge(dirs: &[PathBuf], out: &Path) -> anyhow::Result<Vec<SweepRow>> {
     let Some((first_dir, first)) = parts.first() else {
         anyhow::bail!("merge: no directories given");
     };
-    let mut by_target: Vec<Option<&PathBuf>> = vec![None; first.targets.len()];
     for (d, p) in &parts {
-        if !p.complete {
-            anyhow::bail!(
-                "{}: this part did not finish (sweep-part.json says \"complete\": false)",
-                d.display()
-            );
-        }
         if (&p.command, &p.targets) != (&first.command, &first.targets) {
             anyhow::bail!(
                 "{} is a part of another sweep than {} (`{}` against `{}`)",
@@ -237,42 +227,20 @@ pub fn merge(dirs: &[PathBuf], out: &Path) -> anyhow::Result<Vec<SweepRow>> {
                 first.command
             );
         }
-        match by_target.get_mut(p.part) {
-            None => anyhow::bail!(
-                "{}: part {} of a sweep of {} targets",
-                d.display(),
-                p.part,
-                first.targets.len()
-            ),
-            Some(Some(other)) => anyhow::bail!(
-                "part {} ({}) is in both {} and {}",
-                p.part,
-                first.targets[p.part].name,
-                other.display(),
-                d.display()
-            ),
-            Some(slot) => *slot = Some(d),
-        }
     }
-    let missing: Vec<String> = by_target
+    let listed: Vec<_> = parts
         .iter()
-        .zip(&first.targets)
-        .filter(|(d, _)| d.is_none())
-        .map(|(_, t)| t.name.clone())
+        .map(|(d, p)| (*d, vec![p.part], p.complete))
         .collect();
-    if !missing.is_empty() {
-        anyhow::bail!(
-            "merge: the sweep's target(s) {} missing (did their jobs run?)",
-            missing.join(", ")
-        );
-    }
+    let by_target = crate::results::cover(&listed, first.targets.len(), |k| {
+        format!("target {}", first.targets[k].name)
+    })?;
     std::fs::create_dir_all(out).with_context(|| format!("creating {}", out.display()))?;
     for (t, d) in first.targets.iter().zip(&by_target) {
-        let d = d.context("every part is present")?;
         crate::results::link_tree(&d.join(&t.name), &out.join(&t.name))?;
     }
     if first.builds
-        && let Some(d) = by_target[0]
+        && let Some(d) = by_target.first()
     {
         crate::results::link_tree(&d.join("build"), &out.join("build"))?;
     }

@@ -19,3 +19,34 @@ pub fn fails(cmd: &mut Command, needle: &str) {
         "{cmd:?}: expected '{needle}' in: {err}"
     );
 }
+
+/// Runs every line of the jobs file `jobs` as `xargs -P 2 … sh -c` would (two at a time, as
+/// a scheduler might); returns the parts' directories under `out/parts/`, sorted.
+pub fn run_jobs(jobs: &std::path::Path, out: &std::path::Path) -> Vec<std::path::PathBuf> {
+    let o = std::process::Command::new("xargs")
+        .args(["-P", "2", "-d", "\n", "-n", "1", "sh", "-c"])
+        .stdin(std::fs::File::open(jobs).unwrap())
+        .output()
+        .unwrap();
+    assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+    let mut parts: Vec<std::path::PathBuf> = std::fs::read_dir(out.join("parts"))
+        .unwrap()
+        .map(|e| e.unwrap().path())
+        .collect();
+    parts.sort();
+    parts
+}
+
+/// A CSV file's rows, each column by name.
+pub fn read_csv(path: &std::path::Path) -> Vec<std::collections::BTreeMap<String, String>> {
+    let mut rd = csv::Reader::from_path(path).unwrap();
+    let h = rd.headers().unwrap().clone();
+    rd.records()
+        .map(|r| {
+            h.iter()
+                .zip(r.unwrap().iter())
+                .map(|(k, v)| (k.to_string(), v.to_string()))
+                .collect()
+        })
+        .collect()
+}

@@ -697,7 +697,8 @@ fn sig3(v: f64) -> String {
     format!("{v:.digits$}")
 }
 
-fn thousands(v: f64) -> String {
+/// `v` rounded, with thousands separated by commas (`-1,234`).
+pub fn thousands(v: f64) -> String {
     let s = format!("{:.0}", v.abs());
     let mut out = String::new();
     for (i, c) in s.chars().enumerate() {

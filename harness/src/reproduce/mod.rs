@@ -194,15 +194,7 @@ pub fn reproduce(opts: &Options, multi: &MultiProgress) -> anyhow::Result<Outcom
         published: Vec::new(),
     };
     if let Some(dir) = &opts.publish {
-        if outcome.failed() > 0 {
-            bail!(
-                "{} table(s) failed: nothing published to {} (see {})",
-                outcome.failed(),
-                dir.display(),
-                outcome.report.display()
-            );
-        }
-        outcome.published = publish(dir, &meta, &outcome.tables, &figures_dir)?;
+        outcome.published = publish_complete(dir, &meta, &outcome, &figures_dir)?;
     }
     Ok(outcome)
 }
@@ -359,10 +351,7 @@ impl PartRecord {
 
     /// Reads `dir/reproduce-part.json`.
     pub fn read(dir: &Path) -> anyhow::Result<Self> {
-        let p = dir.join(Self::FILE);
-        let text =
-            std::fs::read_to_string(&p).with_context(|| format!("reading {}", p.display()))?;
-        serde_json::from_str(&text).with_context(|| format!("parsing {}", p.display()))
+        crate::results::read_json(&dir.join(Self::FILE))
     }
 
     /// Writes `dir/reproduce-part.json` atomically.
@@ -395,14 +384,7 @@ pub fn merge(dirs: &[PathBuf], out: &Path) -> anyhow::Result<Outcome> {
             p.commit.clone(),
         )
     };
-    let mut by_spec: Vec<Option<&PathBuf>> = vec![None; first.specs.len()];
     for (d, p) in &parts {
-        if !p.complete {
-            bail!(
-                "{}: this part did not finish (reproduce-part.json says \"complete\": false)",
-                d.display()
-            );
-        }
         if identity(p) != identity(first) {
             bail!(
                 "{} is a part of another reproduction than {} (`{}` at {} against `{}` at {})",
@@ -414,47 +396,19 @@ pub fn merge(dirs: &[PathBuf], out: &Path) -> anyhow::Result<Outcome> {
                 first.commit
             );
         }
-        match by_spec.get_mut(p.part) {
-            None => bail!(
-                "{}: part {} of {} specs",
-                d.display(),
-                p.part,
-                first.specs.len()
-            ),
-            Some(Some(other)) => bail!(
-                "part {} ({}) is in both {} and {}",
-                p.part,
-                first.specs[p.part],
-                other.display(),
-                d.display()
-            ),
-            Some(slot) => *slot = Some(d),
-        }
     }
-    let missing: Vec<&str> = by_spec
+    let listed: Vec<_> = parts
         .iter()
-        .zip(&first.specs)
-        .filter(|(d, _)| d.is_none())
-        .map(|(_, s)| s.as_str())
+        .map(|(d, p)| (*d, vec![p.part], p.complete))
         .collect();
-    if !missing.is_empty() {
-        bail!(
-            "merge: the spec(s) {} missing (did their jobs run?)",
-            missing.join(", ")
-        );
-    }
+    let by_spec = crate::results::cover(&listed, first.specs.len(), |k| first.specs[k].clone())?;
     std::fs::create_dir_all(out).with_context(|| format!("creating {}", out.display()))?;
     let mut tables = Vec::new();
     let mut adapter: Option<crate::gpu::AdapterDesc> = None;
     let (mut seconds, mut cpus) = (0.0, 0);
     for (spec, d) in first.specs.iter().zip(&by_spec) {
-        let d = d.context("every part is present")?;
         let path = d.join("results.json");
-        let v: serde_json::Value = serde_json::from_str(
-            &std::fs::read_to_string(&path)
-                .with_context(|| format!("reading {}", path.display()))?,
-        )
-        .with_context(|| format!("parsing {}", path.display()))?;
+        let v: serde_json::Value = crate::results::read_json(&path)?;
         let meta: report::Meta = serde_json::from_value(v["meta"].clone())
             .with_context(|| format!("{}: field 'meta'", path.display()))?;
         let part_tables: Vec<TableResult> = serde_json::from_value(v["tables"].clone())
@@ -503,15 +457,7 @@ pub fn merge(dirs: &[PathBuf], out: &Path) -> anyhow::Result<Outcome> {
         published: Vec::new(),
     };
     if let Some(dir) = &first.publish {
-        if outcome.failed() > 0 {
-            bail!(
-                "{} table(s) failed: nothing published to {} (see {})",
-                outcome.failed(),
-                dir.display(),
-                outcome.report.display()
-            );
-        }
-        outcome.published = publish(dir, &meta, &outcome.tables, &out.join("figures"))?;
+        outcome.published = publish_complete(dir, &meta, &outcome, &out.join("figures"))?;
     }
     Ok(outcome)
 }
@@ -532,6 +478,25 @@ fn plot_figure(dirs: &[PathBuf], out: &Path, stem: &str) -> anyhow::Result<()> {
     }
     std::fs::remove_dir_all(&tmp).ok();
     Ok(())
+}
+
+/// [`publish`]es a reproduction in which no table failed; with a failed table, publishes
+/// nothing and says so.
+fn publish_complete(
+    dir: &Path,
+    meta: &report::Meta,
+    outcome: &Outcome,
+    figures_dir: &Path,
+) -> anyhow::Result<Vec<PathBuf>> {
+    if outcome.failed() > 0 {
+        bail!(
+            "{} table(s) failed: nothing published to {} (see {})",
+            outcome.failed(),
+            dir.display(),
+            outcome.report.display()
+        );
+    }
+    publish(dir, meta, &outcome.tables, figures_dir)
 }
 
 /// Writes `report-<profile>.md`, `results-<profile>.json` and `figures-<profile>/` into `dir`.

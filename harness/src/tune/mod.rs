@@ -520,14 +520,7 @@ pub fn merge(dirs: &[PathBuf], out: &Path) -> anyhow::Result<Assembled> {
         bail!("merge: no directories given");
     };
     let plan = first.plan.clone();
-    let mut seen: Vec<Option<&PathBuf>> = vec![None; plan.parts()];
     for (d, r) in &records {
-        if !r.complete {
-            bail!(
-                "{}: this part did not finish (tune.json says \"complete\": false)",
-                d.display()
-            );
-        }
         if r.plan != plan {
             let (a, b) = (serde_json::to_value(&plan)?, serde_json::to_value(&r.plan)?);
             let fields: Vec<String> = a
@@ -546,35 +539,12 @@ pub fn merge(dirs: &[PathBuf], out: &Path) -> anyhow::Result<Assembled> {
                 fields.join(", ")
             );
         }
-        for &k in &r.parts {
-            match seen.get_mut(k) {
-                None => bail!(
-                    "{}: part {k} of a tune of {} parts",
-                    d.display(),
-                    plan.parts()
-                ),
-                Some(Some(other)) => bail!(
-                    "part {k} is in both {} and {}",
-                    other.display(),
-                    d.display()
-                ),
-                Some(slot) => *slot = Some(d),
-            }
-        }
     }
-    let missing: Vec<String> = seen
+    let listed: Vec<_> = records
         .iter()
-        .enumerate()
-        .filter(|(_, d)| d.is_none())
-        .map(|(k, _)| k.to_string())
+        .map(|(d, r)| (*d, r.parts.clone(), r.complete))
         .collect();
-    if !missing.is_empty() {
-        bail!(
-            "merge: part(s) {} of {} missing (did their jobs run?)",
-            missing.join(", "),
-            plan.parts()
-        );
-    }
+    crate::results::cover(&listed, plan.parts(), |k| format!("build {k}"))?;
     let mut record = Record {
         plan: plan.clone(),
         parts: (0..plan.parts()).collect(),

@@ -34,15 +34,7 @@ fn num(v: f64) -> String {
     }
     let a = v.abs();
     if a >= 1000.0 {
-        let s = format!("{:.0}", v.abs());
-        let mut out = String::new();
-        for (i, c) in s.chars().enumerate() {
-            if i > 0 && (s.len() - i) % 3 == 0 {
-                out.push(',');
-            }
-            out.push(c);
-        }
-        if v < 0.0 { format!("-{out}") } else { out }
+        crate::reproduce::exec::thousands(v)
     } else {
         let digits = (3 - a.log10().floor() as i32).clamp(0, 8) as usize;
         format!("{v:.digits$}")

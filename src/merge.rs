@@ -98,19 +98,7 @@ pub fn main(a: &MergeArgs) -> anyhow::Result<()> {
         }
         Kind::Reproduce => {
             jobs::prepare_out(&a.out, "report.md", None)?;
-            let outcome = harness::reproduce::merge(&a.dirs, &a.out)?;
-            println!("wrote {}", outcome.report.display());
-            for p in &outcome.published {
-                println!("published {}", p.display());
-            }
-            if outcome.failed() > 0 {
-                bail!(
-                    "{} of {} tables failed (see {})",
-                    outcome.failed(),
-                    outcome.tables.len(),
-                    outcome.report.display()
-                );
-            }
+            crate::reproduce::report(&harness::reproduce::merge(&a.dirs, &a.out)?)?;
         }
     }
     Ok(())

@@ -138,6 +138,12 @@ pub fn main(a: &ReproduceArgs) -> anyhow::Result<()> {
         record.complete = true;
         record.write(&opts.out)?;
     }
+    report(&outcome)
+}
+
+/// Says what a reproduction (or the merge of one) wrote and published; an error when a
+/// table failed.
+pub fn report(outcome: &reproduce::Outcome) -> anyhow::Result<()> {
     println!("wrote {}", outcome.report.display());
     for p in &outcome.published {
         println!("published {}", p.display());

@@ -280,7 +280,8 @@ const MAX_DEPTH: usize = 6;
 
 /// The run directories under `dir` (each holding `summary.json` and `frames.csv`), keyed by
 /// their path relative to `dir` with `/` separators (`.` for `dir` itself). `build/`,
-/// `builds/` and `images/` folders are not searched.
+/// `builds/` and `images/` folders are not searched, nor `parts/` (the jobs' copies of what
+/// a merge put in the directory itself).
 pub fn find_runs(dir: &Path) -> anyhow::Result<BTreeMap<String, PathBuf>> {
     if !dir.is_dir() {
         bail!("{}: no such directory", dir.display());
@@ -298,7 +299,7 @@ pub fn find_runs(dir: &Path) -> anyhow::Result<BTreeMap<String, PathBuf>> {
         for e in entries {
             let e = e.with_context(|| format!("reading {}", d.display()))?;
             let name = e.file_name();
-            let skip = matches!(name.to_str(), Some("build" | "builds" | "images"))
+            let skip = matches!(name.to_str(), Some("build" | "builds" | "images" | "parts"))
                 || name.to_string_lossy().starts_with('.');
             if !skip && e.file_type().is_ok_and(|t| t.is_dir()) {
                 stack.push((e.path(), depth + 1));

@@ -386,9 +386,16 @@ fn runs_are_found_by_path_but_not_in_builds_images_or_parts() {
     for dir in ["runs/m-512/budget-1", "repeats/m-512/budget-1/rep-1"] {
         Run::new("lpc").write(&d.path().join(dir));
     }
-    for skipped in ["builds/x", "runs/m-512/budget-1/images", "parts/part-000/runs/a"] {
+    for skipped in [
+        "builds/x",
+        "runs/m-512/budget-1/images",
+        "parts/part-000/runs/a",
+    ] {
         Run::new("lpc").write(&d.path().join(skipped));
     }
     let keys: Vec<String> = check::find_runs(d.path()).unwrap().into_keys().collect();
-    assert_eq!(keys, ["repeats/m-512/budget-1/rep-1", "runs/m-512/budget-1"]);
+    assert_eq!(
+        keys,
+        ["repeats/m-512/budget-1/rep-1", "runs/m-512/budget-1"]
+    );
 }

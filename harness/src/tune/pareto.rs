@@ -9,6 +9,12 @@
 //! two targets that bracket `c_t`. A setting whose curve does not reach `c_t` counts only
 //! when its nearest measured cost is within [`REACH`] of it (then that point's error is
 //! used); otherwise it is "not comparable at this cost" and listed as such.
+//!
+//! **A budget is a cost.** When the targets are point budgets and the cost is points drawn,
+//! the budget itself is the common cost: a setting draws at most that many points, so its
+//! error there is simply its measured error at that target ([`Common::Target`]); a setting
+//! that leaves part of the budget unused is not penalised by an interpolation to a cost it
+//! never paid.
 
 /// How far (relative) a setting's nearest measured cost may be from the common cost for its
 /// error there to count, when its curve does not bracket the common cost.
@@ -79,10 +85,20 @@ pub struct Ranking {
     pub unreachable: Vec<usize>,
 }
 
+/// Where the settings are compared at a target.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub enum Common {
+    /// At the median of their costs, each read off its curve (see the module docs).
+    Median,
+    /// At the target itself, a cost cap (a point budget when the cost is points): each
+    /// setting's own measured error there; the ranking's cost is this value.
+    Target(f64),
+}
+
 /// Ranks the settings at target `t`: `curves[s][t']` is setting `s`'s `(cost, error)` at
-/// target `t'` (`None`: not measured). Settings with no point at `t` take no part. `None`
-/// when no setting has a point at `t`.
-pub fn rank(curves: &[Vec<Option<(f64, f64)>>], t: usize) -> Option<Ranking> {
+/// target `t'` (`None`: not measured), compared as `common` says. Settings with no point at
+/// `t` take no part. `None` when no setting has a point at `t`.
+pub fn rank(curves: &[Vec<Option<(f64, f64)>>], t: usize, common: Common) -> Option<Ranking> {
     let at_t: Vec<(usize, f64)> = curves
         .iter()
         .enumerate()
@@ -94,6 +110,18 @@ pub fn rank(curves: &[Vec<Option<(f64, f64)>>], t: usize) -> Option<Ranking> {
                 .map(|(x, _)| (s, x))
         })
         .collect();
+    if let Common::Target(cap) = common {
+        let mut ranked: Vec<(usize, f64)> = at_t
+            .iter()
+            .filter_map(|&(s, _)| Some((s, curves[s][t]?.1)))
+            .collect();
+        ranked.sort_by(|a, b| a.1.total_cmp(&b.1).then(a.0.cmp(&b.0)));
+        return (!ranked.is_empty()).then_some(Ranking {
+            cost: cap,
+            ranked,
+            unreachable: Vec::new(),
+        });
+    }
     let cost = median(&at_t.iter().map(|p| p.1).collect::<Vec<_>>())?;
     let mut ranked = Vec::new();
     let mut unreachable = Vec::new();
@@ -159,7 +187,7 @@ mod tests {
             vec![Some((1000.0, 0.25)), Some((2000.0, 0.22))],
             vec![Some((500.0, 0.50)), None],
         ];
-        let r = rank(&curves, 0).unwrap();
+        let r = rank(&curves, 0, Common::Median).unwrap();
         assert_eq!(r.cost, 1000.0);
         assert_eq!(r.ranked, [(1, 0.25), (0, 0.30)]);
         assert_eq!(
@@ -167,10 +195,14 @@ mod tests {
             [2],
             "its one point is 50 % below the common cost"
         );
-        let r = rank(&curves, 1).unwrap();
+        let r = rank(&curves, 1, Common::Median).unwrap();
         assert_eq!(r.cost, 2000.0);
         assert_eq!(r.ranked, [(0, 0.20), (1, 0.22)]);
-        assert!(rank(&[vec![None]], 0).is_none());
+        assert!(rank(&[vec![None]], 0, Common::Median).is_none());
+        // Within a budget of 1000 points, the setting that drew 500 takes part as it is.
+        let r = rank(&curves, 0, Common::Target(1000.0)).unwrap();
+        assert_eq!(r.ranked, [(1, 0.25), (0, 0.30), (2, 0.50)]);
+        assert_eq!((r.cost, r.unreachable.len()), (1000.0, 0));
         assert_eq!(beyond_noise(0.02, Some((0.005, 0.004))), Some(true));
         assert_eq!(beyond_noise(0.02, Some((0.015, 0.01))), Some(false));
         assert_eq!(beyond_noise(0.02, None), None);

@@ -7,6 +7,10 @@ use std::fmt::Write as _;
 use super::pareto::{self, Ranking};
 use super::{Plan, TuneRow};
 
+/// A margin below this share of the best error is called a tie in practice, however
+/// repeatable: reading errors off curves at a common cost is itself only this exact.
+const TIE: f64 = 0.01;
+
 /// Whether grid value `v` is the default `d` (as text, or as the same number).
 fn same_value(v: &str, d: &str) -> bool {
     v == d
@@ -33,7 +37,7 @@ fn num(v: f64) -> String {
         return "0".into();
     }
     let a = v.abs();
-    if a >= 1000.0 {
+    if a >= 1000.0 || (v.fract() == 0.0 && a < 1e15) {
         crate::reproduce::exec::thousands(v)
     } else {
         let digits = (3 - a.log10().floor() as i32).clamp(0, 8) as usize;
@@ -134,11 +138,19 @@ pub fn recommendation(
     }
     for (t, target) in plan.targets.iter().enumerate() {
         writeln!(o, "## {}\n", target.label())?;
+        let common = match (plan.cost, target.kind.as_str()) {
+            (super::Cost::Points, "budget") => pareto::Common::Target(target.value),
+            _ => pareto::Common::Median,
+        };
+        let at = match common {
+            pareto::Common::Target(_) => "within the budget".to_string(),
+            pareto::Common::Median => "at the common cost".to_string(),
+        };
         let Some(Ranking {
             cost,
             ranked,
             unreachable,
-        }) = pareto::rank(&curves, t)
+        }) = pareto::rank(&curves, t, common)
         else {
             writeln!(o, "No setting has an error measured at this target.\n")?;
             continue;
@@ -150,15 +162,20 @@ pub fn recommendation(
             if plan.repeats < 2 || r.repeats.is_empty() {
                 return None;
             }
-            let base: Vec<(f64, f64)> = curves[s].iter().flatten().copied().collect();
-            let e0 = pareto::error_at(&base, cost)?;
+            let error = |curve: &[Option<(f64, f64)>]| match common {
+                pareto::Common::Target(_) => curve[t].map(|p| p.1),
+                pareto::Common::Median => {
+                    let pts: Vec<(f64, f64)> = curve.iter().flatten().copied().collect();
+                    pareto::error_at(&pts, cost)
+                }
+            };
+            let e0 = error(&curves[s])?;
             r.repeats
                 .iter()
                 .map(|&(c, f)| {
                     let mut curve = curves[s].clone();
                     curve[t] = f.map(|f| (c, f));
-                    let pts: Vec<(f64, f64)> = curve.iter().flatten().copied().collect();
-                    pareto::error_at(&pts, cost).map_or(f64::INFINITY, |e| (e - e0).abs())
+                    error(&curve).map_or(f64::INFINITY, |e| (e - e0).abs())
                 })
                 .reduce(f64::max)
         };
@@ -166,8 +183,7 @@ pub fn recommendation(
             [] => writeln!(o, "No setting reaches the common cost {}.\n", num(cost))?,
             [(best, e)] => writeln!(
                 o,
-                "**Recommended: {}**, FLIP {} at the common cost {} (the only setting that \
-                 reaches it).\n",
+                "**Recommended: {}**, FLIP {} {at} {} (the only setting that reaches it).\n",
                 settings[*best].label(),
                 num(*e),
                 num(cost)
@@ -192,23 +208,32 @@ pub fn recommendation(
                     ),
                     None => "run-to-run noise not measured (--repeats 1)".into(),
                 };
+                let share = if *e1 > 0.0 { margin / e1 } else { 0.0 };
                 writeln!(
                     o,
-                    "**Recommended: {}**, FLIP {} at the common cost {}; runner-up {} at {}: \
-                     margin {} ({:.1} %), {verdict}.\n",
+                    "**Recommended: {}**, FLIP {} {at} {}; runner-up {} at {}: margin {} \
+                     ({:.1} %), {verdict}{}.\n",
                     settings[*best].label(),
                     num(*e1),
                     num(cost),
                     settings[*second].label(),
                     num(*e2),
                     num(margin),
-                    if *e1 > 0.0 { 100.0 * margin / e1 } else { 0.0 }
+                    100.0 * share,
+                    if share < TIE {
+                        format!(
+                            "; but under {:.0} % of the error: a tie in practice",
+                            100.0 * TIE
+                        )
+                    } else {
+                        String::new()
+                    }
                 )?;
             }
         }
         writeln!(
             o,
-            "| rank | setting | FLIP at cost {} | measured FLIP | cost | points | holes | noise | default |",
+            "| rank | setting | FLIP {at} {} | measured FLIP | cost | points | holes | noise | default |",
             num(cost)
         )?;
         writeln!(o, "|---|---|---|---|---|---|---|---|---|")?;
@@ -339,21 +364,22 @@ mod tests {
 
     #[test]
     fn the_recommendation_on_hand_made_rows() {
-        // m=2048 beats m=1024 by 0.02 at both budgets; m=4096 never gets near 1000 points.
+        // m=2048 beats m=1024 by 0.02 at both budgets.
         let rows = |noise: f64| {
             vec![
                 row(0, 0, (1000.0, 0.30), Some((1000.0, 0.30 + noise))),
                 row(0, 1, (2000.0, 0.20), Some((2000.0, 0.20))),
                 row(1, 0, (1000.0, 0.28), Some((1000.0, 0.28))),
                 row(1, 1, (2000.0, 0.18), Some((2000.0, 0.18))),
-                row(2, 0, (4096.0, 0.10), None),
-                row(2, 1, (4096.0, 0.10), None),
+                // m=4096 leaves most of each budget unused: worse within it.
+                row(2, 0, (500.0, 0.50), None),
+                row(2, 1, (600.0, 0.45), None),
             ]
         };
         let text = recommendation(&plan(2), &rows(0.0), "llvmpipe (Vulkan)", "abc").unwrap();
         assert!(
             text.contains(
-                "**Recommended: m=2048**, FLIP 0.2800 at the common cost 1,000; runner-up \
+                "**Recommended: m=2048**, FLIP 0.2800 within the budget 1,000; runner-up \
                  m=1024 at 0.3000: margin 0.02000 (7.1 %), the repeats reproduced both exactly"
             ),
             "{text}"
@@ -362,10 +388,32 @@ mod tests {
             text.contains("| 1 | m=2048 | 0.2800 | 0.2800 | 1,000 | 1,000 | 0 | 0 | ✓ |"),
             "{text}"
         );
+        // Within the budget m=4096 is ranked by its own error; compared at the median cost
+        // instead (--cost time), its curve does not reach the others'.
+        assert!(
+            text.contains("| 3 | m=4096 | 0.5000 | 0.5000 | 500 | 500 |"),
+            "{text}"
+        );
+        assert!(!text.contains("Not comparable"), "{text}");
+        let mut timed = plan(2);
+        timed.cost = Cost::Time;
+        let text = recommendation(&timed, &rows(0.0), "x", "abc").unwrap();
+        assert!(
+            text.contains("FLIP 0.2800 at the common cost 1,000;"),
+            "{text}"
+        );
         assert!(
             text.contains(
                 "Not comparable at this cost (no target of theirs within 10 % of it): m=4096."
             ),
+            "{text}"
+        );
+        // A margin under 1 % of the error is a tie in practice, however repeatable.
+        let mut close = rows(0.0);
+        close[2].sweep.flip_mean_median = Some(0.299);
+        let text = recommendation(&plan(2), &close, "x", "abc").unwrap();
+        assert!(
+            text.contains("under 1 % of the error: a tie in practice"),
             "{text}"
         );
         // A repeat of m=1024 that moves by 0.03 makes the margin of 0.02 noise.
@@ -385,6 +433,7 @@ mod tests {
         assert_eq!(num(12345.6), "12,346");
         assert_eq!(num(0.041234), "0.04123");
         assert_eq!(num(12.34), "12.34");
+        assert_eq!(num(500.0), "500");
         assert!(same_value("2048", "2048"));
         assert!(same_value("2", "2.0"));
         assert!(!same_value("1024", "2048"));

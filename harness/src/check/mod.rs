@@ -570,12 +570,7 @@ fn compare_run(
             push(r, report);
         }
     }
-    for (c, values) in new
-        .columns
-        .iter()
-        .filter(|(c, _)| !old.columns.contains_key(*c))
-    {
-        let _ = values;
+    for c in new.columns.keys().filter(|c| !old.columns.contains_key(*c)) {
         push(
             row(
                 c.clone(),

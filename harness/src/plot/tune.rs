@@ -71,10 +71,18 @@ impl TuneFigure {
             let style = colour.stroke_width(2);
             let mut pts = points.clone();
             pts.sort_by(|a, b| a.0.total_cmp(&b.0));
-            chart
-                .draw_series(LineSeries::new(pts.iter().copied(), style))?
-                .label(label.as_str())
-                .legend(move |(x, y)| PathElement::new(vec![(x, y), (x + 24, y)], style));
+            // Past the palette's ten colours, lines are dashed so that no two look alike.
+            if i < PALETTE.len() {
+                chart
+                    .draw_series(LineSeries::new(pts.iter().copied(), style))?
+                    .label(label.as_str())
+                    .legend(move |(x, y)| PathElement::new(vec![(x, y), (x + 24, y)], style));
+            } else {
+                chart
+                    .draw_series(DashedLineSeries::new(pts.iter().copied(), 10, 5, style))?
+                    .label(format!("{label} (dashed)"))
+                    .legend(move |(x, y)| PathElement::new(vec![(x, y), (x + 10, y)], style));
+            }
             chart.draw_series(pts.iter().map(|&p| Circle::new(p, 4, colour.filled())))?;
         }
         let mut front = self.front.clone();

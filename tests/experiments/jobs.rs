@@ -1,14 +1,11 @@
 //! `--emit-jobs` and `merge` for `sweep` and `reproduce` (the tune's round trip is in
-//! tests/tune.rs): the job lines run two at a time by `xargs -P 2`, merged, equal the local
+//! tests/experiments/tune.rs): the job lines run two at a time by `xargs -P 2`, merged, equal the local
 //! command's output wherever it does not depend on timing; merging parts of different
 //! commands or kinds is refused.
-#![allow(clippy::unwrap_used)]
-
-mod common;
 
 use std::path::Path;
 
-use common::{bin, fails, read_csv, run_jobs};
+use crate::common::{bin, fails, read_csv, run_jobs};
 
 #[test]
 fn a_sweep_as_jobs_merges_into_the_local_sweep() {

@@ -9,9 +9,6 @@
 //! ```sh
 //! cargo run --release -- check --suite results/baselines/quick.toml --out /tmp/quick --bless
 //! ```
-#![allow(clippy::unwrap_used)]
-
-mod common;
 
 #[test]
 fn the_quick_suite_matches_its_committed_baseline() {
@@ -21,7 +18,7 @@ fn the_quick_suite_matches_its_committed_baseline() {
     let tmp = tempfile::tempdir().unwrap();
     let suite = concat!(env!("CARGO_MANIFEST_DIR"), "/results/baselines/quick.toml");
     let t = std::time::Instant::now();
-    let out = common::bin()
+    let out = crate::common::bin()
         .args(["check", "--suite", suite, "--out"])
         .arg(tmp.path().join("out"))
         .arg("--cache")

@@ -1,13 +1,10 @@
 //! `splatbench check` end to end: a real run blessed and checked (exit 0), a changed count
 //! (exit 1, the row naming it), another resolution, a missing baseline and bad flags (exit
 //! 2, each named), and a suite file with a typo.
-#![allow(clippy::unwrap_used)]
-
-mod common;
 
 use std::path::Path;
 
-use common::bin;
+use crate::common::bin;
 
 /// `splatbench check …`: (exit status, stdout, stderr); never a panic.
 fn check(args: &[&str]) -> (i32, String, String) {

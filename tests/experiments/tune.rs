@@ -1,13 +1,10 @@
 //! `splatbench tune` and `merge` end to end: a tune of LPC's `m` × two budgets (rows, front,
 //! recommendation, plots, figures equal to the runs'), a runtime grid that builds once, the
 //! `--emit-jobs` + `xargs -P 2` + `merge` round trip equal to the local tune, and bad input.
-#![allow(clippy::unwrap_used)]
-
-mod common;
 
 use std::path::Path;
 
-use common::{bin, fails, read_csv, run_jobs};
+use crate::common::{bin, fails, read_csv, run_jobs};
 
 /// The flags every tune here shares (a small scene, few frames, a small image).
 fn tune_args(out: &Path, cache: &Path) -> Vec<String> {

@@ -181,6 +181,17 @@ pub fn read_json<T: serde::de::DeserializeOwned>(path: &Path) -> anyhow::Result<
     serde_json::from_str(&text).with_context(|| format!("parsing {}", path.display()))
 }
 
+/// The `summary.json` of the run in `dir`, as JSON; a run that did not finish
+/// (`"complete": false`) is an error naming the file: its figures are not a measurement.
+pub fn read_complete_summary(dir: &Path) -> anyhow::Result<serde_json::Value> {
+    let path = dir.join("summary.json");
+    let v: serde_json::Value = read_json(&path)?;
+    if v["complete"] != true {
+        anyhow::bail!("{}: the run did not complete", path.display());
+    }
+    Ok(v)
+}
+
 /// The parts of an experiment that emitted jobs wrote, checked for a merge: `parts` holds
 /// each directory with the part numbers it ran and whether it finished; `n` parts exist,
 /// `name(k)` says which part `k` is in messages. Returns the directory of each part in

@@ -145,15 +145,7 @@ pub fn assemble(dir: &Path, targets: &[SweepTarget]) -> anyhow::Result<Vec<Sweep
     for t in targets {
         let run = dir.join(&t.name);
         let frames = read_frames(&run.join("frames.csv"))?;
-        let summary_path = run.join("summary.json");
-        let summary: serde_json::Value = serde_json::from_str(
-            &std::fs::read_to_string(&summary_path)
-                .with_context(|| format!("reading {}", summary_path.display()))?,
-        )
-        .with_context(|| format!("parsing {}", summary_path.display()))?;
-        if summary["complete"] != true {
-            anyhow::bail!("{}: the run did not complete", summary_path.display());
-        }
+        let summary = crate::results::read_complete_summary(&run)?;
         let params = summary["params"]
             .as_object()
             .map(|p| {

@@ -298,6 +298,24 @@ fn render_both(
     Ok(vec![png_path, svg_path])
 }
 
+/// Draws `chart`'s legend the way every figure does: upper right, on a translucent white
+/// box with a grey border, labels in the bundled font at `size` points.
+fn draw_legend<'a, DB, CT>(chart: &mut ChartContext<'a, DB, CT>, size: u32) -> anyhow::Result<()>
+where
+    DB: DrawingBackend + 'a,
+    DB::ErrorType: 'static,
+    CT: CoordTranslate,
+{
+    chart
+        .configure_series_labels()
+        .position(SeriesLabelPosition::UpperRight)
+        .background_style(WHITE.mix(0.85))
+        .border_style(BLACK.mix(0.4))
+        .label_font((FONT, size))
+        .draw()?;
+    Ok(())
+}
+
 /// Median of `values` (mean of the middle two for an even count; 0 when empty).
 fn median(mut values: Vec<f64>) -> f64 {
     values.sort_by(f64::total_cmp);

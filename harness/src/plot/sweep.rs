@@ -380,13 +380,7 @@ where
             EmptyElement::at((x, y)) + Text::new(text, (6, -6), note.clone().color(&s.colour))
         }))?;
     }
-    chart
-        .configure_series_labels()
-        .position(SeriesLabelPosition::UpperRight)
-        .background_style(WHITE.mix(0.85))
-        .border_style(BLACK.mix(0.4))
-        .label_font((FONT, 15))
-        .draw()?;
+    draw_legend(&mut chart, 15)?;
     Ok(())
 }
 

@@ -195,13 +195,7 @@ where
         }
     }
     if lines.len() > 1 {
-        chart
-            .configure_series_labels()
-            .position(SeriesLabelPosition::UpperRight)
-            .background_style(WHITE.mix(0.85))
-            .border_style(BLACK.mix(0.4))
-            .label_font((FONT, 14))
-            .draw()?;
+        draw_legend(&mut chart, 14)?;
     }
     Ok(())
 }

@@ -105,13 +105,7 @@ impl TuneFigure {
                     .map(|&p| Circle::new(p, 9, BLACK.stroke_width(2))),
             )?;
         }
-        chart
-            .configure_series_labels()
-            .position(SeriesLabelPosition::UpperRight)
-            .background_style(WHITE.mix(0.85))
-            .border_style(BLACK.mix(0.4))
-            .label_font((FONT, 15))
-            .draw()?;
+        draw_legend(&mut chart, 15)?;
         Ok(())
     }
 }

@@ -501,15 +501,7 @@ pub fn run_metrics(dir: &Path, skip: usize) -> anyhow::Result<BTreeMap<String, f
         m.insert(format!("first.{h}"), v[0]);
         m.insert(format!("last.{h}"), v[v.len() - 1]);
     }
-    let summary = dir.join("summary.json");
-    let v: serde_json::Value = serde_json::from_str(
-        &std::fs::read_to_string(&summary)
-            .with_context(|| format!("reading {}", summary.display()))?,
-    )
-    .with_context(|| format!("parsing {}", summary.display()))?;
-    if v["complete"] != true {
-        bail!("{}: the run did not complete", summary.display());
-    }
+    let v = crate::results::read_complete_summary(dir)?;
     for k in ["peak_rss_bytes", "run_seconds"] {
         if let Some(x) = v[k].as_f64() {
             m.insert(k.into(), x);

@@ -366,14 +366,7 @@ fn read_run(
     let row = SweepRow::of_run(&frames, "", value)?;
     let wall = crate::results::median(frames.iter().map(|f| f.wall_ms))
         .ok_or_else(|| anyhow!("{}: no wall time", dir.display()))?;
-    let path = dir.join("summary.json");
-    let summary: serde_json::Value = serde_json::from_str(
-        &std::fs::read_to_string(&path).with_context(|| format!("reading {}", path.display()))?,
-    )
-    .with_context(|| format!("parsing {}", path.display()))?;
-    if summary["complete"] != true {
-        bail!("{}: the run did not complete", path.display());
-    }
+    let summary = crate::results::read_complete_summary(dir)?;
     let c = match cost {
         Cost::Time => row.gpu_ms_median.unwrap_or(wall),
         Cost::Points => row.points_drawn_median,

@@ -59,10 +59,7 @@ impl RunRecord {
     /// Reads the run in `dir` (`summary.json` and `frames.csv`). Errors name the file.
     pub fn read(dir: &Path) -> anyhow::Result<Self> {
         let summary_path = dir.join("summary.json");
-        let text = std::fs::read_to_string(&summary_path)
-            .with_context(|| format!("reading {}", summary_path.display()))?;
-        let s: serde_json::Value = serde_json::from_str(&text)
-            .with_context(|| format!("parsing {}", summary_path.display()))?;
+        let s: serde_json::Value = crate::results::read_json(&summary_path)?;
         let field = |k: &str| -> anyhow::Result<&serde_json::Value> {
             s.get(k)
                 .ok_or_else(|| anyhow!("{}: no field '{k}'", summary_path.display()))

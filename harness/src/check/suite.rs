@@ -245,20 +245,25 @@ pub fn run(
         )
     };
     record(false)?;
-    for (method, params) in &suite.methods {
-        for scene in &suite.scenes {
-            let label = scene.label();
-            let build_dir = out
-                .join("builds")
-                .join(format!("{method}-{}", folder_name(&label)));
-            let cloud = scene
-                .load(Some(cache), progress)
-                .with_context(|| format!("loading scene '{}'", scene.text))?
-                .warn();
+    // Each scene is loaded once for the builds of every method (the runs load it again, as
+    // every run does).
+    for scene in &suite.scenes {
+        let label = scene.label();
+        let build_dir = |method: MethodKind| {
+            out.join("builds")
+                .join(format!("{method}-{}", folder_name(&label)))
+        };
+        let cloud = scene
+            .load(Some(cache), progress)
+            .with_context(|| format!("loading scene '{}'", scene.text))?
+            .warn();
+        for (method, params) in &suite.methods {
             method
-                .build(&cloud, params, &label, &build_dir, progress)
+                .build(&cloud, params, &label, &build_dir(*method), progress)
                 .with_context(|| format!("building {method} on {label}"))?;
-            drop(cloud);
+        }
+        drop(cloud);
+        for (method, _) in &suite.methods {
             for path in &suite.paths {
                 for (kind, targets) in &suite.targets {
                     let dir = out.join(format!(
@@ -285,7 +290,7 @@ pub fn run(
                         metrics: true,
                         out: dir.clone(),
                         cache: cache.to_path_buf(),
-                        build_dir: Some(build_dir.clone()),
+                        build_dir: Some(build_dir(*method)),
                         allow_missing_chunks: false,
                     };
                     crate::sweep::run_targets(&base, targets, &dir, gpu, progress, |_| {})

@@ -41,14 +41,27 @@
 //! round trip between phases 2 and 3 shows in wall time only. The gaussian kernel refuses
 //! occlusion culling with an error: its depth, accumulation and normalisation passes would
 //! all have to be split around the queries, and LPC draws opaque splats.
+//!
+//! ## Files
+//! One room per responsibility, all behind [`Renderer::draw`] (this file: settings, the
+//! renderer's resources and the frame's phases): `splats.rs` (one phase of splat draws: the
+//! interval-counting compute pass, `interval.wgsl`, and the render passes per kernel),
+//! `pipelines.rs` (pipelines and targets; WGSL in `splat.wgsl` and `normalize.wgsl`),
+//! `queries.rs` and `occlusion.rs` (the occlusion-query pass, `occlusion.wgsl`, and its
+//! icosahedra), `upload.rs` (chunk cache and stream uploads), `uniforms.rs` (frame/draw
+//! uniforms), `readback.rs` (timestamps, counters, colour readback), `edl.rs` and
+//! `shading.rs` (shading modes), `cpu.rs` (the CPU mirror the tests compare against).
 
 pub mod cpu;
 pub mod edl;
 pub mod occlusion;
 mod pipelines;
 mod queries;
+mod readback;
 pub mod shading;
 mod splats;
+mod uniforms;
+mod upload;
 
 use std::collections::{HashMap, HashSet};
 use std::ops::Range;
@@ -66,9 +79,17 @@ use crate::gpu::Gpu;
 use crate::image::Image;
 use occlusion::Icosahedron;
 pub use occlusion::OcclusionStats;
+use queries::QueryPipeline;
+use readback::{TIMESTAMP_READBACK_BYTES, Timestamps, read_buffer};
 pub use shading::{Shade, Shading};
+use splats::PhaseTarget;
+use upload::GpuBatch;
 
 pub use methods::SplatShape as Kernel;
+pub(crate) use pipelines::fullscreen_pipeline;
+pub use uniforms::{
+    AMBIENT, BASE_COLOR, DrawUniform, FrameUniform, GAUSS_DEPTH_OFFSET, frame_uniform,
+};
 
 /// Fixed settings of a renderer.
 #[derive(Debug, Clone, Copy, PartialEq, serde::Serialize)]
@@ -97,113 +118,6 @@ impl Default for RenderSettings {
     }
 }
 
-/// Ambient term of the Lambert shading.
-pub const AMBIENT: f32 = 0.25;
-/// Linear RGB of splats in scenes without colour.
-pub const BASE_COLOR: [f32; 3] = [0.8, 0.8, 0.8];
-/// Gaussian kernel, pass 1: depth pushed back by this × the splat's object-space diameter,
-/// so splats within that distance of the front surface blend in pass 2.
-pub const GAUSS_DEPTH_OFFSET: f32 = 0.5;
-
-/// `Frame` uniform of `splat.wgsl`.
-#[repr(C)]
-#[derive(Debug, Clone, Copy, bytemuck::Pod, bytemuck::Zeroable)]
-pub struct FrameUniform {
-    /// offset 0
-    pub view_proj: [[f32; 4]; 4],
-    /// offset 64
-    pub eye: [f32; 3],
-    /// offset 76
-    pub proj_scale: f32,
-    /// offset 80
-    pub viewport: [f32; 2],
-    /// offset 88
-    pub ambient: f32,
-    /// offset 92
-    pub _pad0: f32,
-    /// offset 96
-    pub base_color: [f32; 4],
-    /// offset 112
-    pub view: [[f32; 4]; 4],
-    /// offset 176
-    pub depth_offset: f32,
-    /// offset 180: [`Shading::shader_code`]
-    pub shading: u32,
-    /// offset 184: local Z at the bottom of the elevation ramp
-    pub elevation_lo: f32,
-    /// offset 188: 1 / the ramp's height range
-    pub elevation_scale: f32,
-}
-const _: () = assert!(std::mem::size_of::<FrameUniform>() == 192);
-
-/// `Draw` uniform of `splat.wgsl`.
-#[repr(C)]
-#[derive(Debug, Clone, Copy, bytemuck::Pod, bytemuck::Zeroable)]
-pub struct DrawUniform {
-    /// offset 0
-    pub size_px: f32,
-    /// offset 4
-    pub radius_scale: f32,
-    /// offset 8
-    pub min_px: f32,
-    /// offset 12
-    pub mode: u32,
-    /// offset 16
-    pub flags: u32,
-    /// offset 20: 0 = none, 1 = SPT interval test
-    pub test_kind: u32,
-    /// offset 24
-    pub test_mode: u32,
-    /// offset 28
-    pub test_scale: f32,
-    /// offset 32
-    pub test_overlap: f32,
-    /// offset 36: splats sent (counting pass)
-    pub count: u32,
-    /// offset 40: counter slot (counting pass)
-    pub slot: u32,
-    /// offset 44
-    pub _pad: u32,
-}
-const _: () = assert!(std::mem::size_of::<DrawUniform>() == 48);
-
-impl DrawUniform {
-    /// The uniform for a splat size, the attributes present and an optional interval test.
-    pub fn new(size: SplatSize, attrs: Attributes, lod: bool, test: Option<IntervalTest>) -> Self {
-        let flags = attrs.normals as u32
-            | (attrs.colors as u32) << 1
-            | (attrs.radii as u32) << 2
-            | (lod as u32) << 3;
-        let (size_px, radius_scale, min_px, mode) = match size {
-            SplatSize::Pixels(px) => (px, 0.0, 0.0, 0),
-            SplatSize::Radius { scale, min_px } => (0.0, scale, min_px, 1),
-        };
-        Self {
-            size_px,
-            radius_scale,
-            min_px,
-            mode,
-            flags,
-            test_kind: test.is_some() as u32,
-            test_mode: test.map_or(0, |t| t.mode),
-            test_scale: test.map_or(0.0, |t| t.scale),
-            test_overlap: test.map_or(0.0, |t| t.overlap),
-            count: 0,
-            slot: 0,
-            _pad: 0,
-        }
-    }
-}
-
-/// GPU buffers of one batch and their bind group.
-struct GpuBatch {
-    bind_group: wgpu::BindGroup,
-    len: u32,
-    attrs: Attributes,
-    lod: bool,
-    _buffers: Vec<wgpu::Buffer>,
-}
-
 /// What one frame cost.
 #[derive(Debug, Clone, Default, PartialEq, serde::Serialize)]
 pub struct FrameStats {
@@ -229,48 +143,6 @@ pub struct FrameStats {
     pub cache_bytes: u64,
     /// What the occlusion queries found; `None` when the list had no occlusion pass.
     pub occlusion: Option<OcclusionStats>,
-}
-
-/// Bytes of the timestamp resolve/readback buffers: queries 0..4 at offset 0, 4..6 at the
-/// second [`wgpu::QUERY_RESOLVE_BUFFER_ALIGNMENT`] slot (phase 3 resolves in its own
-/// submission).
-const TIMESTAMP_READBACK_BYTES: u64 = 2 * wgpu::QUERY_RESOLVE_BUFFER_ALIGNMENT;
-
-/// How one phase of splat draws treats the targets.
-#[derive(Debug, Clone, Copy)]
-struct PhaseTarget {
-    /// Clear colour and depth (else load them).
-    clear: bool,
-    /// Keep the depth for a later pass (else discard it).
-    store_depth: bool,
-    /// Timestamp indices written at the beginning and end of the phase.
-    ts: (u32, u32),
-}
-
-/// Phase 2 recorded, its counts not yet read.
-struct PendingQueries {
-    /// Candidate index of each query, in query order.
-    queried: Vec<usize>,
-    /// Readback of the hardware query results (u64 each) followed, at `counters_at`, by the
-    /// fragment counters (u32 each), and its size; `None` when nothing was queried.
-    readback: Option<(wgpu::Buffer, u64)>,
-    counters_at: u64,
-    _keep: Vec<wgpu::Buffer>,
-}
-
-/// The occlusion-query pipeline (made on first use).
-struct QueryPipeline {
-    pipeline: wgpu::RenderPipeline,
-    bgl: wgpu::BindGroupLayout,
-    indices: wgpu::Buffer,
-    sampler: wgpu::Sampler,
-}
-
-struct Timestamps {
-    set: wgpu::QuerySet,
-    resolve: wgpu::Buffer,
-    readback: wgpu::Buffer,
-    period_ns: f64,
 }
 
 /// The renderer.
@@ -549,68 +421,6 @@ impl<'g> Renderer<'g> {
         self.cache.clear();
     }
 
-    fn upload(&self, batch: &SplatBatch) -> anyhow::Result<GpuBatch> {
-        batch.validate()?;
-        let d = &self.gpu.device;
-        let max = self.gpu.limits.max_storage_buffer_binding_size;
-        let pos_bytes = batch.len() as u64 * 12;
-        if pos_bytes > max {
-            bail!(
-                "a batch of {} splats needs {pos_bytes} bytes of positions, over the adapter's \
-                 storage binding limit of {max} bytes: the method must split it",
-                batch.len()
-            );
-        }
-        let mut buffers = Vec::with_capacity(4);
-        let mut make = |label: &str, bytes: &[u8]| -> usize {
-            // Empty batches still need a non-empty buffer to bind.
-            let contents: &[u8] = if bytes.is_empty() { &[0u8; 16] } else { bytes };
-            buffers.push(d.create_buffer_init(&wgpu::util::BufferInitDescriptor {
-                label: Some(label),
-                contents,
-                usage: wgpu::BufferUsages::STORAGE,
-            }));
-            buffers.len() - 1
-        };
-        let pos = make("positions", bytemuck::cast_slice(&batch.positions));
-        let nrm = batch
-            .normals
-            .as_ref()
-            .map(|v| make("normals", bytemuck::cast_slice(v)));
-        let col = batch
-            .colors
-            .as_ref()
-            .map(|v| make("colors", bytemuck::cast_slice(v)));
-        let rad = batch
-            .radii
-            .as_ref()
-            .map(|v| make("radii", bytemuck::cast_slice(v)));
-        let lod = batch
-            .lod
-            .as_ref()
-            .map(|v| make("lod", bytemuck::cast_slice(v)));
-        let buf = |i: Option<usize>| i.map(|i| &buffers[i]).unwrap_or(&self.dummy);
-        let entries: Vec<_> = [Some(pos), nrm, col, rad, lod]
-            .into_iter()
-            .enumerate()
-            .map(|(b, i)| wgpu::BindGroupEntry {
-                binding: b as u32,
-                resource: buf(i).as_entire_binding(),
-            })
-            .collect();
-        let bind_group = d.create_bind_group(&wgpu::BindGroupDescriptor {
-            label: Some("splat columns"),
-            layout: &self.bgl1,
-            entries: &entries,
-        });
-        Ok(GpuBatch {
-            bind_group,
-            len: batch.len() as u32,
-            attrs: batch.attributes(),
-            lod: batch.lod.is_some(),
-            _buffers: buffers,
-        })
-    }
     /// Draws `list` for `view`, decoding missing chunks through `method`. Returns the frame's
     /// costs and, when `readback` is set, the image.
     ///
@@ -781,202 +591,6 @@ impl<'g> Renderer<'g> {
         stats.occlusion = Some(occlusion);
         Ok((stats, image))
     }
-
-    /// After the last submission: wall time, interval counters, timestamps, the image (with
-    /// the EDL pass first, when the shading has one: outside the timings, see [`edl`]).
-    fn finish_frame(
-        &self,
-        view: &View,
-        t0: Instant,
-        mut stats: FrameStats,
-        counters: Vec<Option<(wgpu::Buffer, u64)>>,
-        ts_pairs: &[u32],
-        readback: bool,
-    ) -> anyhow::Result<(FrameStats, Option<Image>)> {
-        stats.wall_ms = t0.elapsed().as_secs_f64() * 1e3;
-        for (buf, bytes) in counters.iter().flatten() {
-            let raw = read_buffer(self.gpu, buf, *bytes)?;
-            let counts: Vec<u32> = bytemuck::pod_collect_to_vec(&raw);
-            *stats.gpu_passed.get_or_insert(0) += counts.iter().map(|&c| c as u64).sum::<u64>();
-        }
-        if let Some(t) = &self.timestamps {
-            let raw = read_buffer(self.gpu, &t.readback, TIMESTAMP_READBACK_BYTES)?;
-            let at = |index: u32| {
-                // Indices 0..4 resolve at offset 0, 4..6 at the second aligned slot.
-                let off = if index < 4 {
-                    index as usize * 8
-                } else {
-                    wgpu::QUERY_RESOLVE_BUFFER_ALIGNMENT as usize + (index as usize - 4) * 8
-                };
-                bytemuck::pod_read_unaligned::<u64>(&raw[off..off + 8])
-            };
-            let mut phases = vec![None; 3];
-            for &b in ts_pairs {
-                let ms = at(b + 1).saturating_sub(at(b)) as f64 * t.period_ns / 1e6;
-                phases[b as usize / 2] = Some(ms);
-            }
-            stats.gpu_ms = Some(phases.iter().flatten().sum());
-            stats.phase_gpu_ms = phases;
-        }
-        stats.cache_bytes = self.cache.bytes();
-        let image = if readback {
-            if let Some(e) = &self.edl {
-                e.apply(
-                    self.gpu,
-                    &self.color,
-                    &self.color_view,
-                    &self.depth_view,
-                    view.camera.near,
-                    view.camera.far,
-                );
-            }
-            Some(self.read_color()?)
-        } else {
-            None
-        };
-        Ok((stats, image))
-    }
-
-    /// Resolves timestamp queries `range` into the resolve buffer at `offset` and copies them
-    /// to the same offset of the readback buffer.
-    fn resolve_timestamps(&self, enc: &mut wgpu::CommandEncoder, range: Range<u32>, offset: u64) {
-        if let Some(t) = &self.timestamps {
-            let bytes = range.len() as u64 * 8;
-            enc.resolve_query_set(&t.set, range, &t.resolve, offset);
-            enc.copy_buffer_to_buffer(&t.resolve, offset, &t.readback, offset, bytes);
-        }
-    }
-
-    fn ensure_draw_capacity(&mut self, n: u64) {
-        if n > self.draw_capacity {
-            self.draw_capacity = n.next_power_of_two();
-            self.draw_ubo =
-                Self::draw_buffer(&self.gpu.device, self.draw_stride * self.draw_capacity);
-        }
-    }
-
-    /// Uploads the chunks of `items` missing from the cache (marking the others used) and
-    /// the streams, which get their own buffers this frame (returned, in item order).
-    fn upload_items(
-        &mut self,
-        items: &[&DrawItem],
-        method: &dyn LodMethod,
-        stats: &mut FrameStats,
-    ) -> anyhow::Result<Vec<GpuBatch>> {
-        let mut streams = Vec::new();
-        for item in items {
-            match item {
-                DrawItem::Chunk { id, .. } | DrawItem::Sequential { id, .. } => {
-                    if self.cache.get(id).is_none() {
-                        let batch = method
-                            .chunk(*id)
-                            .with_context(|| format!("decoding chunk {id}"))?;
-                        let bytes = batch.byte_size();
-                        let g = self.upload(&batch)?;
-                        stats.upload_bytes += bytes;
-                        self.cache.insert(*id, g, bytes);
-                    }
-                }
-                DrawItem::Stream { batch, .. } => {
-                    stats.upload_bytes += batch.byte_size();
-                    streams.push(self.upload(batch)?);
-                }
-            }
-        }
-        Ok(streams)
-    }
-
-    /// Reads the colour target back.
-    pub fn read_color(&self) -> anyhow::Result<Image> {
-        let (w, h) = (self.settings.width, self.settings.height);
-        let row = w * 4;
-        let padded =
-            row.div_ceil(wgpu::COPY_BYTES_PER_ROW_ALIGNMENT) * wgpu::COPY_BYTES_PER_ROW_ALIGNMENT;
-        let size = padded as u64 * h as u64;
-        let buf = self.gpu.device.create_buffer(&wgpu::BufferDescriptor {
-            label: Some("color readback"),
-            size,
-            usage: wgpu::BufferUsages::MAP_READ | wgpu::BufferUsages::COPY_DST,
-            mapped_at_creation: false,
-        });
-        let mut enc = self.gpu.device.create_command_encoder(&Default::default());
-        enc.copy_texture_to_buffer(
-            wgpu::TexelCopyTextureInfo {
-                texture: &self.color,
-                mip_level: 0,
-                origin: wgpu::Origin3d::ZERO,
-                aspect: wgpu::TextureAspect::All,
-            },
-            wgpu::TexelCopyBufferInfo {
-                buffer: &buf,
-                layout: wgpu::TexelCopyBufferLayout {
-                    offset: 0,
-                    bytes_per_row: Some(padded),
-                    rows_per_image: Some(h),
-                },
-            },
-            wgpu::Extent3d {
-                width: w,
-                height: h,
-                depth_or_array_layers: 1,
-            },
-        );
-        self.gpu.queue.submit([enc.finish()]);
-        let bytes = read_buffer(self.gpu, &buf, size)?;
-        let mut rgba = Vec::with_capacity((row * h) as usize);
-        for y in 0..h as usize {
-            let start = y * padded as usize;
-            rgba.extend_from_slice(&bytes[start..start + row as usize]);
-        }
-        Ok(Image {
-            width: w,
-            height: h,
-            rgba,
-        })
-    }
-}
-
-/// A pipeline that draws one full-screen triangle (`vs_fullscreen` of `module`) with the
-/// fragment entry `fs` into one `format` target: no depth, no blending. The gaussian
-/// normalisation and the EDL pass are such passes.
-pub(crate) fn fullscreen_pipeline(
-    d: &wgpu::Device,
-    label: &str,
-    bgl: &wgpu::BindGroupLayout,
-    module: &wgpu::ShaderModule,
-    fs: &str,
-    format: wgpu::TextureFormat,
-) -> wgpu::RenderPipeline {
-    let layout = d.create_pipeline_layout(&wgpu::PipelineLayoutDescriptor {
-        label: Some(label),
-        bind_group_layouts: &[Some(bgl)],
-        immediate_size: 0,
-    });
-    d.create_render_pipeline(&wgpu::RenderPipelineDescriptor {
-        label: Some(label),
-        layout: Some(&layout),
-        vertex: wgpu::VertexState {
-            module,
-            entry_point: Some("vs_fullscreen"),
-            compilation_options: Default::default(),
-            buffers: &[],
-        },
-        primitive: wgpu::PrimitiveState::default(),
-        depth_stencil: None,
-        multisample: Default::default(),
-        fragment: Some(wgpu::FragmentState {
-            module,
-            entry_point: Some(fs),
-            compilation_options: Default::default(),
-            targets: &[Some(wgpu::ColorTargetState {
-                format,
-                blend: None,
-                write_mask: wgpu::ColorWrites::ALL,
-            })],
-        }),
-        multiview_mask: None,
-        cache: None,
-    })
 }
 
 /// True when the renderer counts occlusion samples exactly (in the queries' fragment stage):
@@ -984,39 +598,4 @@ pub(crate) fn fullscreen_pipeline(
 /// which wgpu's GL backend makes boolean (`ANY_SAMPLES_PASSED_CONSERVATIVE`).
 pub fn exact_counts(gpu: &Gpu) -> bool {
     gpu.device.adapter_info().backend != wgpu::Backend::Gl
-}
-
-/// The `Frame` uniform for a view drawn with `shade`.
-pub fn frame_uniform(view: &View, shade: &Shade) -> FrameUniform {
-    FrameUniform {
-        view_proj: view.view_proj().to_cols_array_2d(),
-        eye: view.camera.position.into(),
-        proj_scale: view.proj_scale(),
-        viewport: [view.width as f32, view.height as f32],
-        ambient: AMBIENT,
-        _pad0: 0.0,
-        base_color: [BASE_COLOR[0], BASE_COLOR[1], BASE_COLOR[2], 1.0],
-        view: view.view_matrix().to_cols_array_2d(),
-        depth_offset: GAUSS_DEPTH_OFFSET,
-        shading: shade.shading.shader_code(),
-        elevation_lo: shade.elevation[0],
-        elevation_scale: shade.elevation_scale(),
-    }
-}
-
-fn read_buffer(gpu: &Gpu, buf: &wgpu::Buffer, size: u64) -> anyhow::Result<Vec<u8>> {
-    let (tx, rx) = std::sync::mpsc::channel();
-    buf.map_async(wgpu::MapMode::Read, 0..size, move |r| {
-        let _ = tx.send(r);
-    });
-    gpu.wait()?;
-    rx.recv()
-        .context("buffer map callback dropped")?
-        .context("mapping a readback buffer")?;
-    let bytes = buf
-        .get_mapped_range(0..size)
-        .context("reading a mapped buffer")?
-        .to_vec();
-    buf.unmap();
-    Ok(bytes)
 }

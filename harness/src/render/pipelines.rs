@@ -163,3 +163,46 @@ impl Renderer<'_> {
         })
     }
 }
+
+/// A pipeline that draws one full-screen triangle (`vs_fullscreen` of `module`) with the
+/// fragment entry `fs` into one `format` target: no depth, no blending. The gaussian
+/// normalisation and the EDL pass are such passes.
+pub(crate) fn fullscreen_pipeline(
+    d: &wgpu::Device,
+    label: &str,
+    bgl: &wgpu::BindGroupLayout,
+    module: &wgpu::ShaderModule,
+    fs: &str,
+    format: wgpu::TextureFormat,
+) -> wgpu::RenderPipeline {
+    let layout = d.create_pipeline_layout(&wgpu::PipelineLayoutDescriptor {
+        label: Some(label),
+        bind_group_layouts: &[Some(bgl)],
+        immediate_size: 0,
+    });
+    d.create_render_pipeline(&wgpu::RenderPipelineDescriptor {
+        label: Some(label),
+        layout: Some(&layout),
+        vertex: wgpu::VertexState {
+            module,
+            entry_point: Some("vs_fullscreen"),
+            compilation_options: Default::default(),
+            buffers: &[],
+        },
+        primitive: wgpu::PrimitiveState::default(),
+        depth_stencil: None,
+        multisample: Default::default(),
+        fragment: Some(wgpu::FragmentState {
+            module,
+            entry_point: Some(fs),
+            compilation_options: Default::default(),
+            targets: &[Some(wgpu::ColorTargetState {
+                format,
+                blend: None,
+                write_mask: wgpu::ColorWrites::ALL,
+            })],
+        }),
+        multiview_mask: None,
+        cache: None,
+    })
+}

@@ -3,6 +3,25 @@
 
 use super::*;
 
+/// Phase 2 recorded, its counts not yet read.
+pub(super) struct PendingQueries {
+    /// Candidate index of each query, in query order.
+    pub(super) queried: Vec<usize>,
+    /// Readback of the hardware query results (u64 each) followed, at `counters_at`, by the
+    /// fragment counters (u32 each), and its size; `None` when nothing was queried.
+    pub(super) readback: Option<(wgpu::Buffer, u64)>,
+    pub(super) counters_at: u64,
+    pub(super) _keep: Vec<wgpu::Buffer>,
+}
+
+/// The occlusion-query pipeline (made on first use).
+pub(super) struct QueryPipeline {
+    pub(super) pipeline: wgpu::RenderPipeline,
+    pub(super) bgl: wgpu::BindGroupLayout,
+    pub(super) indices: wgpu::Buffer,
+    pub(super) sampler: wgpu::Sampler,
+}
+
 impl Renderer<'_> {
     /// Phase 2: records one occlusion query per candidate that needs one (in as many render
     /// passes as [`wgpu::QUERY_SET_MAX_QUERIES`] requires), timestamps `ts` around them, and

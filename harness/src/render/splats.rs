@@ -3,6 +3,17 @@
 
 use super::*;
 
+/// How one phase of splat draws treats the targets.
+#[derive(Debug, Clone, Copy)]
+pub(super) struct PhaseTarget {
+    /// Clear colour and depth (else load them).
+    pub(super) clear: bool,
+    /// Keep the depth for a later pass (else discard it).
+    pub(super) store_depth: bool,
+    /// Timestamp indices written at the beginning and end of the phase.
+    pub(super) ts: (u32, u32),
+}
+
 impl Renderer<'_> {
     /// Records one phase of splat draws into `enc`: the interval-counting compute pass (if any
     /// draw has a test) and the render pass(es). Adds the splats sent and chunks drawn to

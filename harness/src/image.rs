@@ -16,7 +16,7 @@
 //!   (u32, little-endian) and then the RGBA bytes. It is stable across platforms, runs and
 //!   versions of this crate (it keys on-disk caches), and is not cryptographic.
 //!
-//! Errors are [`MetricsError`]s that name the offending file or the sizes involved.
+//! Errors are [`ImageError`]s that name the offending file or the sizes involved.
 
 use std::fs;
 use std::io::{self, Write};
@@ -25,7 +25,54 @@ use std::sync::atomic::{AtomicU64, Ordering};
 
 use ::image::ImageEncoder;
 
-use crate::metrics::MetricsError;
+/// Errors from image I/O and from building an image from a buffer.
+#[derive(Debug, thiserror::Error)]
+pub enum ImageError {
+    /// An RGBA8 buffer whose length does not match its stated size.
+    #[error("an RGBA8 image of {width}x{height} needs {expected} bytes, got {actual}")]
+    BufferSize {
+        /// Stated width.
+        width: u32,
+        /// Stated height.
+        height: u32,
+        /// `width * height * 4` (`u64::MAX` if that overflows).
+        expected: u64,
+        /// Actual buffer length.
+        actual: u64,
+    },
+    /// A file could not be read.
+    #[error("cannot read {}", path.display())]
+    Read {
+        /// The file.
+        path: PathBuf,
+        /// The underlying I/O error.
+        source: std::io::Error,
+    },
+    /// A file could not be written.
+    #[error("cannot write {}", path.display())]
+    Write {
+        /// The file.
+        path: PathBuf,
+        /// The underlying I/O error.
+        source: std::io::Error,
+    },
+    /// A file is not a PNG the decoder understands.
+    #[error("cannot decode {} as a PNG", path.display())]
+    PngDecode {
+        /// The file.
+        path: PathBuf,
+        /// The decoder's error.
+        source: ::image::ImageError,
+    },
+    /// An image could not be encoded as PNG.
+    #[error("cannot encode {} as a PNG", path.display())]
+    PngEncode {
+        /// The destination file.
+        path: PathBuf,
+        /// The encoder's error.
+        source: ::image::ImageError,
+    },
+}
 
 /// An RGBA8 image: sRGB colour, alpha > 0 marks covered pixels, row-major, top row first.
 #[derive(Debug, Clone, PartialEq, Eq, Hash)]
@@ -61,14 +108,14 @@ impl Image {
     }
 
     /// Wraps an RGBA8 buffer; errors unless `rgba.len() == width * height * 4`.
-    pub fn from_rgba(width: u32, height: u32, rgba: Vec<u8>) -> Result<Self, MetricsError> {
+    pub fn from_rgba(width: u32, height: u32, rgba: Vec<u8>) -> Result<Self, ImageError> {
         match rgba_len(width, height) {
             Some(expected) if expected == rgba.len() => Ok(Self {
                 width,
                 height,
                 rgba,
             }),
-            expected => Err(MetricsError::BufferSize {
+            expected => Err(ImageError::BufferSize {
                 width,
                 height,
                 expected: expected.map_or(u64::MAX, |e| e as u64),
@@ -141,27 +188,25 @@ impl Image {
     }
 
     /// Writes the image as an 8-bit RGBA PNG, atomically (temporary file, then rename).
-    pub fn save_png(&self, path: &Path) -> Result<(), MetricsError> {
-        let png = self
-            .encode_png()
-            .map_err(|source| MetricsError::PngEncode {
-                path: path.to_path_buf(),
-                source,
-            })?;
-        write_atomically(path, &png).map_err(|source| MetricsError::Write {
+    pub fn save_png(&self, path: &Path) -> Result<(), ImageError> {
+        let png = self.encode_png().map_err(|source| ImageError::PngEncode {
+            path: path.to_path_buf(),
+            source,
+        })?;
+        write_atomically(path, &png).map_err(|source| ImageError::Write {
             path: path.to_path_buf(),
             source,
         })
     }
 
     /// Reads a PNG and converts it to RGBA8. Errors name the file.
-    pub fn load_png(path: &Path) -> Result<Self, MetricsError> {
-        let bytes = fs::read(path).map_err(|source| MetricsError::Read {
+    pub fn load_png(path: &Path) -> Result<Self, ImageError> {
+        let bytes = fs::read(path).map_err(|source| ImageError::Read {
             path: path.to_path_buf(),
             source,
         })?;
         let decoded = ::image::load_from_memory_with_format(&bytes, ::image::ImageFormat::Png)
-            .map_err(|source| MetricsError::PngDecode {
+            .map_err(|source| ImageError::PngDecode {
                 path: path.to_path_buf(),
                 source,
             })?

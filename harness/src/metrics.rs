@@ -39,11 +39,9 @@
 //!
 //! Empty (0×0) images compare as identical: PSNR 100, SSIM 1, FLIP 0, ratios 0.
 
-use std::path::PathBuf;
-
 use rayon::prelude::*;
 
-use crate::image::Image;
+use crate::image::{Image, ImageError};
 
 /// PSNR reported for identical images (and any MSE small enough to exceed it), in dB.
 pub const PSNR_CAP_DB: f64 = 100.0;
@@ -63,7 +61,7 @@ const SSIM_K1: f64 = 0.01;
 /// SSIM contrast stabiliser constant K2.
 const SSIM_K2: f64 = 0.03;
 
-/// Errors from image I/O and from comparing images.
+/// Errors from comparing images.
 #[derive(Debug, thiserror::Error)]
 pub enum MetricsError {
     /// The reference and test images differ in size.
@@ -77,50 +75,9 @@ pub enum MetricsError {
         /// Test (width, height).
         test: (u32, u32),
     },
-    /// An RGBA8 buffer whose length does not match its stated size.
-    #[error("an RGBA8 image of {width}x{height} needs {expected} bytes, got {actual}")]
-    BufferSize {
-        /// Stated width.
-        width: u32,
-        /// Stated height.
-        height: u32,
-        /// `width * height * 4` (`u64::MAX` if that overflows).
-        expected: u64,
-        /// Actual buffer length.
-        actual: u64,
-    },
-    /// A file could not be read.
-    #[error("cannot read {}", path.display())]
-    Read {
-        /// The file.
-        path: PathBuf,
-        /// The underlying I/O error.
-        source: std::io::Error,
-    },
-    /// A file could not be written.
-    #[error("cannot write {}", path.display())]
-    Write {
-        /// The file.
-        path: PathBuf,
-        /// The underlying I/O error.
-        source: std::io::Error,
-    },
-    /// A file is not a PNG the decoder understands.
-    #[error("cannot decode {} as a PNG", path.display())]
-    PngDecode {
-        /// The file.
-        path: PathBuf,
-        /// The decoder's error.
-        source: ::image::ImageError,
-    },
-    /// An image could not be encoded as PNG.
-    #[error("cannot encode {} as a PNG", path.display())]
-    PngEncode {
-        /// The destination file.
-        path: PathBuf,
-        /// The encoder's error.
-        source: ::image::ImageError,
-    },
+    /// An image's buffer is malformed (see [`ImageError::BufferSize`]).
+    #[error(transparent)]
+    Image(#[from] ImageError),
 }
 
 /// The five per-frame image metrics, named as the `frames.csv` columns.
@@ -298,7 +255,7 @@ pub fn flip_map(reference: &Image, test: &Image) -> Result<Image, MetricsError> 
     for p in rgb.chunks_exact(3) {
         rgba.extend_from_slice(&[p[0], p[1], p[2], 255]);
     }
-    Image::from_rgba(width, height, rgba)
+    Ok(Image::from_rgba(width, height, rgba)?)
 }
 
 /// Fraction of the reference's covered pixels that the test leaves uncovered (0 if the
@@ -327,12 +284,13 @@ fn check_same_size(reference: &Image, test: &Image) -> Result<(), MetricsError> 
         // The fields are public: re-check the buffer so the kernels can index freely.
         let expected = (u64::from(image.width) * u64::from(image.height)).saturating_mul(4);
         if image.rgba.len() as u64 != expected {
-            return Err(MetricsError::BufferSize {
+            return Err(ImageError::BufferSize {
                 width: image.width,
                 height: image.height,
                 expected,
                 actual: image.rgba.len() as u64,
-            });
+            }
+            .into());
         }
     }
     Ok(())

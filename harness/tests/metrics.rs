@@ -2,7 +2,7 @@
 //! monotonicity on degraded ones, errors that name sizes and files, PNG round trips.
 #![allow(clippy::unwrap_used)]
 
-use harness::image::Image;
+use harness::image::{Image, ImageError};
 use harness::metrics::{self, MetricsError, PSNR_CAP_DB};
 
 /// Deterministic 64-bit LCG (Knuth MMIX constants); returns the high byte.
@@ -241,7 +241,7 @@ fn loading_a_non_png_names_the_file() {
     let path = dir.path().join("not-a-png.png");
     std::fs::write(&path, b"frame,method\n0,qsplat\n").unwrap();
     let err = Image::load_png(&path).unwrap_err();
-    assert!(matches!(err, MetricsError::PngDecode { .. }));
+    assert!(matches!(err, ImageError::PngDecode { .. }));
     assert!(err.to_string().contains("not-a-png.png"), "{err}");
     let missing = dir.path().join("missing.png");
     let err = Image::load_png(&missing).unwrap_err();

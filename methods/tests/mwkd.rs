@@ -6,8 +6,9 @@
 
 use glam::Vec3;
 use methods::Params;
+use methods::mwkd::build::Lod;
 use methods::mwkd::reps::{RepConfig, Splats, representatives};
-use methods::mwkd::tree::{Lod, Plan, Tree, child_targets};
+use methods::mwkd::tree::{Plan, Tree, child_targets};
 use methods::mwkd::{MwkdParams, QueueOrder};
 use scenes::PointCloud;
 use scenes::generators::Generator;

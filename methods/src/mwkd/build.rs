@@ -28,6 +28,7 @@ use glam::Vec3;
 use rayon::prelude::*;
 use scenes::{PointCloud, Progress};
 
+use super::MwkdParams;
 use super::codec;
 use super::index::IndexNode;
 use super::reps::{RepConfig, Splats, representatives};
@@ -329,6 +330,46 @@ pub fn write_repository(
         raw_bytes,
         repo_bytes,
     })
+}
+
+/// The tree with every inner node's representatives (in memory; the disk build is
+/// [`write_repository`], which runs the same [`bottom_up`]).
+#[derive(Debug, Clone)]
+pub struct Lod {
+    /// The split.
+    pub tree: Tree,
+    /// Representatives of inner node `i` (index = node id; empty for leaves).
+    pub inner: Vec<Splats>,
+}
+
+impl Lod {
+    /// Splits `cloud` and builds the representatives bottom-up (deterministic). Leaf splat
+    /// radii are the cloud's radii, or else the within-leaf k-NN spacing
+    /// ([`leaf_splats`]).
+    pub fn build(cloud: &PointCloud, params: &MwkdParams) -> Result<Lod, MethodError> {
+        params.validate()?;
+        let tree = Tree::split(cloud.positions(), params.fanout, params.vbo)?;
+        let mut inner: Vec<Splats> = vec![Splats::default(); tree.nodes.len()];
+        let input = Input {
+            cloud,
+            tree: &tree,
+            reps: params.rep_config(),
+        };
+        let leaf = |i: usize| tree.is_leaf(i);
+        bottom_up(
+            &input,
+            (cloud.len() / 8).max(1),
+            &|i, s: &Splats| Ok((!leaf(i)).then(|| s.clone())),
+            &mut |i, s| {
+                if let Some(s) = s {
+                    inner[i] = s;
+                }
+                Ok(())
+            },
+            &scenes::NoProgress,
+        )?;
+        Ok(Lod { tree, inner })
+    }
 }
 
 #[cfg(test)]

@@ -17,16 +17,14 @@
 //!
 //! **Inner nodes** hold representatives: child `i` passes `t_i = ⌊s/N⌋ + [i < s mod N]`
 //! (so `Σ t_i = s`), or all it holds if that is fewer. [`Plan`] predicts exactly how many
-//! samples every level's nodes hold, and [`Lod::build`] produces them.
+//! samples every level's nodes hold, and [`super::build::Lod::build`] produces them.
 
 use std::ops::Range;
 
 use glam::Vec3;
 use rayon::prelude::*;
-use scenes::{Aabb, PointCloud};
+use scenes::Aabb;
 
-use super::MwkdParams;
-use super::reps::Splats;
 use crate::MethodError;
 
 /// Depth of the leaves (the root is level 0; the tree has `depth + 1` levels): the smallest
@@ -559,46 +557,6 @@ impl Tree {
             nodes,
             order,
         })
-    }
-}
-
-/// The tree with every inner node's representatives (in memory; the disk build is
-/// [`super::build`], which runs the same [`super::build::bottom_up`]).
-#[derive(Debug, Clone)]
-pub struct Lod {
-    /// The split.
-    pub tree: Tree,
-    /// Representatives of inner node `i` (index = node id; empty for leaves).
-    pub inner: Vec<Splats>,
-}
-
-impl Lod {
-    /// Splits `cloud` and builds the representatives bottom-up (deterministic). Leaf splat
-    /// radii are the cloud's radii, or else the within-leaf k-NN spacing
-    /// ([`super::build::leaf_splats`]).
-    pub fn build(cloud: &PointCloud, params: &MwkdParams) -> Result<Lod, MethodError> {
-        params.validate()?;
-        let tree = Tree::split(cloud.positions(), params.fanout, params.vbo)?;
-        let mut inner: Vec<Splats> = vec![Splats::default(); tree.nodes.len()];
-        let input = super::build::Input {
-            cloud,
-            tree: &tree,
-            reps: params.rep_config(),
-        };
-        let leaf = |i: usize| tree.is_leaf(i);
-        super::build::bottom_up(
-            &input,
-            (cloud.len() / 8).max(1),
-            &|i, s: &Splats| Ok((!leaf(i)).then(|| s.clone())),
-            &mut |i, s| {
-                if let Some(s) = s {
-                    inner[i] = s;
-                }
-                Ok(())
-            },
-            &scenes::NoProgress,
-        )?;
-        Ok(Lod { tree, inner })
     }
 }
 

@@ -44,8 +44,8 @@
 //!
 //! ## Files
 //! One room per responsibility, all behind [`Renderer::draw`] (this file: settings, the
-//! renderer's resources and the frame's phases): `splats.rs` (one phase of splat draws: the
-//! interval-counting compute pass, `interval.wgsl`, and the render passes per kernel),
+//! renderer's resources and the frame's phases): `splats.rs` (one phase of splat draws: the render
+//! passes per kernel), `interval.rs` (SPT's interval-counting compute pass, `interval.wgsl`),
 //! `pipelines.rs` (pipelines and targets; WGSL in `splat.wgsl` and `normalize.wgsl`),
 //! `queries.rs` and `occlusion.rs` (the occlusion-query pass, `occlusion.wgsl`, and its
 //! icosahedra), `upload.rs` (chunk cache and stream uploads), `uniforms.rs` (frame/draw
@@ -54,6 +54,7 @@
 
 pub mod cpu;
 pub mod edl;
+mod interval;
 pub mod occlusion;
 mod pipelines;
 mod queries;

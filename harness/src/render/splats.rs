@@ -1,5 +1,6 @@
-//! The splat draw path: recording one phase of splat draws (interval-counting compute pass
-//! and render passes, per kernel) and the depth attachment the passes share.
+//! The splat draw path: recording one phase of splat draws (the interval-counting compute
+//! pass through `interval.rs`, then the render passes, per kernel) and the depth attachment
+//! the passes share.
 
 use super::*;
 
@@ -95,48 +96,8 @@ impl Renderer<'_> {
                     },
                 ],
             });
-        // Interval-tested draws: count the splats that pass, in a compute pass before drawing
-        // (the same `splat_passes` as the vertex stage; outside the render-pass timestamps).
-        let counters = if tested.is_empty() {
-            None
-        } else {
-            let d = &self.gpu.device;
-            let bytes = tested.len() as u64 * 4;
-            let counters = d.create_buffer_init(&wgpu::util::BufferInitDescriptor {
-                label: Some("interval counters"),
-                contents: &vec![0u8; bytes as usize],
-                usage: wgpu::BufferUsages::STORAGE | wgpu::BufferUsages::COPY_SRC,
-            });
-            let readback = d.create_buffer(&wgpu::BufferDescriptor {
-                label: Some("interval counters readback"),
-                size: bytes,
-                usage: wgpu::BufferUsages::MAP_READ | wgpu::BufferUsages::COPY_DST,
-                mapped_at_creation: false,
-            });
-            let bg2 = d.create_bind_group(&wgpu::BindGroupDescriptor {
-                label: Some("counters"),
-                layout: &self.bgl2,
-                entries: &[wgpu::BindGroupEntry {
-                    binding: 0,
-                    resource: counters.as_entire_binding(),
-                }],
-            });
-            let pipeline = self.count.as_ref().context("counting pipeline missing")?;
-            let mut pass = enc.begin_compute_pass(&wgpu::ComputePassDescriptor {
-                label: Some("interval count"),
-                timestamp_writes: None,
-            });
-            pass.set_pipeline(pipeline);
-            pass.set_bind_group(2, &bg2, &[]);
-            for &(i, count) in &tested {
-                pass.set_bind_group(0, &bg0, &[(i as u64 * self.draw_stride) as u32]);
-                pass.set_bind_group(1, &resolved[i].0.bind_group, &[]);
-                pass.dispatch_workgroups(count.div_ceil(64), 1, 1);
-            }
-            drop(pass);
-            enc.copy_buffer_to_buffer(&counters, 0, &readback, 0, bytes);
-            Some((readback, bytes))
-        };
+        // Interval-tested draws: count the splats that pass (interval.rs).
+        let counters = self.encode_interval_counts(enc, &bg0, &tested, &resolved)?;
         let (b, e) = target.ts;
         let ts = |begin: bool, end: bool| {
             self.timestamps.as_ref().filter(|_| begin || end).map(|t| {

@@ -22,11 +22,7 @@ impl Renderer<'_> {
         }
         let d = &self.gpu.device;
         let bytes = tested.len() as u64 * 4;
-        let counters = d.create_buffer_init(&wgpu::util::BufferInitDescriptor {
-            label: Some("interval counters"),
-            contents: &vec![0u8; bytes as usize],
-            usage: wgpu::BufferUsages::STORAGE | wgpu::BufferUsages::COPY_SRC,
-        });
+        let counters = zeroed_counters(d, "interval counters", bytes);
         let readback = d.create_buffer(&wgpu::BufferDescriptor {
             label: Some("interval counters readback"),
             size: bytes,

@@ -81,7 +81,7 @@ use crate::image::Image;
 use occlusion::Icosahedron;
 pub use occlusion::OcclusionStats;
 use queries::QueryPipeline;
-use readback::{TIMESTAMP_READBACK_BYTES, Timestamps, read_buffer};
+use readback::{TIMESTAMP_READBACK_BYTES, Timestamps, read_buffer, zeroed_counters};
 pub use shading::{Shade, Shading};
 use splats::PhaseTarget;
 use upload::GpuBatch;

@@ -100,11 +100,7 @@ impl Renderer<'_> {
             mapped_at_creation: false,
         });
         let counter_bytes = queried.len() as u64 * 4;
-        let counters = d.create_buffer_init(&wgpu::util::BufferInitDescriptor {
-            label: Some("occlusion fragment counters"),
-            contents: &vec![0u8; counter_bytes as usize],
-            usage: wgpu::BufferUsages::STORAGE | wgpu::BufferUsages::COPY_SRC,
-        });
+        let counters = zeroed_counters(d, "occlusion fragment counters", counter_bytes);
         let readback = d.create_buffer(&wgpu::BufferDescriptor {
             label: Some("occlusion readback"),
             size: bytes + counter_bytes,

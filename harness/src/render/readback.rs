@@ -154,3 +154,13 @@ pub(super) fn read_buffer(gpu: &Gpu, buf: &wgpu::Buffer, size: u64) -> anyhow::R
     buf.unmap();
     Ok(bytes)
 }
+
+/// A zero-filled storage buffer of `bytes` that the GPU counts into and that is copied to a
+/// readback buffer afterwards (interval counters, occlusion fragment counters).
+pub(super) fn zeroed_counters(d: &wgpu::Device, label: &str, bytes: u64) -> wgpu::Buffer {
+    d.create_buffer_init(&wgpu::util::BufferInitDescriptor {
+        label: Some(label),
+        contents: &vec![0u8; bytes as usize],
+        usage: wgpu::BufferUsages::STORAGE | wgpu::BufferUsages::COPY_SRC,
+    })
+}

@@ -196,10 +196,29 @@ fn size_mismatch_is_an_error_naming_both_sizes() {
 fn malformed_buffers_are_errors() {
     let err = Image::from_rgba(4, 4, vec![0; 63]).unwrap_err();
     assert!(err.to_string().contains("4x4"), "{err}");
-    // Public fields can be bent after construction: comparisons re-check.
+    assert!(matches!(
+        err,
+        ImageError::BufferSize {
+            width: 4,
+            height: 4,
+            expected: 64,
+            actual: 63
+        }
+    ));
+    // Public fields can be bent after construction: comparisons re-check, and the image
+    // error passes through `MetricsError::Image` with its message.
     let mut bad = Image::new(4, 4);
     bad.rgba.pop();
-    assert!(metrics::compare(&Image::new(4, 4), &bad).is_err());
+    let err = metrics::compare(&Image::new(4, 4), &bad).unwrap_err();
+    assert!(matches!(
+        err,
+        MetricsError::Image(ImageError::BufferSize {
+            expected: 64,
+            actual: 63,
+            ..
+        })
+    ));
+    assert!(err.to_string().contains("4x4"), "{err}");
 }
 
 #[test]

@@ -1,6 +1,8 @@
 //! Image metrics on a 1024² pair (a reference of soft blobs and the same image shifted by two
 //! pixels with noise): the whole `compare` (PSNR, SSIM, FLIP, holes) and each metric alone.
-//! FLIP dominates a measured run at high resolution. Timing is reported, never asserted.
+//! `flip_mean_nv_flip` is the previous implementation (NVIDIA's C++), for a ratio in the same
+//! run; `flip_prepare` and `flip_error_mean_prepared` are the two halves of ours. Timing is
+//! reported, never asserted.
 //! Run: `cargo bench -p harness --bench metrics`.
 #![allow(missing_docs, clippy::unwrap_used)]
 
@@ -56,6 +58,27 @@ fn bench(c: &mut Criterion) {
     });
     g.bench_function("flip_mean", |b| {
         b.iter(|| metrics::flip_mean(&reference, &test).unwrap())
+    });
+    // The previous version's FLIP (NVIDIA's C++ through `nv-flip`, one thread), for the
+    // ratio in the same run.
+    g.bench_function("flip_mean_nv_flip", |b| {
+        b.iter(|| {
+            let (w, h) = (reference.width, reference.height);
+            let r = nv_flip::FlipImageRgb8::with_data(w, h, &reference.to_rgb());
+            let t = nv_flip::FlipImageRgb8::with_data(w, h, &test.to_rgb());
+            let map = nv_flip::flip(r, t, nv_flip::DEFAULT_PIXELS_PER_DEGREE).to_vec();
+            map.iter().map(|&e| f64::from(e)).sum::<f64>() / map.len() as f64
+        })
+    });
+    let (prepared_ref, prepared_test) = (
+        metrics::flip::FlipFeatures::new(&reference, None),
+        metrics::flip::FlipFeatures::new(&test, None),
+    );
+    g.bench_function("flip_prepare", |b| {
+        b.iter(|| metrics::flip::FlipFeatures::new(&test, None))
+    });
+    g.bench_function("flip_error_mean_prepared", |b| {
+        b.iter(|| metrics::flip::error_mean(&prepared_ref, &prepared_test))
     });
     g.bench_function("ssim", |b| {
         b.iter(|| metrics::ssim(&reference, &test).unwrap())

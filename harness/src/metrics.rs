@@ -19,12 +19,14 @@
 //!   positions). Images narrower or shorter than 11 px use the largest odd window that fits
 //!   (same σ, renormalised). Computed as separable Gaussian blurs of x, y, x², y², xy in
 //!   `f32`, per-row sums in `f64` added in row order. Identical images give exactly 1.0.
-//! - [`flip_mean`]: mean of the LDR-FLIP error map (Andersson et al. 2020, via the `nv-flip`
-//!   crate) of the RGB images at [`FLIP_PIXELS_PER_DEGREE`] = 67 pixels per degree (FLIP's
-//!   default viewing setup: a 0.7 m wide 3840-pixel monitor seen from 0.7 m). The mean is the
-//!   plain `f64` average of the per-pixel errors in 0..1. Identical images give 0.0.
-//!   [`flip_map`] returns the error map through FLIP's magma colour map, for golden-image
-//!   failures (`-difference` images).
+//! - [`flip_mean`]: mean of the LDR-FLIP error map (Andersson et al. 2020) of the RGB images
+//!   at [`FLIP_PIXELS_PER_DEGREE`] = 67 pixels per degree (FLIP's default viewing setup: a
+//!   0.7 m wide 3840-pixel monitor seen from 0.7 m). The mean is the plain `f64` average of
+//!   the per-pixel errors in 0..1. Identical images give 0.0. Computed by [`flip`], our
+//!   separable, parallel implementation, which prepares each image once; the tests hold it
+//!   to NVIDIA's reference (the `nv-flip` crate) within 1e-4. [`flip_map`] returns the error
+//!   map through FLIP's magma colour map (`nv-flip`'s table), for golden-image failures
+//!   (`-difference` images).
 //! - [`hole_ratio`] = |covered in reference ∧ not covered in test| / |covered in reference|;
 //!   [`extra_coverage`] = |covered in test ∧ not covered in reference| / |covered in
 //!   reference|. "Covered" means alpha > 0. Both are **0 when the reference covers nothing**
@@ -39,16 +41,18 @@
 //!
 //! Empty (0×0) images compare as identical: PSNR 100, SSIM 1, FLIP 0, ratios 0.
 
+pub mod flip;
+
 use rayon::prelude::*;
 
 use crate::image::{Image, ImageError};
+use flip::FlipFeatures;
 
 /// PSNR reported for identical images (and any MSE small enough to exceed it), in dB.
 pub const PSNR_CAP_DB: f64 = 100.0;
 
-/// Pixels per degree of visual angle used for FLIP: `nv_flip::DEFAULT_PIXELS_PER_DEGREE`,
-/// 67.0, the FLIP paper's default (0.7 m wide, 3840 px monitor viewed from 0.7 m).
-pub const FLIP_PIXELS_PER_DEGREE: f32 = nv_flip::DEFAULT_PIXELS_PER_DEGREE;
+/// Pixels per degree of visual angle used for FLIP: 67.0 (as `nv_flip::DEFAULT_PIXELS_PER_DEGREE`), the FLIP paper's default (0.7 m wide, 3840 px monitor viewed from 0.7 m).
+pub const FLIP_PIXELS_PER_DEGREE: f32 = flip::PIXELS_PER_DEGREE;
 
 /// SSIM Gaussian window radius: 11×11 window.
 const SSIM_RADIUS: usize = 5;
@@ -181,20 +185,25 @@ pub fn compare(reference: &Image, test: &Image) -> Result<ImageMetrics, MetricsE
     check_same_size(reference, test)?;
     let bg = metric_background(reference, test);
     let placed;
-    let (reference, test) = if bg == [0, 0, 0] && !has_uncovered_colour(reference, test) {
+    let (placed_ref, placed_test) = if bg == [0, 0, 0] && !has_uncovered_colour(reference, test) {
         (reference, test)
     } else {
         placed = (on_background(reference, bg), on_background(test, bg));
         (&placed.0, &placed.1)
     };
-    let (flip_mean, (ssim, (psnr_db, (hole_ratio, extra_coverage)))) = rayon::join(
-        || flip_mean_unchecked(reference, test),
+    let ((flip_ref, flip_test), (ssim, (psnr_db, (hole_ratio, extra_coverage)))) = rayon::join(
         || {
             rayon::join(
-                || ssim_unchecked(reference, test),
+                || FlipFeatures::new(reference, Some(bg)),
+                || FlipFeatures::new(test, Some(bg)),
+            )
+        },
+        || {
+            rayon::join(
+                || ssim_unchecked(placed_ref, placed_test),
                 || {
                     (
-                        psnr_unchecked(reference, test),
+                        psnr_unchecked(placed_ref, placed_test),
                         coverage_unchecked(reference, test),
                     )
                 },
@@ -204,7 +213,7 @@ pub fn compare(reference: &Image, test: &Image) -> Result<ImageMetrics, MetricsE
     Ok(ImageMetrics {
         psnr_db,
         ssim,
-        flip_mean,
+        flip_mean: flip::error_mean(&flip_ref, &flip_test),
         hole_ratio,
         extra_coverage,
     })
@@ -249,7 +258,12 @@ pub fn flip_map(reference: &Image, test: &Image) -> Result<Image, MetricsError> 
             rgba: Vec::new(),
         });
     }
-    let coloured = flip_error_map(reference, test).apply_color_lut(&nv_flip::magma_lut());
+    let (r, t) = rayon::join(
+        || FlipFeatures::new(reference, None),
+        || FlipFeatures::new(test, None),
+    );
+    let errors = nv_flip::FlipImageFloat::with_data(width, height, &flip::error_map(&r, &t));
+    let coloured = errors.apply_color_lut(&nv_flip::magma_lut());
     let rgb = coloured.to_vec();
     let mut rgba = Vec::with_capacity(rgb.len() / 3 * 4);
     for p in rgb.chunks_exact(3) {
@@ -346,22 +360,13 @@ fn coverage_unchecked(reference: &Image, test: &Image) -> (f64, f64) {
     (holes as f64 / covered as f64, extra as f64 / covered as f64)
 }
 
-/// FLIP error map of same-sized, non-empty images.
-fn flip_error_map(reference: &Image, test: &Image) -> nv_flip::FlipImageFloat {
-    let (w, h) = (reference.width, reference.height);
-    let r = nv_flip::FlipImageRgb8::with_data(w, h, &reference.to_rgb());
-    let t = nv_flip::FlipImageRgb8::with_data(w, h, &test.to_rgb());
-    nv_flip::flip(r, t, FLIP_PIXELS_PER_DEGREE)
-}
-
 /// Mean FLIP error of same-sized images.
 fn flip_mean_unchecked(reference: &Image, test: &Image) -> f64 {
-    if reference.pixel_count() == 0 {
-        return 0.0;
-    }
-    let errors = flip_error_map(reference, test).to_vec();
-    let sum: f64 = errors.iter().map(|&e| f64::from(e)).sum();
-    sum / errors.len() as f64
+    let (r, t) = rayon::join(
+        || FlipFeatures::new(reference, None),
+        || FlipFeatures::new(test, None),
+    );
+    flip::error_mean(&r, &t)
 }
 
 /// Rec. 709 luma of the 8-bit sRGB-encoded values, one `f32` per pixel.

@@ -106,7 +106,7 @@ fn run_full_against_its_own_reference_is_exact() {
         h.join(","),
         "frame,method,scene,path,target,eps_px,budget,points_drawn,chunks_drawn,gpu_ms,wall_ms,\
          cpu_select_ms,upload_bytes,splats_per_s,rss_bytes,gpu_cache_bytes,psnr_db,ssim,\
-         flip_mean,hole_ratio,extra_coverage"
+         flip_mean,hole_ratio,extra_coverage,popping_flip,metrics_ms"
     );
     assert_eq!(rows.len(), 3);
     let col = |name: &str| h.iter().position(|c| c == name).unwrap();
@@ -116,7 +116,14 @@ fn run_full_against_its_own_reference_is_exact() {
         assert_eq!(r[col("hole_ratio")].parse::<f64>().unwrap(), 0.0);
         assert_eq!(r[col("flip_mean")].parse::<f64>().unwrap(), 0.0);
         assert_eq!(r[col("extra_coverage")].parse::<f64>().unwrap(), 0.0);
+        // `full` draws the reference's pixels, so it changes between frames exactly as the
+        // reference does: no popping. Frame 0 has no previous frame.
+        match &r[col("frame")][..] {
+            "0" => assert_eq!(&r[col("popping_flip")], ""),
+            _ => assert_eq!(r[col("popping_flip")].parse::<f64>().unwrap(), 0.0),
+        }
         assert!(r[col("wall_ms")].parse::<f64>().unwrap() > 0.0);
+        assert!(r[col("metrics_ms")].parse::<f64>().unwrap() > 0.0);
         assert!(r[col("rss_bytes")].parse::<u64>().unwrap() > 0);
     }
     let s: serde_json::Value =
@@ -645,7 +652,7 @@ fn sweep_budgets_and_tolerances_then_plot_sweep() {
         h.join(","),
         "method,params,scene,path,target,value,frames,points_drawn_median,splats_per_s_median,\
          gpu_ms_median,cpu_select_ms_median,flip_mean_median,flip_mean_max,hole_ratio_median,\
-         hole_ratio_max,psnr_db_median,rss_bytes_max"
+         hole_ratio_max,psnr_db_median,popping_flip_median,rss_bytes_max"
     );
     assert_eq!(rows.len(), 2);
     let col = |name: &str| h.iter().position(|c| c == name).unwrap();

@@ -183,28 +183,74 @@ pub fn on_background(img: &Image, bg: [u8; 3]) -> Image {
 /// All five metrics of `test` against `reference`, on the [`metric_background`].
 pub fn compare(reference: &Image, test: &Image) -> Result<ImageMetrics, MetricsError> {
     check_same_size(reference, test)?;
-    let bg = metric_background(reference, test);
+    compare_prepared(
+        &mut Prepared::new(reference.clone()),
+        &mut Prepared::new(test.clone()),
+    )
+}
+
+/// An image with its FLIP preparation ([`FlipFeatures`]) for each metric background it has
+/// been compared on, so that an image compared several times (a frame against its reference
+/// and against the previous frame) is filtered once.
+#[derive(Debug, Clone)]
+pub struct Prepared {
+    image: Image,
+    flip: Vec<([u8; 3], FlipFeatures)>,
+}
+
+impl Prepared {
+    /// `image`, not yet prepared.
+    pub fn new(image: Image) -> Self {
+        Self {
+            image,
+            flip: Vec::new(),
+        }
+    }
+
+    /// The image.
+    pub fn image(&self) -> &Image {
+        &self.image
+    }
+}
+
+/// Prepares `image` on background `bg` into `flip` unless it already is there; returns its
+/// index in `flip`.
+fn prepare(flip: &mut Vec<([u8; 3], FlipFeatures)>, image: &Image, bg: [u8; 3]) -> usize {
+    match flip.iter().position(|(b, _)| *b == bg) {
+        Some(i) => i,
+        None => {
+            flip.push((bg, FlipFeatures::new(image, Some(bg))));
+            flip.len() - 1
+        }
+    }
+}
+
+/// [`compare`] of prepared images: their FLIP preparations on this pair's background are
+/// made if missing (in parallel with SSIM and PSNR) and kept for later comparisons.
+pub fn compare_prepared(
+    reference: &mut Prepared,
+    test: &mut Prepared,
+) -> Result<ImageMetrics, MetricsError> {
+    check_same_size(&reference.image, &test.image)?;
+    let (r, t) = (&reference.image, &test.image);
+    let bg = metric_background(r, t);
     let placed;
-    let (placed_ref, placed_test) = if bg == [0, 0, 0] && !has_uncovered_colour(reference, test) {
-        (reference, test)
+    let (placed_ref, placed_test) = if bg == [0, 0, 0] && !has_uncovered_colour(r, t) {
+        (r, t)
     } else {
-        placed = (on_background(reference, bg), on_background(test, bg));
+        placed = (on_background(r, bg), on_background(t, bg));
         (&placed.0, &placed.1)
     };
-    let ((flip_ref, flip_test), (ssim, (psnr_db, (hole_ratio, extra_coverage)))) = rayon::join(
-        || {
-            rayon::join(
-                || FlipFeatures::new(reference, Some(bg)),
-                || FlipFeatures::new(test, Some(bg)),
-            )
-        },
+    let (rf, tf) = (&mut reference.flip, &mut test.flip);
+    let ((i, j), (ssim, (psnr_db, (hole_ratio, extra_coverage)))) = rayon::join(
+        || rayon::join(|| prepare(rf, r, bg), || prepare(tf, t, bg)),
         || {
             rayon::join(
                 || ssim_unchecked(placed_ref, placed_test),
                 || {
                     (
                         psnr_unchecked(placed_ref, placed_test),
-                        coverage_unchecked(reference, test),
+                        coverage_unchecked(r, t),
                     )
                 },
             )
@@ -213,10 +259,66 @@ pub fn compare(reference: &Image, test: &Image) -> Result<ImageMetrics, MetricsE
     Ok(ImageMetrics {
         psnr_db,
         ssim,
-        flip_mean: flip::error_mean(&flip_ref, &flip_test),
+        flip_mean: flip::error_mean(&reference.flip[i].1, &test.flip[j].1),
         hole_ratio,
         extra_coverage,
     })
+}
+
+/// Mean FLIP between two prepared images on their pair's [`metric_background`] (as in
+/// [`compare`]), preparing them on it if needed.
+pub fn flip_prepared(a: &mut Prepared, b: &mut Prepared) -> Result<f64, MetricsError> {
+    check_same_size(&a.image, &b.image)?;
+    let bg = metric_background(&a.image, &b.image);
+    let (ia, fa, ib, fb) = (&a.image, &mut a.flip, &b.image, &mut b.flip);
+    let (i, j) = rayon::join(|| prepare(fa, ia, bg), || prepare(fb, ib, bg));
+    Ok(flip::error_mean(&a.flip[i].1, &b.flip[j].1))
+}
+
+/// Per-frame metrics along a camera path: each frame against its reference ([`compare`])
+/// and the **popping** FLIP, `FLIP(frame i, frame i−1) − FLIP(ref i, ref i−1)`: how much
+/// more the method's image changes from one frame to the next than the full-resolution
+/// reference does at the same views. A level of detail that switches visibly between
+/// frames (popping) scores above 0; one that changes like the reference scores ≈ 0; the
+/// `full` method scores exactly 0. Each image is FLIP-prepared once and kept one frame.
+#[derive(Debug, Default)]
+pub struct PathMetrics {
+    /// The previous frame's (reference, test).
+    previous: Option<(Prepared, Prepared)>,
+}
+
+/// What [`PathMetrics::frame`] measures for one frame.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct FrameMetrics {
+    /// The test against its reference.
+    pub image: ImageMetrics,
+    /// Popping FLIP (see [`PathMetrics`]); `None` for the first frame of a path.
+    pub popping_flip: Option<f64>,
+}
+
+impl PathMetrics {
+    /// An empty path: the next frame is the first.
+    pub fn new() -> Self {
+        Self::default()
+    }
+
+    /// Measures the next frame of the path; all frames of a path must have one size.
+    pub fn frame(&mut self, reference: Image, test: Image) -> Result<FrameMetrics, MetricsError> {
+        let (mut reference, mut test) = (Prepared::new(reference), Prepared::new(test));
+        let image = compare_prepared(&mut reference, &mut test)?;
+        let popping_flip = match self.previous.as_mut() {
+            Some((previous_reference, previous_test)) => Some(
+                flip_prepared(&mut test, previous_test)?
+                    - flip_prepared(&mut reference, previous_reference)?,
+            ),
+            None => None,
+        };
+        self.previous = Some((reference, test));
+        Ok(FrameMetrics {
+            image,
+            popping_flip,
+        })
+    }
 }
 
 /// True when an uncovered pixel of either image holds a colour other than black (images

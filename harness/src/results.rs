@@ -73,6 +73,12 @@ frame_row! {
     hole_ratio: Option<f64>,
     /// Pixels covered only in this frame ÷ reference-covered pixels.
     extra_coverage: Option<f64>,
+    /// FLIP(this frame, previous frame) − FLIP(reference, previous reference): popping
+    /// ([`crate::metrics::PathMetrics`]); empty for frame 0 and runs without a reference.
+    popping_flip: Option<f64>,
+    /// Time to compute this frame's image metrics (both FLIP preparations, SSIM, PSNR,
+    /// coverage and popping), ms; empty without a reference.
+    metrics_ms: Option<f64>,
 }
 
 /// Formatting of one CSV field.
@@ -292,7 +298,7 @@ mod tests {
             FrameRow::COLUMNS.join(","),
             "frame,method,scene,path,target,eps_px,budget,points_drawn,chunks_drawn,gpu_ms,\
              wall_ms,cpu_select_ms,upload_bytes,splats_per_s,rss_bytes,gpu_cache_bytes,psnr_db,\
-             ssim,flip_mean,hole_ratio,extra_coverage"
+             ssim,flip_mean,hole_ratio,extra_coverage,popping_flip,metrics_ms"
         );
     }
 

@@ -34,7 +34,7 @@ use scenes::{Aabb, PointCloud, Progress, SceneSpec, View};
 
 use crate::gpu::{AdapterDesc, Gpu};
 use crate::image::Image;
-use crate::metrics::{self, ImageMetrics};
+use crate::metrics::{FrameMetrics, PathMetrics};
 use crate::render::{FrameStats, Kernel, RenderSettings, Renderer};
 use crate::results::{FrameRow, FramesWriter, median, write_json};
 
@@ -280,6 +280,10 @@ pub struct Medians {
     pub hole_ratio: Option<f64>,
     /// Extra coverage.
     pub extra_coverage: Option<f64>,
+    /// Popping FLIP.
+    pub popping_flip: Option<f64>,
+    /// Image-metrics time per frame, ms.
+    pub metrics_ms: Option<f64>,
 }
 
 impl Medians {
@@ -296,6 +300,8 @@ impl Medians {
             flip_mean: m(|r| r.flip_mean),
             hole_ratio: m(|r| r.hole_ratio),
             extra_coverage: m(|r| r.extra_coverage),
+            popping_flip: m(|r| r.popping_flip),
+            metrics_ms: m(|r| r.metrics_ms),
         }
     }
 }
@@ -615,6 +621,7 @@ pub fn run(cfg: &RunConfig, gpu: &Gpu, progress: &dyn Progress) -> anyhow::Resul
 
     let mut rows = Vec::with_capacity(cfg.frames);
     let mut last: Option<(FrameStats, View)> = None;
+    let mut path_metrics = PathMetrics::new();
     progress.start(&format!("{} on {label}", cfg.method), cfg.frames as u64);
     for i in 0..cfg.frames {
         let view = frame_view(&cfg.path, i, cfg.frames, &bounds, render);
@@ -626,16 +633,18 @@ pub fn run(cfg: &RunConfig, gpu: &Gpu, progress: &dyn Progress) -> anyhow::Resul
         let cpu_select_ms = t.elapsed().as_secs_f64() * 1e3;
         let need_image = reference.is_some() || cfg.save_images;
         let (stats, img) = renderer.draw(&view, &list, method.as_ref(), need_image)?;
-        let mut m: Option<ImageMetrics> = None;
-        if let (Some(r), Some(img)) = (reference.as_mut(), img.as_ref()) {
+        if let (true, Some(img)) = (cfg.save_images, img.as_ref()) {
+            img.save_png(&images.join(format!("frame_{i:04}.png")))?;
+        }
+        let (mut m, mut metrics_ms): (Option<FrameMetrics>, Option<f64>) = (None, None);
+        if let (Some(r), Some(img)) = (reference.as_mut(), img) {
             let ref_img = r.image(&view, progress)?;
-            m = Some(metrics::compare(&ref_img, img)?);
             if cfg.save_images {
                 ref_img.save_png(&images.join(format!("ref_{i:04}.png")))?;
             }
-        }
-        if let (true, Some(img)) = (cfg.save_images, img.as_ref()) {
-            img.save_png(&images.join(format!("frame_{i:04}.png")))?;
+            let t = Instant::now();
+            m = Some(path_metrics.frame(ref_img, img)?);
+            metrics_ms = Some(t.elapsed().as_secs_f64() * 1e3);
         }
         let denom = stats.gpu_ms.unwrap_or(stats.wall_ms);
         // Splats actually drawn: those that passed the GPU's LOD test, if there was one.
@@ -678,11 +687,13 @@ pub fn run(cfg: &RunConfig, gpu: &Gpu, progress: &dyn Progress) -> anyhow::Resul
             },
             rss_bytes: crate::rss::current_bytes(),
             gpu_cache_bytes: stats.cache_bytes,
-            psnr_db: m.map(|m| m.psnr_db),
-            ssim: m.map(|m| m.ssim),
-            flip_mean: m.map(|m| m.flip_mean),
-            hole_ratio: m.map(|m| m.hole_ratio),
-            extra_coverage: m.map(|m| m.extra_coverage),
+            psnr_db: m.map(|m| m.image.psnr_db),
+            ssim: m.map(|m| m.image.ssim),
+            flip_mean: m.map(|m| m.image.flip_mean),
+            hole_ratio: m.map(|m| m.image.hole_ratio),
+            extra_coverage: m.map(|m| m.image.extra_coverage),
+            popping_flip: m.and_then(|m| m.popping_flip),
+            metrics_ms,
         };
         frames.push(&row, &counters)?;
         rows.push(row);

@@ -432,3 +432,101 @@ fn flip_equals_nv_flip_on_random_images() {
         assert_flip_matches_oracle(&format!("blocks+noise {w}x{h}"), &c, &noisy(&c, 20, seed));
     }
 }
+
+/// `img` averaged over 2×2 blocks: a coarser level of detail of the same picture.
+fn coarsened(img: &Image) -> Image {
+    let mut out = img.clone();
+    for y in (0..img.height - 1).step_by(2) {
+        for x in (0..img.width - 1).step_by(2) {
+            for c in 0..3 {
+                let at = |dx: u32, dy: u32| u32::from(img.pixel(x + dx, y + dy)[c]);
+                let mean = ((at(0, 0) + at(1, 0) + at(0, 1) + at(1, 1)) / 4) as u8;
+                for (dx, dy) in [(0, 0), (1, 0), (0, 1), (1, 1)] {
+                    out.rgba[(((y + dy) * img.width + x + dx) * 4) as usize + c] = mean;
+                }
+            }
+        }
+    }
+    out
+}
+
+/// Popping: a test that alternates between two levels while the reference stands still
+/// scores exactly the FLIP between the two levels from frame 1 on; a test that stays on the
+/// coarse level scores 0 (its error against the reference is not popping); the first frame
+/// has none; identical sequences score 0.
+#[test]
+fn popping_flip_measures_frame_to_frame_change_beyond_the_reference() {
+    let fine = blocks(64, 48, 3, 21);
+    let coarse = coarsened(&fine);
+    let between = metrics::flip_mean(&fine, &coarse).unwrap();
+    assert!(between > 0.01, "the two levels differ visibly: {between}");
+
+    let mut alternating = metrics::PathMetrics::new();
+    let mut steady = metrics::PathMetrics::new();
+    let mut exact = metrics::PathMetrics::new();
+    for i in 0..4 {
+        let test = if i % 2 == 0 { &fine } else { &coarse };
+        let a = alternating.frame(fine.clone(), test.clone()).unwrap();
+        let s = steady.frame(fine.clone(), coarse.clone()).unwrap();
+        let e = exact.frame(coarse.clone(), coarse.clone()).unwrap();
+        assert_eq!(a.image, metrics::compare(&fine, test).unwrap());
+        if i == 0 {
+            assert_eq!(
+                (a.popping_flip, s.popping_flip, e.popping_flip),
+                (None, None, None)
+            );
+            continue;
+        }
+        // All opaque: every pair is on the black background, as `flip_mean` takes them.
+        assert!((a.popping_flip.unwrap() - between).abs() < 1e-12, "{a:?}");
+        assert_eq!(s.popping_flip, Some(0.0));
+        assert!(
+            s.image.flip_mean > 0.01,
+            "steady error against the reference"
+        );
+        assert_eq!(e.popping_flip, Some(0.0));
+    }
+}
+
+/// A moving reference: a method that moves exactly like it has no popping even though each
+/// frame differs from the last; one that freezes has the reference's own change as
+/// (negative) popping.
+#[test]
+fn popping_flip_subtracts_the_references_own_change() {
+    let frames: Vec<Image> = (0..3)
+        .map(|i| shifted_right(&blocks(64, 48, 4, 5), 2 * i))
+        .collect();
+    let mut moving = metrics::PathMetrics::new();
+    let mut frozen = metrics::PathMetrics::new();
+    for (i, f) in frames.iter().enumerate() {
+        let m = moving.frame(f.clone(), f.clone()).unwrap();
+        let z = frozen.frame(f.clone(), frames[0].clone()).unwrap();
+        if i > 0 {
+            assert_eq!(m.popping_flip, Some(0.0));
+            let mut a = metrics::Prepared::new(f.clone());
+            let mut b = metrics::Prepared::new(frames[i - 1].clone());
+            let reference_change = metrics::flip_prepared(&mut a, &mut b).unwrap();
+            assert!(reference_change > 0.0);
+            assert!(
+                (z.popping_flip.unwrap() + reference_change).abs() < 1e-12,
+                "{z:?}"
+            );
+        }
+    }
+}
+
+/// Frames of a path must keep one size: a frame of another size is an error naming both.
+#[test]
+fn path_metrics_reject_a_frame_of_another_size() {
+    let mut path = metrics::PathMetrics::new();
+    let a = blocks(16, 16, 4, 1);
+    path.frame(a.clone(), a.clone()).unwrap();
+    let b = blocks(8, 16, 4, 1);
+    assert!(matches!(
+        path.frame(b.clone(), b),
+        Err(MetricsError::SizeMismatch {
+            reference: (8, 16),
+            test: (16, 16)
+        })
+    ));
+}

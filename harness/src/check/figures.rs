@@ -76,8 +76,10 @@ pub const IDENTITY_COLUMNS: [&str; 7] = [
 /// The class of `frames.csv` column `column` in a run with `traits`.
 pub fn column_class(column: &str, traits: RunTraits) -> Class {
     match column {
-        "gpu_ms" | "wall_ms" | "cpu_select_ms" | "splats_per_s" => Class::Timing,
-        "psnr_db" | "ssim" | "flip_mean" | "hole_ratio" | "extra_coverage" => Class::Image,
+        "gpu_ms" | "wall_ms" | "cpu_select_ms" | "splats_per_s" | "metrics_ms" => Class::Timing,
+        "psnr_db" | "ssim" | "flip_mean" | "hole_ratio" | "extra_coverage" | "popping_flip" => {
+            Class::Image
+        }
         // Resident memory is the machine's; the loader's queue length is thread timing.
         "rss_bytes" | "loader_pending" => Class::Machine,
         // Counted on the GPU.
@@ -134,6 +136,7 @@ mod tests {
         assert_eq!(column_class("points_drawn", none), Class::Exact);
         assert_eq!(column_class("front_nodes", none), Class::Exact);
         assert_eq!(column_class("flip_mean", none), Class::Image);
+        assert_eq!(column_class("popping_flip", none), Class::Image);
         assert_eq!(column_class("gpu_ms", none), Class::Timing);
         assert_eq!(column_class("rss_bytes", none), Class::Machine);
         let spt = RunTraits::of("spt", &Default::default(), &cols(&["gpu_passed"]));

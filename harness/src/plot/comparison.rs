@@ -1,4 +1,5 @@
-//! The comparison of several runs: FLIP against points drawn, and median splats per second.
+//! The comparison of several runs: FLIP against points drawn, median splats per second and
+//! median popping FLIP.
 
 use super::*;
 
@@ -12,6 +13,9 @@ pub(super) struct RunSeries {
     pub(super) flip_vs_points: Vec<(f64, f64)>,
     /// Median splats per second over all frames.
     pub(super) median_splats_per_s: f64,
+    /// Median popping FLIP over the frames that have one (`None`: no reference, one frame,
+    /// or a `frames.csv` older than the column).
+    pub(super) median_popping_flip: Option<f64>,
 }
 
 /// The comparison figure of several runs.
@@ -50,7 +54,28 @@ impl Figure for Comparison {
                 scatter_panel(&left, 0.0..1.0, 0.0..1.0, &self.runs, caption)?;
             }
         }
-        throughput_panel(&right, &self.runs)
+        let (_, height) = right.dim_in_pixel();
+        let (top, bottom) = right.split_vertically(height / 2);
+        let splats: Vec<Option<f64>> = self
+            .runs
+            .iter()
+            .map(|r| Some(r.median_splats_per_s))
+            .collect();
+        bar_panel(&top, &self.runs, &splats, "median splats/s", "splats/s", si)?;
+        let popping: Vec<Option<f64>> = self.runs.iter().map(|r| r.median_popping_flip).collect();
+        let caption = if popping.iter().all(Option::is_none) {
+            "median popping FLIP (not recorded)"
+        } else {
+            "median popping FLIP (frame-to-frame, minus the reference's)"
+        };
+        bar_panel(
+            &bottom,
+            &self.runs,
+            &popping,
+            caption,
+            "popping_flip",
+            |v| format!("{v:.4}"),
+        )
     }
 }
 
@@ -84,28 +109,40 @@ where
     Ok(())
 }
 
-/// One bar per run: its median splats per second, value written above the bar.
-pub(super) fn throughput_panel<DB: DrawingBackend>(
+/// One bar per run of `values` (in run order; `None` draws no bar), from 0 (the axis spans
+/// negative values too when one is), each value written at its bar's end by `label`.
+pub(super) fn bar_panel<DB: DrawingBackend>(
     area: &DrawingArea<DB, Shift>,
     runs: &[RunSeries],
+    values: &[Option<f64>],
+    caption: &str,
+    y_desc: &str,
+    label: fn(f64) -> String,
 ) -> anyhow::Result<()>
 where
     DB::ErrorType: 'static,
 {
-    let top = nice_top(
-        runs.iter()
-            .map(|r| r.median_splats_per_s)
-            .fold(0.0, f64::max)
-            * 1.12,
-    );
+    let present = || values.iter().flatten().copied();
+    let top = nice_top(present().fold(0.0, f64::max) * 1.12);
+    let low = present().fold(0.0, f64::min);
+    let bottom = if low < 0.0 {
+        -nice_top(-low * 1.12)
+    } else {
+        0.0
+    };
+    // Keep a visible range when every value is 0.
+    let top = if top <= bottom { bottom + 1.0 } else { top };
     let labels: Vec<&str> = runs.iter().map(|r| r.label.as_str()).collect();
     let mut chart = ChartBuilder::on(area)
-        .caption("median splats/s", (FONT, 20))
+        .caption(caption, (FONT, 20))
         .margin(12)
         .x_label_area_size(50)
         .y_label_area_size(80)
         // Integer ranges are inclusive once segmented: 0..n-1 gives exactly n bars.
-        .build_cartesian_2d((0..runs.len().saturating_sub(1)).into_segmented(), 0.0..top)?;
+        .build_cartesian_2d(
+            (0..runs.len().saturating_sub(1)).into_segmented(),
+            bottom..top,
+        )?;
     chart
         .configure_mesh()
         .disable_x_mesh()
@@ -114,8 +151,8 @@ where
             SegmentValue::CenterOf(i) => labels.get(*i).map_or(String::new(), |l| (*l).to_owned()),
             _ => String::new(),
         })
-        .y_label_formatter(&|v| si(*v))
-        .y_desc("splats/s")
+        .y_label_formatter(&|v| label(*v))
+        .y_desc(y_desc)
         .label_style((FONT, 14))
         .axis_desc_style((FONT, 16))
         .light_line_style(WHITE)
@@ -123,20 +160,25 @@ where
     // Bars take 60 % of their slot (the y label area and margins take about 110 px).
     let slot_px = area.dim_in_pixel().0.saturating_sub(110) / runs.len().max(1) as u32;
     let side_margin = (slot_px / 5).max(4);
-    chart.draw_series(runs.iter().enumerate().map(|(i, run)| {
+    let bars = || {
+        runs.iter()
+            .zip(values)
+            .enumerate()
+            .filter_map(|(i, (run, v))| Some((i, run, (*v)?)))
+    };
+    chart.draw_series(bars().map(|(i, run, v)| {
         let corners = [
             (SegmentValue::Exact(i), 0.0),
-            (SegmentValue::Exact(i + 1), run.median_splats_per_s),
+            (SegmentValue::Exact(i + 1), v),
         ];
         let mut bar = Rectangle::new(corners, run.colour.filled());
         bar.set_margin(0, 0, side_margin, side_margin);
         bar
     }))?;
-    let value_style =
-        TextStyle::from((FONT, 15).into_font()).pos(Pos::new(HPos::Center, VPos::Bottom));
-    chart.draw_series(runs.iter().enumerate().map(|(i, run)| {
-        let at = (SegmentValue::CenterOf(i), run.median_splats_per_s);
-        Text::new(si(run.median_splats_per_s), at, value_style.clone())
+    chart.draw_series(bars().map(|(i, _, v)| {
+        let v_pos = if v < 0.0 { VPos::Top } else { VPos::Bottom };
+        let style = TextStyle::from((FONT, 15).into_font()).pos(Pos::new(HPos::Center, v_pos));
+        Text::new(label(v), (SegmentValue::CenterOf(i), v), style)
     }))?;
     Ok(())
 }

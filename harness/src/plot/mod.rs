@@ -5,7 +5,9 @@
 //! counters, are ignored). Per row:
 //! - `method`, `scene`, `path` are free text; `target` is `eps` or `budget`;
 //! - `eps_px`, `budget` and the image-metric columns (`psnr_db`, `ssim`, `flip_mean`,
-//!   `hole_ratio`, `extra_coverage`) may be empty (no reference for that run);
+//!   `hole_ratio`, `extra_coverage`, `popping_flip`) may be empty (no reference for that
+//!   run; `popping_flip` also in frame 0); `popping_flip` may also be missing from the header
+//!   (files written before it existed);
 //! - `gpu_ms` may be empty too (an adapter without timestamp queries);
 //! - every other column must be a number: integer columns (`frame`, `budget`,
 //!   `points_drawn`, `chunks_drawn`, `upload_bytes`, `rss_bytes`, `gpu_cache_bytes`) as
@@ -24,8 +26,9 @@
 //!   points drawn; `gpu_ms` and `wall_ms`; image error (`flip_mean` and `hole_ratio` on one
 //!   0..1 axis). Frames are sorted by frame number; empty values leave gaps.
 //! - Comparison: left, per-frame `flip_mean` (y) against `points_drawn` (x), one colour and
-//!   legend entry per run; x is logarithmic when all x > 0 and max/min > 10. Right, the
-//!   median `splats_per_s` of each run as a labelled bar. A run is labelled by its method,
+//!   legend entry per run; x is logarithmic when all x > 0 and max/min > 10. Right, two bar
+//!   panels, one labelled bar per run: the median `splats_per_s` (top) and the median
+//!   `popping_flip` (bottom; no bar for a run without one). A run is labelled by its method,
 //!   plus its target when the runs' targets differ, plus its folder name if labels still
 //!   collide.
 //!
@@ -73,7 +76,7 @@ use timeline::*;
 pub use tune::{TUNE_SIZE, TuneFigure, plot_tune};
 
 /// The leading columns of every `frames.csv`, in the order runs write them.
-pub const FRAME_COLUMNS: [&str; 21] = [
+pub const FRAME_COLUMNS: [&str; 22] = [
     "frame",
     "method",
     "scene",
@@ -95,6 +98,7 @@ pub const FRAME_COLUMNS: [&str; 21] = [
     "flip_mean",
     "hole_ratio",
     "extra_coverage",
+    "popping_flip",
 ];
 
 /// Size in pixels of `timeline.png` (and of `timeline.svg` in user units).
@@ -168,6 +172,9 @@ pub struct FrameRecord {
     pub hole_ratio: Option<f64>,
     /// Extra coverage against the reference.
     pub extra_coverage: Option<f64>,
+    /// Popping FLIP ([`crate::metrics::PathMetrics`]); empty for frame 0, without a
+    /// reference, and in files written before the column existed.
+    pub popping_flip: Option<f64>,
 }
 
 /// Reads `frames.csv` by header name (extra columns ignored). Errors name the file, and for
@@ -219,6 +226,9 @@ pub fn plot_comparison(run_dirs: &[PathBuf], out_dir: &Path) -> anyhow::Result<V
                 .filter_map(|f| Some((f.points_drawn as f64, f.flip_mean?)))
                 .collect(),
             median_splats_per_s: median(frames.iter().map(|f| f.splats_per_s).collect()),
+            median_popping_flip: crate::results::median(
+                frames.iter().filter_map(|f| f.popping_flip),
+            ),
         })
         .collect();
     render_both(
@@ -412,6 +422,7 @@ mod tests {
             flip_mean: flip,
             hole_ratio: Some(0.0),
             extra_coverage: None,
+            popping_flip: flip.map(|f| f / 10.0),
         }
     }
 
@@ -465,7 +476,7 @@ mod tests {
         let e = format!("{:#}", read_sweep(&path).unwrap_err());
         assert!(e.contains("missing column 'scene'"), "{e}");
         let mut fields: Vec<&str> = vec!["lpc", "", "s", "orbit", "budget", "500", "2"];
-        fields.extend(["x"; 10]);
+        fields.extend(["x"; 11]);
         let bad = format!("{}\n{}\n", SWEEP_COLUMNS.join(","), fields.join(","));
         std::fs::write(&path, bad).unwrap();
         let e = format!("{:#}", read_sweep(&path).unwrap_err());
@@ -473,6 +484,37 @@ mod tests {
             e.contains("row 1") && e.contains("points_drawn_median"),
             "{e}"
         );
+    }
+
+    /// Files written before `popping_flip` existed still read, as if it were empty.
+    #[test]
+    fn files_without_the_popping_columns_still_read() {
+        let dir = tempfile::tempdir().unwrap();
+        let path = dir.path().join("sweep.csv");
+        let row = SweepRow::of_run(&[frame(0, 100, Some(0.25), 1)], "", 100.0).unwrap();
+        assert_eq!(row.popping_flip_median, Some(0.025));
+        write_sweep(&path, std::slice::from_ref(&row)).unwrap();
+        // Drop the column from the header and the row.
+        let text = std::fs::read_to_string(&path).unwrap();
+        let at = SWEEP_COLUMNS
+            .iter()
+            .position(|c| *c == "popping_flip_median")
+            .unwrap();
+        let old: String = text
+            .lines()
+            .map(|l| {
+                let mut f: Vec<&str> = l.split(',').collect();
+                f.remove(at);
+                f.join(",") + "\n"
+            })
+            .collect();
+        std::fs::write(&path, old).unwrap();
+        let read = read_sweep(&path).unwrap();
+        assert_eq!(read[0].popping_flip_median, None);
+        assert_eq!(read[0].flip_mean_median, Some(0.25));
+        // Other columns stay required.
+        std::fs::write(&path, "method,params\nmwkd,\n").unwrap();
+        assert!(read_sweep(&path).is_err());
     }
 
     #[test]

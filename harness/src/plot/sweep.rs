@@ -5,7 +5,7 @@ use super::*;
 
 /// The columns of `sweep.csv`, in file order: one row per target of a sweep, the medians
 /// (and some maxima) over that target's run.
-pub const SWEEP_COLUMNS: [&str; 17] = [
+pub const SWEEP_COLUMNS: [&str; 18] = [
     "method",
     "params",
     "scene",
@@ -22,6 +22,7 @@ pub const SWEEP_COLUMNS: [&str; 17] = [
     "hole_ratio_median",
     "hole_ratio_max",
     "psnr_db_median",
+    "popping_flip_median",
     "rss_bytes_max",
 ];
 
@@ -63,6 +64,9 @@ pub struct SweepRow {
     pub hole_ratio_max: Option<f64>,
     /// Median PSNR, dB.
     pub psnr_db_median: Option<f64>,
+    /// Median popping FLIP (empty without a reference or with one frame; see
+    /// [`crate::metrics::PathMetrics`]).
+    pub popping_flip_median: Option<f64>,
     /// Largest resident set size after a frame, bytes.
     pub rss_bytes_max: u64,
 }
@@ -100,6 +104,7 @@ impl SweepRow {
             hole_ratio_median: med(|f| f.hole_ratio),
             hole_ratio_max: max(|f| f.hole_ratio),
             psnr_db_median: med(|f| f.psnr_db),
+            popping_flip_median: med(|f| f.popping_flip),
             rss_bytes_max: frames.iter().map(|f| f.rss_bytes).max().unwrap_or(0),
         })
     }
@@ -124,6 +129,7 @@ impl SweepRow {
             opt(self.hole_ratio_median),
             opt(self.hole_ratio_max),
             opt(self.psnr_db_median),
+            opt(self.popping_flip_median),
             self.rss_bytes_max.to_string(),
         ]
     }

@@ -3,8 +3,12 @@
 
 use super::*;
 
-/// Reads a CSV file whose header holds `columns` (any order, extra columns ignored), one
-/// `parse` per record. Errors name the file; a file without rows is an error ("no `what` in
+/// Columns added after files were committed with the older header: a file without them
+/// reads as if they were empty in every row.
+pub(super) const OPTIONAL_COLUMNS: [&str; 2] = ["popping_flip", "popping_flip_median"];
+
+/// Reads a CSV file whose header holds `columns` (any order, extra columns ignored; those of
+/// [`OPTIONAL_COLUMNS`] may be missing), one `parse` per record. Errors name the file; a file without rows is an error ("no `what` in
 /// file").
 pub(super) fn read_table<T>(
     csv_path: &Path,
@@ -25,13 +29,12 @@ pub(super) fn read_table<T>(
     }
     let index = columns
         .iter()
-        .map(|&column| {
-            headers
-                .iter()
-                .position(|h| h == column)
-                .ok_or_else(|| anyhow!("{file}: missing column '{column}'"))
+        .map(|&column| match headers.iter().position(|h| h == column) {
+            Some(i) => Ok(Some(i)),
+            None if OPTIONAL_COLUMNS.contains(&column) => Ok(None),
+            None => Err(anyhow!("{file}: missing column '{column}'")),
         })
-        .collect::<anyhow::Result<Vec<usize>>>()?;
+        .collect::<anyhow::Result<Vec<Option<usize>>>>()?;
     let mut rows = Vec::new();
     for (n, record) in reader.records().enumerate() {
         let record = record.with_context(|| format!("cannot read {file}"))?;
@@ -60,8 +63,8 @@ pub(super) struct Row<'a> {
     pub(super) record: &'a csv::StringRecord,
     /// The columns read (e.g. [`FRAME_COLUMNS`]).
     pub(super) columns: &'a [&'a str],
-    /// Position in the record of each of `columns`.
-    pub(super) index: &'a [usize],
+    /// Position in the record of each of `columns` (`None`: an optional column missing).
+    pub(super) index: &'a [Option<usize>],
 }
 
 impl Row<'_> {
@@ -70,7 +73,7 @@ impl Row<'_> {
         self.columns
             .iter()
             .position(|&c| c == name)
-            .and_then(|c| self.record.get(self.index[c]))
+            .and_then(|c| self.record.get(self.index[c]?))
             .unwrap_or("")
     }
 
@@ -167,6 +170,7 @@ impl Row<'_> {
             flip_mean: self.opt_f64("flip_mean")?,
             hole_ratio: self.opt_f64("hole_ratio")?,
             extra_coverage: self.opt_f64("extra_coverage")?,
+            popping_flip: self.opt_f64("popping_flip")?,
         })
     }
 
@@ -189,6 +193,7 @@ impl Row<'_> {
             hole_ratio_median: self.opt_f64("hole_ratio_median")?,
             hole_ratio_max: self.opt_f64("hole_ratio_max")?,
             psnr_db_median: self.opt_f64("psnr_db_median")?,
+            popping_flip_median: self.opt_f64("popping_flip_median")?,
             rss_bytes_max: self.u64("rss_bytes_max")?,
         })
     }

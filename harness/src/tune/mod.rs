@@ -295,7 +295,7 @@ pub fn run_part(
 }
 
 /// The fixed columns of `tune.csv`; the grid's keys go after `setting`.
-pub const TUNE_FIXED_COLUMNS: [&str; 19] = [
+pub const TUNE_FIXED_COLUMNS: [&str; 20] = [
     "setting",
     "target",
     "value",
@@ -304,6 +304,7 @@ pub const TUNE_FIXED_COLUMNS: [&str; 19] = [
     "flip_mean_median",
     "hole_ratio_median",
     "psnr_db_median",
+    "popping_flip_median",
     "gpu_ms_median",
     "wall_ms_median",
     "cpu_select_ms_median",
@@ -456,6 +457,7 @@ pub fn write_csv(plan: &Plan, rows: &[TuneRow], path: &Path) -> anyhow::Result<(
             opt(r.sweep.flip_mean_median),
             opt(r.sweep.hole_ratio_median),
             opt(r.sweep.psnr_db_median),
+            opt(r.sweep.popping_flip_median),
             opt(r.sweep.gpu_ms_median),
             r.wall_ms_median.to_string(),
             r.sweep.cpu_select_ms_median.to_string(),

@@ -347,6 +347,7 @@ mod tests {
                 hole_ratio_median: Some(0.0),
                 hole_ratio_max: Some(0.0),
                 psnr_db_median: None,
+                popping_flip_median: None,
                 rss_bytes_max: 0,
             },
             wall_ms_median: 1.0,

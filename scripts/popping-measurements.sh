@@ -17,6 +17,7 @@ echo "|---|---|---|---|---|---|---|"
 for path in zoom flythrough; do
   for m in "${methods[@]}"; do
     run="$out/$path/$m"
+    mkdir -p "$out/$path"
     "$bin" run --method "$m" --scene "$scene" --path "$path" --frames 24 \
       --width 1024 --height 1024 --cache "$cache" --out "$run" >/dev/null 2>"$run.log" \
       || { cat "$run.log" >&2; exit 1; }

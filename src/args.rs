@@ -83,6 +83,10 @@ pub struct RenderArgs {
     /// GPU chunk-cache budget, MiB.
     #[arg(long, default_value_t = 512, allow_negative_numbers = true)]
     pub gpu_cache_mb: u64,
+    /// Rasteriser: `quads` (instanced quads, every kernel) or `compute` (a compute shader with
+    /// 64-bit atomics, square splats only; the reference is drawn the same way).
+    #[arg(long, value_enum, default_value = "quads")]
+    pub raster: harness::render::Raster,
 }
 
 #[derive(Args, Clone)]

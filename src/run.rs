@@ -78,6 +78,7 @@ pub fn run_config(a: &RunArgs) -> anyhow::Result<RunConfig> {
                 shading: a.scene.shading,
                 ..Default::default()
             },
+            raster: a.render.raster,
         },
         seed: a.scene.seed,
         save_images: a.save_images,

@@ -113,6 +113,8 @@ pub fn plan(a: &TuneArgs) -> anyhow::Result<Plan> {
         a.render.kernel.name().into(),
         "--gpu-cache-mb".into(),
         a.render.gpu_cache_mb.to_string(),
+        "--raster".into(),
+        a.render.raster.name().into(),
     ];
     Ok(Plan {
         method: kind.name().into(),

@@ -38,6 +38,7 @@ fn config(
             kernel: Kernel::Square,
             cache_bytes: 64 << 20,
             shade: Default::default(),
+            raster: Default::default(),
         },
         seed: 1,
         save_images: false,
@@ -165,6 +166,7 @@ fn qsplat_refines_progressively_during_a_pause() {
             kernel: Kernel::Square,
             cache_bytes: 16 << 20,
             shade: Default::default(),
+            raster: Default::default(),
         },
         ..config(
             MethodKind::Qsplat,

@@ -50,6 +50,11 @@ impl Gpu {
         if timestamps {
             features |= wgpu::Features::TIMESTAMP_QUERY;
         }
+        // 64-bit atomics for the compute rasteriser, where the adapter has them.
+        let int64 = crate::render::compute::FEATURES;
+        if adapter.features().contains(int64) {
+            features |= int64;
+        }
         let limits = adapter.limits();
         let (device, queue) = pollster::block_on(adapter.request_device(&wgpu::DeviceDescriptor {
             label: Some("splatbench"),

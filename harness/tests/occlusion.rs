@@ -208,6 +208,7 @@ fn settings(kernel: Kernel) -> RenderSettings {
         kernel,
         cache_bytes: 64 << 20,
         shade: Default::default(),
+        raster: Default::default(),
     }
 }
 
@@ -561,6 +562,7 @@ fn query_overhead_timing() {
             kernel: Kernel::Square,
             cache_bytes: 256 << 20,
             shade: Default::default(),
+            raster: Default::default(),
         },
     )
     .unwrap();

@@ -9,7 +9,8 @@
 //! - Timestamps, odd resolutions (row padding), attribute-free scenes shaded flat.
 #![allow(clippy::unwrap_used)]
 
-use std::path::{Path, PathBuf};
+mod common;
+use common::{check_golden, disagreement, full, settings, view};
 
 use harness::gpu::{Gpu, gpu_for_test};
 use harness::image::Image;
@@ -20,52 +21,6 @@ use methods::{
 use scenes::generators::Generator;
 use scenes::paths::PathSpec;
 use scenes::{PointCloud, View};
-
-fn full(cloud: &PointCloud, dir: &Path) -> Box<dyn LodMethod> {
-    MethodKind::Full
-        .build(cloud, &Params::default(), "test", dir, &scenes::NoProgress)
-        .unwrap();
-    MethodKind::open(dir).unwrap()
-}
-
-fn view(cloud: &PointCloud, w: u32, h: u32, frame: usize) -> View {
-    View {
-        camera: PathSpec::parse("orbit")
-            .unwrap()
-            .camera(frame, 8, &cloud.bounds()),
-        width: w,
-        height: h,
-    }
-}
-
-fn settings(w: u32, h: u32, kernel: Kernel) -> RenderSettings {
-    RenderSettings {
-        width: w,
-        height: h,
-        kernel,
-        cache_bytes: 64 << 20,
-        shade: Default::default(),
-    }
-}
-
-/// Fraction of pixels whose coverage differs, and mean absolute colour difference over
-/// pixels covered in both.
-fn disagreement(a: &Image, b: &Image) -> (f64, f64) {
-    let (mut cov, mut diff, mut both, mut sum) = (0u64, 0u64, 0u64, 0u64);
-    for (pa, pb) in a.rgba.chunks(4).zip(b.rgba.chunks(4)) {
-        let (ca, cb) = (pa[3] > 0, pb[3] > 0);
-        cov += (ca || cb) as u64;
-        diff += (ca != cb) as u64;
-        if ca && cb {
-            both += 1;
-            sum += (0..3).map(|c| pa[c].abs_diff(pb[c]) as u64).sum::<u64>();
-        }
-    }
-    (
-        diff as f64 / cov.max(1) as f64,
-        sum as f64 / (3 * both.max(1)) as f64,
-    )
-}
 
 #[test]
 fn gpu_matches_cpu_mirror() {
@@ -110,40 +65,6 @@ fn gpu_matches_cpu_mirror() {
                 "{name}/{kernel:?}: mean colour difference {col}"
             );
         }
-    }
-}
-
-fn golden_dir() -> PathBuf {
-    PathBuf::from(env!("CARGO_MANIFEST_DIR")).join("tests/golden")
-}
-
-/// Compares with `tests/golden/<name>.png`; FLIP mean ≤ `max_flip` (thresholds set on
-/// llvmpipe (LLVM 15.0.6, 256 bits), Vulkan; the GPU/CPU agreement test above bounds what a
-/// different rasteriser may change).
-fn check_golden(name: &str, img: &Image, max_flip: f64) {
-    let path = golden_dir().join(format!("{name}.png"));
-    if std::env::var("SPLATBENCH_BLESS").as_deref() == Ok("1") {
-        img.save_png(&path).unwrap();
-        eprintln!("blessed {}", path.display());
-        return;
-    }
-    let golden = Image::load_png(&path)
-        .unwrap_or_else(|e| panic!("{e:#}: run with SPLATBENCH_BLESS=1 to create it"));
-    let flip = harness::metrics::flip_mean(&golden, img).unwrap();
-    let holes = harness::metrics::hole_ratio(&golden, img).unwrap();
-    if flip > max_flip || holes > 0.01 {
-        let out = PathBuf::from(env!("CARGO_MANIFEST_DIR")).join("../target/golden-failures");
-        std::fs::create_dir_all(&out).unwrap();
-        img.save_png(&out.join(format!("{name}-actual.png")))
-            .unwrap();
-        harness::metrics::flip_map(&golden, img)
-            .unwrap()
-            .save_png(&out.join(format!("{name}-difference.png")))
-            .unwrap();
-        panic!(
-            "{name}: FLIP {flip:.4} (max {max_flip}), holes {holes:.4}; see {}",
-            out.display()
-        );
     }
 }
 

@@ -284,6 +284,7 @@ pub fn run(
                             kernel: suite.kernel,
                             cache_bytes: suite.raw.gpu_cache_mb.unwrap_or(512) << 20,
                             shade: Default::default(),
+                            raster: Default::default(),
                         },
                         seed: 1,
                         save_images: false,

@@ -18,7 +18,7 @@ use methods::{DrawItem, DrawList, IntervalTest, LodMethod, SplatBatch, SplatSize
 use scenes::View;
 
 use super::occlusion::{Icosahedron, OcclusionStats, needs_query};
-use super::{AMBIENT, BASE_COLOR, Kernel, Shade};
+use super::{AMBIENT, BASE_COLOR, Kernel, Raster, Shade};
 use crate::image::Image;
 
 /// Pixel size of splat `i` of `batch` drawn with `size` at clip-space `w` (the view depth).
@@ -278,6 +278,48 @@ fn draw_opaque(
     }
 }
 
+/// The compute rasteriser ([`super::compute`]): every pixel whose centre lies in a splat's
+/// square (half side capped at half of [`super::compute::MAX_FOOTPRINT_PX`]) keeps the
+/// smallest key `(depth bits << 32) | packed sRGB8 colour` (`keys`, `u64::MAX` = none, kept
+/// across phases), then the keys are resolved into `rgba` and `depth`.
+fn draw_compute(
+    w: usize,
+    h: usize,
+    splats: &[Footprint],
+    keys: &mut [u64],
+    rgba: &mut [u8],
+    depth: &mut [f32],
+) {
+    let cap = super::compute::MAX_FOOTPRINT_PX * 0.5;
+    for f in splats {
+        if !(0.0..=1.0).contains(&f.z) {
+            continue;
+        }
+        let c = encode_srgb(f.linear);
+        let colour = u32::from_le_bytes([c[0], c[1], c[2], 255]);
+        let key = (u64::from(f.z.to_bits()) << 32) | u64::from(colour);
+        let r = f.half.min(cap);
+        let span = |c: f32, n: usize| {
+            let n = n as f32;
+            let lo = (c - r - 0.5).ceil().clamp(0.0, n) as usize;
+            let hi = (c + r - 0.5).ceil().clamp(0.0, n) as usize;
+            lo..hi
+        };
+        for y in span(f.cy, h) {
+            for x in span(f.cx, w) {
+                let k = &mut keys[y * w + x];
+                *k = (*k).min(key);
+            }
+        }
+    }
+    for (o, &k) in keys.iter().enumerate() {
+        if k != u64::MAX {
+            rgba[o * 4..o * 4 + 4].copy_from_slice(&(k as u32).to_le_bytes());
+            depth[o] = f32::from_bits((k >> 32) as u32);
+        }
+    }
+}
+
 /// Sub-pixel precision the query rasteriser snaps vertices to (lavapipe reports 8 bits).
 pub const SUBPIXEL_BITS: u32 = 8;
 
@@ -369,7 +411,30 @@ pub fn render_shaded(
     kernel: Kernel,
     shade: &Shade,
 ) -> anyhow::Result<CpuFrame> {
+    render_with(view, list, method, kernel, shade, Raster::Quads)
+}
+
+/// [`render_shaded`] as rasteriser `raster` draws: [`Raster::Compute`] mirrors
+/// [`super::compute`] (square splats only, footprints capped at
+/// [`super::compute::MAX_FOOTPRINT_PX`], the nearest splat per pixel and, at equal depths,
+/// the smaller packed colour).
+pub fn render_with(
+    view: &View,
+    list: &DrawList,
+    method: &dyn LodMethod,
+    kernel: Kernel,
+    shade: &Shade,
+    rasteriser: Raster,
+) -> anyhow::Result<CpuFrame> {
     let kernel = list.shape.unwrap_or(kernel);
+    if rasteriser == Raster::Compute && kernel != Kernel::Square {
+        anyhow::bail!(
+            "the compute rasteriser draws square splats only, not '{}'",
+            kernel.name()
+        );
+    }
+    let mut keys = (rasteriser == Raster::Compute)
+        .then(|| vec![u64::MAX; view.width as usize * view.height as usize]);
     if list.occlusion.is_some() && kernel == Kernel::Gaussian {
         anyhow::bail!("occlusion culling needs an opaque kernel (square, circle or ellipse)");
     }
@@ -401,6 +466,8 @@ pub fn render_shaded(
                 rgba[o * 4..o * 4 + 4].copy_from_slice(&[c[0], c[1], c[2], 255]);
             }
         }
+    } else if let Some(keys) = keys.as_mut() {
+        draw_compute(w, h, &splats, keys, &mut rgba, &mut depth);
     } else {
         draw_opaque(
             w,
@@ -430,14 +497,17 @@ pub fn render_shaded(
                 .filter(|(i, _)| stats.is_visible(*i, occ.threshold))
                 .filter_map(|(_, c)| c.item.as_ref());
             let (splats3, p3, c3) = footprints(view, items3, method, kernel, shade)?;
-            draw_opaque(
-                w,
-                h,
-                &splats3,
-                kernel != Kernel::Square,
-                &mut rgba,
-                &mut depth,
-            );
+            match keys.as_mut() {
+                Some(keys) => draw_compute(w, h, &splats3, keys, &mut rgba, &mut depth),
+                None => draw_opaque(
+                    w,
+                    h,
+                    &splats3,
+                    kernel != Kernel::Square,
+                    &mut rgba,
+                    &mut depth,
+                ),
+            }
             stats.phase3_points = p3;
             points += p3;
             chunks += c3;

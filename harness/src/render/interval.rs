@@ -47,7 +47,8 @@ impl Renderer<'_> {
         for &(i, count) in tested {
             pass.set_bind_group(0, bg0, &[(i as u64 * self.draw_stride) as u32]);
             pass.set_bind_group(1, &resolved[i].0.bind_group, &[]);
-            pass.dispatch_workgroups(count.div_ceil(64), 1, 1);
+            let (x, y) = dispatch_size(count, self.gpu.limits.max_compute_workgroups_per_dimension);
+            pass.dispatch_workgroups(x, y, 1);
         }
         drop(pass);
         enc.copy_buffer_to_buffer(&counters, 0, &readback, 0, bytes);

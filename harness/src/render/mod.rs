@@ -52,6 +52,7 @@
 //! uniforms), `readback.rs` (timestamps, counters, colour readback), `edl.rs` and
 //! `shading.rs` (shading modes), `cpu.rs` (the CPU mirror the tests compare against).
 
+pub mod compute;
 pub mod cpu;
 pub mod edl;
 mod interval;
@@ -105,6 +106,8 @@ pub struct RenderSettings {
     pub cache_bytes: u64,
     /// Shading ([`shading`]; resolve `auto` first for `edl`).
     pub shade: Shade,
+    /// How splats become pixels: instanced quads (the default) or the compute rasteriser.
+    pub raster: Raster,
 }
 
 impl Default for RenderSettings {
@@ -115,6 +118,31 @@ impl Default for RenderSettings {
             kernel: Kernel::Square,
             cache_bytes: 512 << 20,
             shade: Shade::default(),
+            raster: Raster::Quads,
+        }
+    }
+}
+
+/// How splats become pixels.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Hash, Default, serde::Serialize, clap::ValueEnum)]
+#[serde(rename_all = "lowercase")]
+pub enum Raster {
+    /// Instanced screen-aligned quads through the fixed-function rasteriser and depth test
+    /// (every kernel).
+    #[default]
+    Quads,
+    /// A compute shader per splat: 64-bit atomic depth|colour into a visibility buffer,
+    /// resolved into the colour and depth targets (square splats and 1 px points;
+    /// [`compute`]). Needs 64-bit integer atomics.
+    Compute,
+}
+
+impl Raster {
+    /// The name as the CLI and result files spell it.
+    pub fn name(self) -> &'static str {
+        match self {
+            Raster::Quads => "quads",
+            Raster::Compute => "compute",
         }
     }
 }
@@ -178,6 +206,8 @@ pub struct Renderer<'g> {
     query_sets: Vec<wgpu::QuerySet>,
     /// The eye-dome lighting pass, for `edl` shading.
     edl: Option<edl::EdlPass>,
+    /// The compute rasteriser, for [`Raster::Compute`].
+    compute: Option<compute::ComputeRaster>,
 }
 
 /// Which pipeline: an opaque kernel, or one of the gaussian passes.
@@ -206,6 +236,11 @@ pub const SPLAT_WGSL: &str = concat!(
 /// each, and checks that every `.wgsl` file of the crate is part of one.
 pub const SHADER_MODULES: &[(&str, &str)] = &[
     ("interval.wgsl + splat.wgsl", SPLAT_WGSL),
+    (
+        "interval.wgsl + splat.wgsl + compute.wgsl",
+        compute::COMPUTE_WGSL,
+    ),
+    ("resolve.wgsl", compute::RESOLVE_WGSL),
     ("normalize.wgsl", include_str!("normalize.wgsl")),
     ("occlusion.wgsl", OCCLUSION_WGSL),
     ("edl.wgsl", edl::EDL_WGSL),
@@ -349,6 +384,15 @@ impl<'g> Renderer<'g> {
             contents: bytemuck::cast_slice(&[0u16, 1, 2, 0, 2, 3]),
             usage: wgpu::BufferUsages::INDEX,
         });
+        let compute = match settings.raster {
+            Raster::Quads => None,
+            Raster::Compute => Some(compute::ComputeRaster::new(
+                gpu,
+                &settings,
+                &count_layout,
+                &bgl2,
+            )?),
+        };
         let timestamps = gpu.timestamps.then(|| Timestamps {
             set: d.create_query_set(&wgpu::QuerySetDescriptor {
                 label: Some("frame timestamps"),
@@ -398,6 +442,7 @@ impl<'g> Renderer<'g> {
             query_sets: Vec::new(),
             edl: (settings.shade.shading == Shading::Edl)
                 .then(|| edl::EdlPass::new(gpu, settings.width, settings.height, COLOR_FORMAT)),
+            compute,
         })
     }
 
@@ -456,6 +501,13 @@ impl<'g> Renderer<'g> {
                 o.threshold,
                 self.gpu.adapter.name,
                 self.gpu.adapter.backend
+            );
+        }
+        if self.settings.raster == Raster::Compute && shape != Kernel::Square {
+            bail!(
+                "--raster compute draws square splats (and 1 px points) only, but this draw \
+                 list asks for kernel '{}'; use --raster quads",
+                shape.name()
             );
         }
         if list.occlusion.is_some() && shape == Kernel::Gaussian {
@@ -592,6 +644,16 @@ impl<'g> Renderer<'g> {
         stats.occlusion = Some(occlusion);
         Ok((stats, image))
     }
+}
+
+/// Workgroups `(x, y)` of 64 invocations covering `count` splats when one dimension holds at
+/// most `max_per_dimension` workgroups (65,535 on most adapters, so 4,194,240 splats): rows of
+/// `x` workgroups, `y` rows; the shaders' `dispatch_index` numbers the splats row after row
+/// and skips those past `count`. `(0, 1)` for no splats.
+pub fn dispatch_size(count: u32, max_per_dimension: u32) -> (u32, u32) {
+    let groups = count.div_ceil(64);
+    let x = groups.min(max_per_dimension.max(1));
+    (x, if x == 0 { 1 } else { groups.div_ceil(x) })
 }
 
 /// True when the renderer counts occlusion samples exactly (in the queries' fragment stage):

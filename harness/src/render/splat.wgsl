@@ -107,13 +107,45 @@ fn splat_passes(ii: u32) -> bool {
     return interval_pass(splat_position(ii), n, lods[ii], frame.eye, draw.test_mode, draw.test_scale, draw.test_overlap);
 }
 
+// The splat a compute invocation handles: dispatches are 2-D when one dimension's 65,535
+// workgroups of 64 are too few (render::dispatch_size), rows of workgroups laid end to end.
+fn dispatch_index(gid: vec3<u32>, groups: vec3<u32>) -> u32 {
+    return gid.y * groups.x * 64u + gid.x;
+}
+
 // Counts the splats of a draw that pass its test (one thread per splat sent).
 @compute @workgroup_size(64)
-fn cs_count(@builtin(global_invocation_id) gid: vec3<u32>) {
-    let i = gid.x;
+fn cs_count(@builtin(global_invocation_id) gid: vec3<u32>, @builtin(num_workgroups) groups: vec3<u32>) {
+    let i = dispatch_index(gid, groups);
     if (i < draw.count && splat_passes(i)) {
         atomicAdd(&counters[draw.slot], 1u);
     }
+}
+
+// The splat's size in pixels at clip-space w (mirrored by render::cpu::splat_px).
+fn splat_size_px(ii: u32, w: f32) -> f32 {
+    if (draw.mode == 1u) {
+        return max(draw.min_px, 2.0 * radii[ii] * draw.radius_scale * frame.proj_scale / w);
+    }
+    return draw.size_px;
+}
+
+// The splat's shaded linear colour (mirrored by render::cpu::shade_linear): base colour,
+// stored colour or elevation ramp, times the two-sided Lambert headlight when it has a
+// normal and the shading is Lambert. `l`: unit vector from the splat to the eye.
+fn splat_linear(ii: u32, p: vec3<f32>, n: vec3<f32>, has_normal: bool, l: vec3<f32>) -> vec3<f32> {
+    var base = frame.base_color.rgb;
+    if (frame.shading == 2u) {
+        base = srgb_to_linear(elevation_colour((p.z - frame.elevation_lo) * frame.elevation_scale));
+    } else if ((draw.flags & 2u) != 0u) {
+        base = srgb_to_linear(unpack4x8unorm(colors[ii]).rgb);
+    }
+    var shade = 1.0;
+    if (has_normal && frame.shading == 0u) {
+        // Lambert, headlight at the eye, two-sided (scans carry normals of either sign).
+        shade = frame.ambient + (1.0 - frame.ambient) * abs(dot(n, l));
+    }
+    return base * shade;
 }
 
 // Shared vertex work. `ellipse`: orient and squash the quad by the normal. `depth_push`:
@@ -130,10 +162,7 @@ fn splat_vertex(vi: u32, ii: u32, ellipse: bool, depth_push: bool) -> VsOut {
         out.linear = vec4<f32>(0.0);
         return out;
     }
-    var size = draw.size_px;
-    if (draw.mode == 1u) {
-        size = max(draw.min_px, 2.0 * radii[ii] * draw.radius_scale * frame.proj_scale / clip.w);
-    }
+    let size = splat_size_px(ii, clip.w);
     let has_normal = (draw.flags & 1u) != 0u;
     var n = vec3<f32>(0.0, 0.0, 1.0);
     if (has_normal) {
@@ -163,19 +192,9 @@ fn splat_vertex(vi: u32, ii: u32, ellipse: bool, depth_push: bool) -> VsOut {
     out.pos = clip;
     out.uv = c;
 
-    var base = frame.base_color.rgb;
-    if (frame.shading == 2u) {
-        base = srgb_to_linear(elevation_colour((p.z - frame.elevation_lo) * frame.elevation_scale));
-    } else if ((draw.flags & 2u) != 0u) {
-        base = srgb_to_linear(unpack4x8unorm(colors[ii]).rgb);
-    }
-    var shade = 1.0;
-    if (has_normal && frame.shading == 0u) {
-        // Lambert, headlight at the eye, two-sided (scans carry normals of either sign).
-        shade = frame.ambient + (1.0 - frame.ambient) * abs(dot(n, l));
-    }
-    out.linear = vec4<f32>(base * shade, 1.0);
-    out.color = vec4<f32>(linear_to_srgb(base * shade), 1.0);
+    let linear = splat_linear(ii, p, n, has_normal, l);
+    out.linear = vec4<f32>(linear, 1.0);
+    out.color = vec4<f32>(linear_to_srgb(linear), 1.0);
     return out;
 }
 

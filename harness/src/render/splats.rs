@@ -63,8 +63,9 @@ impl Renderer<'_> {
                 bail!("draw item {i} asks for per-splat radii but its splats carry none");
             }
             let mut u = DrawUniform::new(size, g.attrs, g.lod, test);
+            // Splats sent: the compute passes (interval count, compute raster) stop there.
+            u.count = count;
             if test.is_some() {
-                u.count = count;
                 u.slot = tested.len() as u32;
                 tested.push((i, count));
             }
@@ -98,6 +99,10 @@ impl Renderer<'_> {
             });
         // Interval-tested draws: count the splats that pass (interval.rs).
         let counters = self.encode_interval_counts(enc, &bg0, &tested, &resolved)?;
+        if self.settings.raster == Raster::Compute {
+            self.encode_compute_raster(enc, &bg0, &resolved, target)?;
+            return Ok(counters);
+        }
         let (b, e) = target.ts;
         let ts = |begin: bool, end: bool| {
             self.timestamps.as_ref().filter(|_| begin || end).map(|t| {

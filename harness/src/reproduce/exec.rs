@@ -300,6 +300,7 @@ impl<'a> Context<'a> {
                     .checked_mul(1 << 20)
                     .context("gpu_cache_mb is too large")?,
                 shade: Default::default(),
+                raster: Default::default(),
             },
             seed: scene_seed(scene),
             save_images: false,

@@ -203,6 +203,8 @@ pub struct Summary {
     pub target: Target,
     /// Kernel.
     pub kernel: Kernel,
+    /// Rasteriser (`quads` or `compute`).
+    pub raster: crate::render::Raster,
     /// The shading drawn (`--shading`, with `auto` resolved for the scene).
     pub shading: crate::render::Shading,
     /// Camera path.
@@ -583,6 +585,7 @@ pub fn run(cfg: &RunConfig, gpu: &Gpu, progress: &dyn Progress) -> anyhow::Resul
         params,
         target,
         kernel: cfg.render.kernel,
+        raster: cfg.render.raster,
         shading: render.shade.shading,
         path: cfg.path.name(),
         frames: cfg.frames,

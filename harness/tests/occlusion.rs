@@ -9,11 +9,14 @@
 //! and the scenes keep every count far from its threshold, so no decision needs a tolerance.
 #![allow(clippy::unwrap_used)]
 
+mod common;
+use common::disagreement;
+
 use std::collections::HashSet;
 
 use harness::gpu::gpu_for_test;
 use harness::image::Image;
-use harness::render::{FrameStats, Kernel, RenderSettings, Renderer, cpu, exact_counts};
+use harness::render::{FrameStats, Kernel, Raster, RenderSettings, Renderer, cpu, exact_counts};
 use harness::runner;
 use methods::{
     ChunkId, DrawItem, DrawList, Feedback, LodMethod, MethodError, MethodStats, OcclusionCandidate,
@@ -219,25 +222,6 @@ fn feedback(visible: &[ChunkId]) -> Feedback {
     }
 }
 
-/// Fraction of pixels whose coverage differs, and mean absolute colour difference over
-/// pixels covered in both (as `tests/render.rs`).
-fn disagreement(a: &Image, b: &Image) -> (f64, f64) {
-    let (mut cov, mut diff, mut both, mut sum) = (0u64, 0u64, 0u64, 0u64);
-    for (pa, pb) in a.rgba.chunks(4).zip(b.rgba.chunks(4)) {
-        let (ca, cb) = (pa[3] > 0, pb[3] > 0);
-        cov += (ca || cb) as u64;
-        diff += (ca != cb) as u64;
-        if ca && cb {
-            both += 1;
-            sum += (0..3).map(|c| pa[c].abs_diff(pb[c]) as u64).sum::<u64>();
-        }
-    }
-    (
-        diff as f64 / cov.max(1) as f64,
-        sum as f64 / (3 * both.max(1)) as f64,
-    )
-}
-
 /// Pixels of exactly colour `rgb`.
 fn pixels_of(img: &Image, rgb: [u8; 3]) -> usize {
     img.rgba
@@ -260,7 +244,16 @@ fn draw_both(
 ) -> (FrameStats, Image) {
     let (stats, img) = r.draw(v, list, m, true).unwrap();
     let img = img.unwrap();
-    let c = cpu::render(v, list, m, r.settings().kernel).unwrap();
+    let settings = r.settings();
+    let c = cpu::render_with(
+        v,
+        list,
+        m,
+        settings.kernel,
+        &settings.shade,
+        settings.raster,
+    )
+    .unwrap();
     let (go, mut co) = (stats.occlusion.as_ref().unwrap(), c.occlusion.unwrap());
     if !r.exact_counts() {
         for n in co.samples.iter_mut().flatten() {
@@ -310,8 +303,21 @@ fn wall_hides_the_cloud_behind_it_but_not_the_one_beside() {
         .frame(&v, Target::Tolerance(1.0), &feedback(&[WALL]))
         .unwrap();
     assert_eq!(list.items.len(), 1);
-    for kernel in [Kernel::Square, Kernel::Circle] {
-        let mut r = Renderer::new(&gpu, settings(kernel)).unwrap();
+    // Both rasterisers: the compute one's phases 1 and 3 write the visibility buffer, its
+    // resolve the depth the queries test.
+    for (kernel, raster) in [
+        (Kernel::Square, Raster::Quads),
+        (Kernel::Circle, Raster::Quads),
+        (Kernel::Square, Raster::Compute),
+    ] {
+        let mut r = Renderer::new(
+            &gpu,
+            RenderSettings {
+                raster,
+                ..settings(kernel)
+            },
+        )
+        .unwrap();
         let (stats, img) = draw_both(&mut r, &v, &list, &m);
         let o = stats.occlusion.as_ref().unwrap();
         eprintln!("{kernel:?}: samples {:?}, {stats:?}", o.samples);

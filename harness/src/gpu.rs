@@ -37,6 +37,13 @@ pub struct Gpu {
 impl Gpu {
     /// Opens the default adapter, or `Ok(None)` when the machine has none.
     pub fn new() -> anyhow::Result<Option<Gpu>> {
+        Self::with_limits(|_| {})
+    }
+
+    /// [`Gpu::new`] with the device's limits changed by `adjust` from the adapter's best
+    /// (lowered, e.g. a small storage binding limit, to test how the renderer copes with a
+    /// smaller GPU; raising one past the adapter's fails).
+    pub fn with_limits(adjust: impl FnOnce(&mut wgpu::Limits)) -> anyhow::Result<Option<Gpu>> {
         let instance =
             wgpu::Instance::new(wgpu::InstanceDescriptor::new_without_display_handle_from_env());
         let Ok(adapter) = pollster::block_on(wgpu::util::initialize_adapter_from_env_or_default(
@@ -55,7 +62,8 @@ impl Gpu {
         if adapter.features().contains(int64) {
             features |= int64;
         }
-        let limits = adapter.limits();
+        let mut limits = adapter.limits();
+        adjust(&mut limits);
         let (device, queue) = pollster::block_on(adapter.request_device(&wgpu::DeviceDescriptor {
             label: Some("splatbench"),
             required_features: features,
@@ -94,7 +102,12 @@ pub const REQUIRE_GPU_ENV: &str = "SPLATBENCH_REQUIRE_GPU";
 /// For tests: the GPU, or `None` after printing a loud "skipped: no adapter" line — unless
 /// [`REQUIRE_GPU_ENV`] is `1`, in which case a missing adapter fails the test.
 pub fn gpu_for_test(test: &str) -> Option<Gpu> {
-    match Gpu::new() {
+    gpu_for_test_with_limits(test, |_| {})
+}
+
+/// [`gpu_for_test`] on a device whose limits `adjust` lowers ([`Gpu::with_limits`]).
+pub fn gpu_for_test_with_limits(test: &str, adjust: impl FnOnce(&mut wgpu::Limits)) -> Option<Gpu> {
+    match Gpu::with_limits(adjust) {
         Ok(Some(g)) => Some(g),
         other => {
             let why = match other {

@@ -373,3 +373,72 @@ fn unsupported_setups_are_errors_that_say_why() {
     );
     assert!(e.contains("ellipse") && e.contains("--raster quads"), "{e}");
 }
+
+/// A device whose storage binding limit (128 KiB: 8,192 splats per part) is below the batch:
+/// the renderer uploads it in parts and draws the same image as an unlimited device, with
+/// either rasteriser, for cached chunks (`full`) and SPT's sequential prefix under the
+/// interval test (the same splats pass).
+#[test]
+fn batches_over_the_storage_binding_limit_are_drawn_in_parts() {
+    let limit = 128 << 10;
+    let test = "batches_over_the_storage_binding_limit_are_drawn_in_parts";
+    let Some(small) = harness::gpu::gpu_for_test_with_limits(test, |l| {
+        l.max_storage_buffer_binding_size = limit;
+    }) else {
+        return;
+    };
+    let Some(gpu) = gpu_for_test(test) else {
+        return;
+    };
+    assert_eq!(small.limits.max_storage_buffer_binding_size, limit);
+    let per = harness::render::splats_per_part(limit);
+    assert_eq!(per, 8_192);
+    let cloud = Generator::Statue.generate(30_000, 3).unwrap();
+    let tmp = tempfile::tempdir().unwrap();
+    let mut full_m = full(&cloud, &tmp.path().join("full"));
+    methods::MethodKind::Spt
+        .build(
+            &cloud,
+            &methods::Params::default(),
+            "t",
+            &tmp.path().join("spt"),
+            &scenes::NoProgress,
+        )
+        .unwrap();
+    let mut spt = methods::MethodKind::open(&tmp.path().join("spt")).unwrap();
+    let v = view(&cloud, 128, 96, 2);
+    for raster in [Raster::Quads, Raster::Compute] {
+        let s = RenderSettings {
+            raster,
+            ..settings(128, 96, Kernel::Square)
+        };
+        for m in [&mut full_m, &mut spt] {
+            let list = m
+                .frame(&v, Target::Tolerance(1.0), &Feedback::default())
+                .unwrap();
+            let (a, img_a) = Renderer::new(&gpu, s)
+                .unwrap()
+                .draw(&v, &list, m.as_ref(), true)
+                .unwrap();
+            let (b, img_b) = Renderer::new(&small, s)
+                .unwrap()
+                .draw(&v, &list, m.as_ref(), true)
+                .unwrap();
+            let spans = |i: &DrawItem| i.cached().is_some_and(|(_, n, _)| u64::from(n) > per);
+            assert!(
+                list.items.iter().any(spans),
+                "{raster:?}: a draw spans parts"
+            );
+            assert_eq!(
+                (a.points, a.gpu_passed),
+                (b.points, b.gpu_passed),
+                "{raster:?}"
+            );
+            assert_eq!(
+                img_a.unwrap(),
+                img_b.unwrap(),
+                "{raster:?}: the same image in parts"
+            );
+        }
+    }
+}

@@ -240,13 +240,13 @@ impl ComputeRaster {
 
 impl Renderer<'_> {
     /// Records one phase of splat draws with the compute rasteriser: the `resolved` draws
-    /// ((batch, splats sent), frame+draw bind group `bg0`), then the resolve pass into the
+    /// ((splat columns bind group, splats sent), frame+draw bind group `bg0`), then the resolve pass into the
     /// colour and depth targets as `target` says.
     pub(super) fn encode_compute_raster(
         &self,
         enc: &mut wgpu::CommandEncoder,
         bg0: &wgpu::BindGroup,
-        resolved: &[(&GpuBatch, u32)],
+        resolved: &[(&wgpu::BindGroup, u32)],
         target: PhaseTarget,
     ) -> anyhow::Result<()> {
         let c = self
@@ -276,7 +276,7 @@ impl Renderer<'_> {
                 continue;
             }
             pass.set_bind_group(0, bg0, &[(i as u64 * self.draw_stride) as u32]);
-            pass.set_bind_group(1, &g.bind_group, &[]);
+            pass.set_bind_group(1, *g, &[]);
             let (x, y) = dispatch_size(*count, max);
             pass.dispatch_workgroups(x, y, 1);
         }

@@ -15,7 +15,7 @@ impl Renderer<'_> {
         enc: &mut wgpu::CommandEncoder,
         bg0: &wgpu::BindGroup,
         tested: &[(usize, u32)],
-        resolved: &[(&GpuBatch, u32)],
+        resolved: &[(&wgpu::BindGroup, u32)],
     ) -> anyhow::Result<Option<(wgpu::Buffer, u64)>> {
         if tested.is_empty() {
             return Ok(None);
@@ -46,7 +46,7 @@ impl Renderer<'_> {
         pass.set_bind_group(2, &bg2, &[]);
         for &(i, count) in tested {
             pass.set_bind_group(0, bg0, &[(i as u64 * self.draw_stride) as u32]);
-            pass.set_bind_group(1, &resolved[i].0.bind_group, &[]);
+            pass.set_bind_group(1, resolved[i].0, &[]);
             let (x, y) = dispatch_size(count, self.gpu.limits.max_compute_workgroups_per_dimension);
             pass.dispatch_workgroups(x, y, 1);
         }

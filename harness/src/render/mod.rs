@@ -86,6 +86,7 @@ use readback::{TIMESTAMP_READBACK_BYTES, Timestamps, read_buffer, zeroed_counter
 pub use shading::{Shade, Shading};
 use splats::PhaseTarget;
 use upload::GpuBatch;
+pub use upload::splats_per_part;
 
 pub use methods::SplatShape as Kernel;
 pub(crate) use pipelines::fullscreen_pipeline;
@@ -554,7 +555,7 @@ impl<'g> Renderer<'g> {
         // Phase 1 (or the whole frame without occlusion culling).
         let items: Vec<&DrawItem> = list.items.iter().collect();
         let streams = self.upload_items(&items, method, &mut stats)?;
-        self.ensure_draw_capacity(items.len() as u64);
+        self.ensure_draw_capacity(&items, &streams)?;
         let mut enc = self.gpu.device.create_command_encoder(&Default::default());
         let counters1 = self.encode_splats(
             shape,
@@ -613,7 +614,7 @@ impl<'g> Renderer<'g> {
         if !items3.is_empty() {
             let points_before = stats.points;
             let streams3 = self.upload_items(&items3, method, &mut stats)?;
-            self.ensure_draw_capacity(items3.len() as u64);
+            self.ensure_draw_capacity(&items3, &streams3)?;
             let mut enc = self.gpu.device.create_command_encoder(&Default::default());
             counters.push(self.encode_splats(
                 shape,

@@ -29,11 +29,13 @@ impl Renderer<'_> {
         enc: &mut wgpu::CommandEncoder,
         target: PhaseTarget,
     ) -> anyhow::Result<Option<(wgpu::Buffer, u64)>> {
-        let n = items.len() as u64;
+        // One draw per part of each item's batch (a batch over the storage binding limit is
+        // uploaded in parts, upload.rs), with its own uniform: the splats of the part sent.
+        let n = self.draw_slots(items, streams)?;
         let mut draws = vec![0u8; (self.draw_stride * n.max(1)) as usize];
-        let mut resolved: Vec<(&GpuBatch, u32)> = Vec::with_capacity(items.len());
+        let mut resolved: Vec<(&wgpu::BindGroup, u32)> = Vec::with_capacity(n as usize);
         // Draws whose splats pass an interval test: (draw index, splats sent); counter slot
-        // = position in this list.
+        // = position in this list (the counts are summed into `gpu_passed`).
         let mut tested: Vec<(usize, u32)> = Vec::new();
         let mut s = streams.iter();
         for (i, item) in items.iter().enumerate() {
@@ -62,18 +64,23 @@ impl Renderer<'_> {
             if matches!(size, SplatSize::Radius { .. }) && !g.attrs.radii {
                 bail!("draw item {i} asks for per-splat radii but its splats carry none");
             }
-            let mut u = DrawUniform::new(size, g.attrs, g.lod, test);
-            // Splats sent: the compute passes (interval count, compute raster) stop there.
-            u.count = count;
-            if test.is_some() {
-                u.slot = tested.len() as u32;
-                tested.push((i, count));
-            }
-            let off = i * self.draw_stride as usize;
-            draws[off..off + std::mem::size_of::<DrawUniform>()]
-                .copy_from_slice(bytemuck::bytes_of(&u));
             stats.points += count as u64;
-            resolved.push((g, count));
+            for part in &g.parts {
+                // The first `count` splats of the batch: this part's share of them.
+                let sent = count.saturating_sub(part.start).min(part.len);
+                let mut u = DrawUniform::new(size, g.attrs, g.lod, test);
+                // Splats sent: the compute passes (interval count, compute raster) stop there.
+                u.count = sent;
+                let draw = resolved.len();
+                if test.is_some() {
+                    u.slot = tested.len() as u32;
+                    tested.push((draw, sent));
+                }
+                let off = draw * self.draw_stride as usize;
+                draws[off..off + std::mem::size_of::<DrawUniform>()]
+                    .copy_from_slice(bytemuck::bytes_of(&u));
+                resolved.push((&part.bind_group, sent));
+            }
         }
         self.gpu.queue.write_buffer(&self.draw_ubo, 0, &draws);
         let bg0 = self
@@ -218,7 +225,7 @@ struct Splats<'a> {
     bg0: &'a wgpu::BindGroup,
     stride: u64,
     indices: &'a wgpu::Buffer,
-    batches: &'a [(&'a GpuBatch, u32)],
+    batches: &'a [(&'a wgpu::BindGroup, u32)],
 }
 
 impl Splats<'_> {
@@ -230,7 +237,7 @@ impl Splats<'_> {
                 continue;
             }
             pass.set_bind_group(0, self.bg0, &[(i as u64 * self.stride) as u32]);
-            pass.set_bind_group(1, &g.bind_group, &[]);
+            pass.set_bind_group(1, *g, &[]);
             pass.draw_indexed(0..6, 0, 0..*count);
         }
     }

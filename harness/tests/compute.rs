@@ -295,7 +295,8 @@ fn dispatch_sizes() {
     assert_eq!(dispatch_size(1_000, 4), (4, 4));
 }
 
-/// One golden image per size mode (the statue through `full`: leaf radii, and 1 px points).
+/// Golden images: every registered method at its defaults (1 px tolerance) on the statue,
+/// drawn by the compute rasteriser, and `full` as 1 px points.
 #[test]
 fn golden_compute_images() {
     let Some(gpu) = gpu_for_test("golden_compute_images") else {
@@ -303,24 +304,38 @@ fn golden_compute_images() {
     };
     let tmp = tempfile::tempdir().unwrap();
     let cloud = Generator::Statue.generate(20_000, 5).unwrap();
-    let mut m = full(&cloud, tmp.path());
     let v = view(&cloud, 128, 128, 0);
-    let list = m
-        .frame(&v, Target::Tolerance(1.0), &Feedback::default())
-        .unwrap();
-    let mut points = list.clone();
-    for it in &mut points.items {
-        if let DrawItem::Chunk { size, .. } = it {
-            *size = SplatSize::Pixels(1.0);
-        }
-    }
     let mut r = Renderer::new(&gpu, compute_settings(128, 128)).unwrap();
-    for (name, list) in [
-        ("statue-compute-square", &list),
-        ("statue-compute-points", &points),
-    ] {
-        let (_, img) = r.draw(&v, list, m.as_ref(), true).unwrap();
-        check_golden(name, &img.unwrap(), 0.02);
+    for &kind in methods::MethodKind::ALL {
+        let dir = tmp.path().join(kind.name());
+        kind.build(
+            &cloud,
+            &methods::Params::default(),
+            "t",
+            &dir,
+            &scenes::NoProgress,
+        )
+        .unwrap();
+        let mut m = methods::MethodKind::open(&dir).unwrap();
+        r.clear_cache(); // chunk ids are per method
+        let mut list = m
+            .frame(&v, Target::Tolerance(1.0), &Feedback::default())
+            .unwrap();
+        let (_, img) = r.draw(&v, &list, m.as_ref(), true).unwrap();
+        let name = match kind {
+            methods::MethodKind::Full => "statue-compute-square".to_owned(),
+            k => format!("statue-compute-{}", k.name()),
+        };
+        check_golden(&name, &img.unwrap(), 0.02);
+        if kind == methods::MethodKind::Full {
+            for it in &mut list.items {
+                if let DrawItem::Chunk { size, .. } = it {
+                    *size = SplatSize::Pixels(1.0);
+                }
+            }
+            let (_, img) = r.draw(&v, &list, m.as_ref(), true).unwrap();
+            check_golden("statue-compute-points", &img.unwrap(), 0.02);
+        }
     }
 }
 

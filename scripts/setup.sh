@@ -1,12 +1,13 @@
 #!/usr/bin/env bash
 # Installs what a fresh Debian/Ubuntu machine lacks to build, test and run splatbench:
 # Mesa's software Vulkan driver (lavapipe) and the Vulkan loader, so wgpu finds an adapter
-# with no GPU. Plot fonts are embedded in the binary (harness/assets), nothing to install.
+# with no GPU; jq, which scripts/gpu-bench.sh (run by the tests) reads summaries with. Plot
+# fonts are embedded in the binary (harness/assets), nothing to install.
 # Idempotent: installs nothing when everything is present.
 set -euo pipefail
 
 need=()
-for pkg in mesa-vulkan-drivers libvulkan1; do
+for pkg in mesa-vulkan-drivers libvulkan1 jq; do
   dpkg-query -W -f='${Status}' "$pkg" 2>/dev/null | grep -q "install ok installed" || need+=("$pkg")
 done
 

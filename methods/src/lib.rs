@@ -28,6 +28,7 @@ pub mod octnormal;
 pub mod params;
 pub mod qsplat;
 pub mod registry;
+pub mod sortkey;
 pub mod spt;
 pub mod store;
 pub mod strays;

@@ -34,6 +34,7 @@ use std::path::Path;
 use std::time::Instant;
 
 use glam::Vec3;
+use rayon::prelude::*;
 use scenes::{Attributes, PointCloud, Progress, View};
 
 use crate::{
@@ -288,15 +289,23 @@ pub fn build(
             0
         }
     };
-    let mut order: Vec<u32> = (0..nodes.len() as u32).collect();
-    order.sort_by(|&a, &b| {
-        let (a, b) = (a as usize, b as usize);
-        cluster(a)
-            .cmp(&cluster(b))
-            .then(lod[b][1].total_cmp(&lod[a][1]))
-            .then(lod[b][0].total_cmp(&lod[a][0]))
-            .then(a.cmp(&b))
-    });
+    // The list order: cluster ascending, then parent error descending, then own error
+    // descending, then node index (a total order, so the result is unique). Sorted as packed
+    // 128-bit keys in parallel: each comparison of the former comparator recomputed two
+    // normal clusters, and the sort was a fifth of the build (2 M points, `perf`).
+    let mut keys: Vec<u128> = (0..nodes.len())
+        .into_par_iter()
+        .map(|i| {
+            let descending = |x: f32| u128::from(!crate::sortkey::f32_total_order(x));
+            (u128::from(cluster(i)) << 96)
+                | (descending(lod[i][1]) << 64)
+                | (descending(lod[i][0]) << 32)
+                | i as u128
+        })
+        .collect();
+    keys.par_sort_unstable();
+    let order: Vec<u32> = keys.iter().map(|&k| k as u32).collect();
+    drop(keys);
     // Clusters and chunks.
     let mut clusters = Vec::new();
     let mut chunks = Vec::new();

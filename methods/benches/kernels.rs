@@ -30,6 +30,11 @@ fn kernels(c: &mut Criterion) {
     g.bench_function("knn_spacing_k6", |b| {
         b.iter(|| scenes::spacing::knn_spacing(cloud.positions(), methods::leaf::LEAF_K))
     });
+    // A height field (2.5-D, aerial-scan-like) beside the closed statue surface.
+    let terrain = Generator::Terrain.generate(n, 1).unwrap();
+    g.bench_function("knn_spacing_k6_terrain", |b| {
+        b.iter(|| scenes::spacing::knn_spacing(terrain.positions(), methods::leaf::LEAF_K))
+    });
     for generator in Generator::ALL {
         g.bench_function(format!("generate_{}", generator.name()), |b| {
             b.iter(|| generator.generate(n, 1).unwrap())

@@ -2,7 +2,7 @@
 //! instead of the fixed-function pipeline, the way Schütz, Kerbl and Wimmer (2021, "Rendering
 //! Point Clouds with Compute Shaders and Vertex Order Optimization") draw points.
 //!
-//! Per phase of splat draws ([`Renderer::encode_splats`]):
+//! Per phase of splat draws (`Renderer::encode_splats`):
 //! 1. The visibility buffer (one 64-bit word per pixel) is cleared to 0 when the phase clears
 //!    its targets (phase 3 of occlusion culling adds to phase 1's).
 //! 2. `cs_raster` (`compute.wgsl`): one invocation per splat sent, 2-D dispatches past 65,535

@@ -1,7 +1,9 @@
 //! The headless splat renderer.
 //!
 //! Draws a [`DrawList`] into an offscreen RGBA8 colour target (sRGB-encoded values, alpha = 1
-//! where a splat landed, 0 = background) with a Depth32Float depth test. Splats are instanced
+//! where a splat landed, 0 = background) with a Depth32Float depth test. With
+//! [`Raster::Compute`] square splats are rasterised by a compute shader instead and resolved
+//! into the same targets ([`compute`]); otherwise splats are instanced
 //! screen-aligned quads sized per draw in pixels or per splat from the object-space radius
 //! (`splat.wgsl`), in one of four shapes ([`Kernel`] = [`methods::SplatShape`]):
 //! - square; circle (discard outside the unit disk);
@@ -45,12 +47,13 @@
 //! ## Files
 //! One room per responsibility, all behind [`Renderer::draw`] (this file: settings, the
 //! renderer's resources and the frame's phases): `splats.rs` (one phase of splat draws: the render
-//! passes per kernel), `interval.rs` (SPT's interval-counting compute pass, `interval.wgsl`),
+//! passes per kernel, or the compute rasteriser's passes), `interval.rs` (SPT's interval-counting compute pass, `interval.wgsl`),
 //! `pipelines.rs` (pipelines and targets; WGSL in `splat.wgsl` and `normalize.wgsl`),
 //! `queries.rs` and `occlusion.rs` (the occlusion-query pass, `occlusion.wgsl`, and its
 //! icosahedra), `upload.rs` (chunk cache and stream uploads), `uniforms.rs` (frame/draw
 //! uniforms), `readback.rs` (timestamps, counters, colour readback), `edl.rs` and
-//! `shading.rs` (shading modes), `cpu.rs` (the CPU mirror the tests compare against).
+//! `shading.rs` (shading modes), `compute.rs` (the compute rasteriser, `compute.wgsl` and
+//! `resolve.wgsl`), `cpu.rs` (the CPU mirror the tests compare against).
 
 pub mod compute;
 pub mod cpu;

@@ -382,15 +382,15 @@ impl<'g> Reference<'g> {
             .write(&view.camera.near.to_le_bytes())
             .write(&view.camera.far.to_le_bytes())
             .write_str(self.settings.kernel.name())
-            // Quads keys are those of references made before the compute rasteriser existed.
-            .write_str(match self.settings.raster {
-                crate::render::Raster::Quads => "",
-                r => r.name(),
-            })
             // Rasterisers differ by a pixel here and there: a reference is its adapter's.
             .write_str(&self.gpu.adapter.name)
             .write_str(&self.gpu.adapter.backend)
             .write(&REFERENCE_VERSION.to_le_bytes());
+        // The rasteriser, for compute only: quads keys stay those of the references made
+        // before the compute rasteriser existed.
+        if self.settings.raster != crate::render::Raster::Quads {
+            h.write_str(self.settings.raster.name());
+        }
         format!("{:016x}", h.finish())
     }
 

@@ -27,9 +27,14 @@
 
 pub mod build;
 pub mod errors;
+mod files;
+mod params;
 pub mod select;
 
-use std::io::Write;
+pub use files::{ChunkInfo, ClusterInfo, Index};
+use files::{read_lod, write_lod};
+pub use params::{SptBound, SptMode, SptParams};
+
 use std::path::Path;
 use std::time::Instant;
 
@@ -57,153 +62,6 @@ const NODES_FILE: &str = "nodes.sbc";
 const LOD_FILE: &str = "lod.bin";
 const INDEX_FILE: &str = "index.json";
 const LOD_MAGIC: &[u8; 8] = b"SPTLOD01";
-
-/// Error mode of the interval test.
-#[derive(Debug, Clone, Copy, PartialEq, Eq, Default, serde::Deserialize, serde::Serialize)]
-#[serde(rename_all = "lowercase")]
-pub enum SptMode {
-    /// `ẽ_g = e_g / r` (view-angle independent).
-    #[default]
-    Unified,
-    /// `ẽ_p + ẽ_t = (e_p·sin α + e_t·cos α) / r` (needs normals).
-    Split,
-}
-
-/// Which bounding volume of a cluster's node centres gives the per-frame lower bound `r_lo`
-/// of the view distance (the prefix search's only view input).
-#[derive(Debug, Clone, Copy, PartialEq, Eq, Default, serde::Deserialize, serde::Serialize)]
-#[serde(rename_all = "lowercase")]
-pub enum SptBound {
-    /// The cluster's bounding sphere (`index.json`): the nearest point of the sphere.
-    #[default]
-    Sphere,
-    /// The larger of the sphere's bound and the distance to the axis-aligned box of the
-    /// cluster's node centres (computed at `open`). A departure: tighter on elongated objects.
-    Box,
-}
-
-/// Parameters of `spt`.
-#[derive(Debug, Clone, serde::Deserialize, serde::Serialize)]
-#[serde(deny_unknown_fields, default)]
-pub struct SptParams {
-    /// `unified` or `split`.
-    pub mode: SptMode,
-    /// Overlap factor `o` on each node's distance `δ` to its parent (1 = hole-free in
-    /// unified mode, 0 = the paper's bare intervals).
-    pub overlap: f32,
-    /// 128 lists by normal, back-facing lists skipped per frame (needs normals).
-    pub normal_clusters: bool,
-    /// Colour rule threshold, largest per-channel difference among children in 0..=255
-    /// (≥ 255 disables the rule; ignored without colours).
-    pub color_threshold: f32,
-    /// GPU memory the whole model may take, MiB (`open` refuses larger models).
-    pub gpu_limit_mb: u64,
-    /// Compute the `cpu_passed` counter (O(prefix) per frame); NaN otherwise.
-    pub cpu_mirror: bool,
-    /// Bounding volume of the per-frame lower bound `r_lo` (`sphere`, the default, or `box`).
-    pub bound: SptBound,
-}
-
-impl Default for SptParams {
-    fn default() -> Self {
-        Self {
-            mode: SptMode::Unified,
-            overlap: 1.0,
-            normal_clusters: false,
-            color_threshold: 40.0,
-            gpu_limit_mb: 4096,
-            cpu_mirror: false,
-            bound: SptBound::Sphere,
-        }
-    }
-}
-
-impl SptParams {
-    fn parse(params: &Params, attrs: Attributes) -> Result<Self, MethodError> {
-        let p: SptParams = params.to_typed(NAME)?;
-        if !(p.overlap.is_finite() && p.overlap >= 0.0) {
-            return Err(MethodError::Param(format!(
-                "method 'spt': overlap must be a finite number ≥ 0, got {}",
-                p.overlap
-            )));
-        }
-        if !(p.color_threshold.is_finite() && p.color_threshold >= 0.0) {
-            return Err(MethodError::Param(format!(
-                "method 'spt': color_threshold must be a finite number ≥ 0, got {}",
-                p.color_threshold
-            )));
-        }
-        if p.gpu_limit_mb == 0 {
-            return Err(MethodError::Param(
-                "method 'spt': gpu_limit_mb must be ≥ 1".into(),
-            ));
-        }
-        if !attrs.normals && p.mode == SptMode::Split {
-            return Err(MethodError::Param(
-                "method 'spt': mode=split needs normals and the scene has none (use mode=unified)"
-                    .into(),
-            ));
-        }
-        if !attrs.normals && p.normal_clusters {
-            return Err(MethodError::Param(
-                "method 'spt': normal_clusters=true needs normals and the scene has none".into(),
-            ));
-        }
-        Ok(p)
-    }
-}
-
-/// A normal cluster: a range of the node list.
-#[derive(Debug, Clone, PartialEq, serde::Serialize, serde::Deserialize)]
-#[serde(deny_unknown_fields)]
-pub struct ClusterInfo {
-    /// Octahedral cluster id (0..128), 0 without clustering.
-    pub id: u32,
-    /// First node.
-    pub start: u64,
-    /// Nodes.
-    pub count: u64,
-    /// Cone axis (unit).
-    pub axis: [f32; 3],
-    /// Cone half-angle (radians) covering every node normal of the cluster.
-    pub half_angle: f32,
-    /// Bounding sphere centre of the node centres.
-    pub center: [f32; 3],
-    /// Bounding sphere radius.
-    pub radius: f32,
-}
-
-/// A chunk: consecutive nodes of one cluster.
-#[derive(Debug, Clone, PartialEq, serde::Serialize, serde::Deserialize)]
-#[serde(deny_unknown_fields)]
-pub struct ChunkInfo {
-    /// Index into the cluster list.
-    pub cluster: u32,
-    /// First node.
-    pub start: u64,
-    /// Nodes.
-    pub count: u32,
-    /// Largest `e_par` (its first node's).
-    pub max_e_par: f32,
-    /// Bounding sphere centre (node disks included).
-    pub center: [f32; 3],
-    /// Bounding sphere radius.
-    pub radius: f32,
-}
-
-/// `index.json`.
-#[derive(Debug, Clone, PartialEq, serde::Serialize, serde::Deserialize)]
-#[serde(deny_unknown_fields)]
-pub struct Index {
-    /// Total nodes.
-    pub nodes: u64,
-    /// Levels of the tree.
-    pub levels: u32,
-    /// Clusters, in list order.
-    pub clusters: Vec<ClusterInfo>,
-    /// Chunks, in list order (chunk id = position here).
-    pub chunks: Vec<ChunkInfo>,
-}
 
 fn sphere_of(points: impl Iterator<Item = (Vec3, f32)> + Clone) -> ([f32; 3], f32) {
     let (lo, hi) = points.clone().fold(
@@ -425,61 +283,6 @@ pub fn build(
         ..Default::default()
     }
     .finish())
-}
-
-fn write_lod(path: &Path, lod: &[[f32; 4]]) -> Result<(), MethodError> {
-    let data: &[u8] = bytemuck::cast_slice(lod);
-    let tmp = path.with_extension("bin.tmp");
-    let mut f =
-        std::io::BufWriter::new(std::fs::File::create(&tmp).map_err(|e| MethodError::io(&tmp, e))?);
-    let io = |e| MethodError::io(&tmp, e);
-    f.write_all(LOD_MAGIC).map_err(io)?;
-    f.write_all(&(lod.len() as u64).to_le_bytes()).map_err(io)?;
-    f.write_all(&scenes::hash::fnv1a64(data).to_le_bytes())
-        .map_err(io)?;
-    f.write_all(data).map_err(io)?;
-    f.into_inner()
-        .map_err(|e| MethodError::io(&tmp, e.into_error()))?
-        .sync_all()
-        .map_err(io)?;
-    std::fs::rename(&tmp, path).map_err(|e| MethodError::io(path, e))
-}
-
-fn read_lod(path: &Path, count: u64) -> Result<Vec<[f32; 4]>, MethodError> {
-    let bytes = std::fs::read(path).map_err(|e| MethodError::io(path, e))?;
-    let bad = |m: String| MethodError::corrupt(path, m);
-    if bytes.len() < 24 || &bytes[0..8] != LOD_MAGIC {
-        return Err(bad("bad magic (expected SPTLOD01)".into()));
-    }
-    let word = |o: usize| u64::from_le_bytes(bytes[o..o + 8].try_into().unwrap_or([0; 8]));
-    let n = word(8);
-    if n != count || bytes.len() as u64 != 24 + 16 * n {
-        return Err(bad(format!(
-            "{n} entries in {} bytes, index.json says {count} nodes",
-            bytes.len()
-        )));
-    }
-    let data = &bytes[24..];
-    if scenes::hash::fnv1a64(data) != word(16) {
-        return Err(bad("checksum mismatch in the lod entries".into()));
-    }
-    let lod: Vec<[f32; 4]> = data
-        .chunks_exact(16)
-        .map(|c| {
-            let f = |k: usize| f32::from_le_bytes([c[k], c[k + 1], c[k + 2], c[k + 3]]);
-            [f(0), f(4), f(8), f(12)]
-        })
-        .collect();
-    if let Some(i) = lod
-        .iter()
-        .position(|l| !l.iter().all(|v| v.is_finite() && *v >= 0.0))
-    {
-        return Err(bad(format!(
-            "node {i}: lod entry {:?} is not finite ≥ 0",
-            lod[i]
-        )));
-    }
-    Ok(lod)
 }
 
 /// An opened SPT build.

@@ -360,10 +360,7 @@ pub fn flip_map(reference: &Image, test: &Image) -> Result<Image, MetricsError> 
             rgba: Vec::new(),
         });
     }
-    let (r, t) = rayon::join(
-        || FlipFeatures::new(reference, None),
-        || FlipFeatures::new(test, None),
-    );
+    let (r, t) = flip_features_of(reference, test);
     let errors = nv_flip::FlipImageFloat::with_data(width, height, &flip::error_map(&r, &t));
     let coloured = errors.apply_color_lut(&nv_flip::magma_lut());
     let rgb = coloured.to_vec();
@@ -464,11 +461,16 @@ fn coverage_unchecked(reference: &Image, test: &Image) -> (f64, f64) {
 
 /// Mean FLIP error of same-sized images.
 fn flip_mean_unchecked(reference: &Image, test: &Image) -> f64 {
-    let (r, t) = rayon::join(
+    let (r, t) = flip_features_of(reference, test);
+    flip::error_mean(&r, &t)
+}
+
+/// Both images FLIP-prepared as they are (no metric background), in parallel.
+fn flip_features_of(reference: &Image, test: &Image) -> (FlipFeatures, FlipFeatures) {
+    rayon::join(
         || FlipFeatures::new(reference, None),
         || FlipFeatures::new(test, None),
-    );
-    flip::error_mean(&r, &t)
+    )
 }
 
 /// Rec. 709 luma of the 8-bit sRGB-encoded values, one `f32` per pixel.

@@ -163,7 +163,6 @@ impl KdTree {
             Vec::<Knn>::new,
             |heaps, (r, out)| {
                 heaps.resize_with(r.len(), || Knn::new(k));
-                heaps.truncate(r.len());
                 heaps.iter_mut().for_each(Knn::clear);
                 let mut batch = Batch::new(&self.items[r.clone()], r.start, heaps);
                 let mut cell = [[f32::NEG_INFINITY, f32::INFINITY]; 3];

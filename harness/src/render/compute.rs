@@ -283,19 +283,10 @@ impl Renderer<'_> {
         drop(pass);
         let mut pass = enc.begin_render_pass(&wgpu::RenderPassDescriptor {
             label: Some("resolve"),
-            color_attachments: &[Some(wgpu::RenderPassColorAttachment {
-                view: &self.color_view,
-                depth_slice: None,
-                resolve_target: None,
-                ops: wgpu::Operations {
-                    load: if target.clear {
-                        wgpu::LoadOp::Clear(wgpu::Color::TRANSPARENT)
-                    } else {
-                        wgpu::LoadOp::Load
-                    },
-                    store: wgpu::StoreOp::Store,
-                },
-            })],
+            color_attachments: &[super::splats::color_attachment(
+                &self.color_view,
+                target.clear,
+            )],
             depth_stencil_attachment: self.depth_attachment(target.clear, target.store_depth),
             timestamp_writes: self
                 .timestamps

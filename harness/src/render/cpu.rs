@@ -136,18 +136,22 @@ fn raster(w: usize, h: usize, z: f32, f: &Footprint, mut visit: impl FnMut(usize
     if !(0.0..=1.0).contains(&z) {
         return;
     }
-    let r = f.half;
-    let x0 = ((f.cx - r - 0.5).ceil().max(0.0)) as usize;
-    let y0 = ((f.cy - r - 0.5).ceil().max(0.0)) as usize;
-    let x1 = ((f.cx + r - 0.5).ceil().min(w as f32)).max(0.0) as usize;
-    let y1 = ((f.cy + r - 0.5).ceil().min(h as f32)).max(0.0) as usize;
-    for y in y0..y1 {
-        for x in x0..x1 {
+    for y in pixel_span(f.cy, f.half, h) {
+        for x in pixel_span(f.cx, f.half, w) {
             if let Some(uv) = f.uv(x, y) {
                 visit(y * w + x, uv);
             }
         }
     }
+}
+
+/// The pixels `0..n` along one axis whose centre lies in `[c − r, c + r)` (the quads'
+/// top-left rule, and the compute rasteriser's).
+fn pixel_span(c: f32, r: f32, n: usize) -> std::ops::Range<usize> {
+    let n = n as f32;
+    let lo = (c - r - 0.5).ceil().clamp(0.0, n) as usize;
+    let hi = (c + r - 0.5).ceil().clamp(0.0, n) as usize;
+    lo..hi
 }
 
 /// What the CPU mirror drew.
@@ -299,14 +303,8 @@ fn draw_compute(
         let colour = u32::from_le_bytes([c[0], c[1], c[2], 255]);
         let key = (u64::from(f.z.to_bits()) << 32) | u64::from(colour);
         let r = f.half.min(cap);
-        let span = |c: f32, n: usize| {
-            let n = n as f32;
-            let lo = (c - r - 0.5).ceil().clamp(0.0, n) as usize;
-            let hi = (c + r - 0.5).ceil().clamp(0.0, n) as usize;
-            lo..hi
-        };
-        for y in span(f.cy, h) {
-            for x in span(f.cx, w) {
+        for y in pixel_span(f.cy, r, h) {
+            for x in pixel_span(f.cx, r, w) {
                 let k = &mut keys[y * w + x];
                 *k = (*k).min(key);
             }

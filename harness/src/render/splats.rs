@@ -31,9 +31,10 @@ impl Renderer<'_> {
     ) -> anyhow::Result<Option<(wgpu::Buffer, u64)>> {
         // One draw per part of each item's batch (a batch over the storage binding limit is
         // uploaded in parts, upload.rs), with its own uniform: the splats of the part sent.
-        let n = self.draw_slots(items, streams)?;
-        let mut draws = vec![0u8; (self.draw_stride * n.max(1)) as usize];
-        let mut resolved: Vec<(&wgpu::BindGroup, u32)> = Vec::with_capacity(n as usize);
+        // The draw buffer holds them all ([`Self::ensure_draw_capacity`]).
+        let stride = self.draw_stride as usize;
+        let mut draws: Vec<u8> = Vec::with_capacity(stride * items.len().max(1));
+        let mut resolved: Vec<(&wgpu::BindGroup, u32)> = Vec::with_capacity(items.len());
         // Draws whose splats pass an interval test: (draw index, splats sent); counter slot
         // = position in this list (the counts are summed into `gpu_passed`).
         let mut tested: Vec<(usize, u32)> = Vec::new();
@@ -76,13 +77,14 @@ impl Renderer<'_> {
                     u.slot = tested.len() as u32;
                     tested.push((draw, sent));
                 }
-                let off = draw * self.draw_stride as usize;
-                draws[off..off + std::mem::size_of::<DrawUniform>()]
-                    .copy_from_slice(bytemuck::bytes_of(&u));
+                draws.extend_from_slice(bytemuck::bytes_of(&u));
+                draws.resize((draw + 1) * stride, 0);
                 resolved.push((&part.bind_group, sent));
             }
         }
-        self.gpu.queue.write_buffer(&self.draw_ubo, 0, &draws);
+        if !draws.is_empty() {
+            self.gpu.queue.write_buffer(&self.draw_ubo, 0, &draws);
+        }
         let bg0 = self
             .gpu
             .device
@@ -120,21 +122,6 @@ impl Renderer<'_> {
                 }
             })
         };
-        let color = |view, clear: bool| {
-            Some(wgpu::RenderPassColorAttachment {
-                view,
-                depth_slice: None,
-                resolve_target: None,
-                ops: wgpu::Operations {
-                    load: if clear {
-                        wgpu::LoadOp::Clear(wgpu::Color::TRANSPARENT)
-                    } else {
-                        wgpu::LoadOp::Load
-                    },
-                    store: wgpu::StoreOp::Store,
-                },
-            })
-        };
         let depth = |clear: bool, store: bool| self.depth_attachment(clear, store);
         let splats = Splats {
             bg0: &bg0,
@@ -161,7 +148,7 @@ impl Renderer<'_> {
                 drop(p1);
                 let mut p2 = enc.begin_render_pass(&wgpu::RenderPassDescriptor {
                     label: Some("gaussian accumulate"),
-                    color_attachments: &[color(&g.accum_view, target.clear)],
+                    color_attachments: &[color_attachment(&g.accum_view, target.clear)],
                     depth_stencil_attachment: depth(false, target.store_depth),
                     timestamp_writes: None,
                     occlusion_query_set: None,
@@ -171,7 +158,7 @@ impl Renderer<'_> {
                 drop(p2);
                 let mut p3 = enc.begin_render_pass(&wgpu::RenderPassDescriptor {
                     label: Some("gaussian normalize"),
-                    color_attachments: &[color(&self.color_view, true)],
+                    color_attachments: &[color_attachment(&self.color_view, true)],
                     depth_stencil_attachment: None,
                     timestamp_writes: ts(false, true),
                     occlusion_query_set: None,
@@ -184,7 +171,7 @@ impl Renderer<'_> {
             _ => {
                 let mut pass = enc.begin_render_pass(&wgpu::RenderPassDescriptor {
                     label: Some("splats"),
-                    color_attachments: &[color(&self.color_view, target.clear)],
+                    color_attachments: &[color_attachment(&self.color_view, target.clear)],
                     depth_stencil_attachment: depth(target.clear, target.store_depth),
                     timestamp_writes: ts(true, true),
                     occlusion_query_set: None,
@@ -196,6 +183,7 @@ impl Renderer<'_> {
         Ok(counters)
     }
 
+    /// The depth attachment of a splat pass: cleared to 1 or loaded, stored or discarded.
     pub(super) fn depth_attachment(
         &self,
         clear: bool,
@@ -218,6 +206,26 @@ impl Renderer<'_> {
             stencil_ops: None,
         })
     }
+}
+
+/// A colour attachment of a splat pass: cleared to transparent (uncovered) or loaded; stored.
+pub(super) fn color_attachment(
+    view: &wgpu::TextureView,
+    clear: bool,
+) -> Option<wgpu::RenderPassColorAttachment<'_>> {
+    Some(wgpu::RenderPassColorAttachment {
+        view,
+        depth_slice: None,
+        resolve_target: None,
+        ops: wgpu::Operations {
+            load: if clear {
+                wgpu::LoadOp::Clear(wgpu::Color::TRANSPARENT)
+            } else {
+                wgpu::LoadOp::Load
+            },
+            store: wgpu::StoreOp::Store,
+        },
+    })
 }
 
 /// One frame's splat draws, recorded identically into every pass that needs them.

@@ -134,11 +134,7 @@ impl Renderer<'_> {
 
     /// Draws (uniform slots) one phase of `items` needs: one per part of each item's batch.
     /// The items' chunks must be cached and `streams` uploaded ([`Self::upload_items`]).
-    pub(super) fn draw_slots(
-        &self,
-        items: &[&DrawItem],
-        streams: &[GpuBatch],
-    ) -> anyhow::Result<u64> {
+    fn draw_slots(&self, items: &[&DrawItem], streams: &[GpuBatch]) -> anyhow::Result<u64> {
         let mut n = streams.iter().map(|g| g.parts.len() as u64).sum::<u64>();
         for item in items {
             if let Some((id, _, _)) = item.cached() {

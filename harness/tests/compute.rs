@@ -6,12 +6,14 @@
 #![allow(clippy::unwrap_used)]
 
 mod common;
-use common::{check_golden, disagreement, full, settings, view};
+use common::{
+    check_golden, covered, disagreement, front_view, full, settings, stream, view, with_pixel_size,
+};
 
 use harness::gpu::{AdapterDesc, gpu_for_test};
 use harness::image::Image;
 use harness::render::{Kernel, Raster, RenderSettings, Renderer, compute, cpu, dispatch_size};
-use methods::{DrawItem, DrawList, Feedback, SplatBatch, SplatSize, Target};
+use methods::{DrawItem, DrawList, Feedback, LodMethod, Target};
 use scenes::View;
 use scenes::generators::Generator;
 
@@ -23,43 +25,17 @@ fn compute_settings(w: u32, h: u32) -> RenderSettings {
     }
 }
 
-/// A camera at +Z 5 looking at the origin, 60° vertical field of view, near 0.1, far 10.
-fn front_view(w: u32, h: u32) -> View {
-    View {
-        camera: scenes::Camera {
-            position: glam::Vec3::new(0.0, 0.0, 5.0),
-            target: glam::Vec3::ZERO,
-            up: glam::Vec3::Y,
-            fov_y: 60f32.to_radians(),
-            near: 0.1,
-            far: 10.0,
-        },
-        width: w,
-        height: h,
-    }
-}
-
-/// One streamed batch of `size`-pixel splats with `colors` (packed RGBA8, little-endian).
-fn stream(points: &[[f32; 3]], colors: Option<Vec<u32>>, size: f32) -> DrawList {
-    DrawList {
-        items: vec![DrawItem::Stream {
-            batch: SplatBatch {
-                positions: points.to_vec(),
-                colors,
-                ..Default::default()
-            },
-            size: SplatSize::Pixels(size),
-        }],
-        ..Default::default()
-    }
-}
-
-/// Covered pixels (alpha > 0) of `img`, as (x, y).
-fn covered(img: &Image) -> Vec<(u32, u32)> {
-    (0..img.height)
-        .flat_map(|y| (0..img.width).map(move |x| (x, y)))
-        .filter(|&(x, y)| img.pixel(x, y)[3] > 0)
-        .collect()
+/// What the CPU mirror of the compute rasteriser draws for `list` (default shading).
+fn compute_mirror(v: &View, list: &DrawList, m: &dyn LodMethod) -> cpu::CpuFrame {
+    cpu::render_with(
+        v,
+        list,
+        m,
+        Kernel::Square,
+        &Default::default(),
+        Raster::Compute,
+    )
+    .unwrap()
 }
 
 /// The statue through `full` at radius sizes, 3 px and 1 px points: the GPU's compute
@@ -77,15 +53,7 @@ fn compute_matches_its_cpu_mirror_and_the_quads() {
     let radius_list = m
         .frame(&v, Target::Tolerance(1.0), &Feedback::default())
         .unwrap();
-    let sized = |px: f32| {
-        let mut l = radius_list.clone();
-        for it in &mut l.items {
-            if let DrawItem::Chunk { size, .. } = it {
-                *size = SplatSize::Pixels(px);
-            }
-        }
-        l
-    };
+    let sized = |px: f32| with_pixel_size(&radius_list, px);
     let mut compute = Renderer::new(&gpu, compute_settings(200, 150)).unwrap();
     let mut quads = Renderer::new(&gpu, settings(200, 150, Kernel::Square)).unwrap();
     for (name, list) in [
@@ -96,16 +64,7 @@ fn compute_matches_its_cpu_mirror_and_the_quads() {
         let (stats, img) = compute.draw(&v, &list, m.as_ref(), true).unwrap();
         assert_eq!(stats.points, 6_000, "{name}");
         let img = img.unwrap();
-        let mirror = cpu::render_with(
-            &v,
-            &list,
-            m.as_ref(),
-            Kernel::Square,
-            &Default::default(),
-            Raster::Compute,
-        )
-        .unwrap()
-        .image;
+        let mirror = compute_mirror(&v, &list, m.as_ref()).image;
         let n = mirror.coverage_count();
         assert!(n > 1_000, "{name}: the view shows the statue ({n} px)");
         // Coverage: the same rule in f32 on both sides. Measured on lavapipe: identical (0
@@ -141,7 +100,7 @@ fn compute_matches_its_cpu_mirror_and_the_quads() {
 }
 
 /// Exact footprints: a 5 px splat covers its 25 pixels, a 1 px point exactly one, a 4 px
-/// splat centred on a pixel corner 16; a 20 px splat centred on the image corner only its
+/// one 16 (4 × 4 centres in [48.5, 52.5)); a 20 px splat centred on the image corner only its
 /// on-screen quarter (10 × 10); a splat behind the eye or beyond the far plane nothing.
 #[test]
 fn footprints_are_exact_and_clipped_by_the_screen() {
@@ -172,15 +131,7 @@ fn footprints_are_exact_and_clipped_by_the_screen() {
     let c = covered(&img);
     assert_eq!(c.len(), 100, "{c:?}");
     assert!(c.iter().all(|&(x, y)| x < 10 && y < 10));
-    let mirror = cpu::render_with(
-        &v,
-        &stream(&[corner], None, 20.0),
-        m.as_ref(),
-        Kernel::Square,
-        &Default::default(),
-        Raster::Compute,
-    )
-    .unwrap();
+    let mirror = compute_mirror(&v, &stream(&[corner], None, 20.0), m.as_ref());
     assert_eq!(covered(&mirror.image), c);
     assert!(
         covered(&draw(&stream(&[[0.0, 0.0, 9.0]], None, 5.0))).is_empty(),
@@ -224,15 +175,7 @@ fn nearest_wins_and_ties_are_deterministic() {
         let list = stream(&points, Some(colors.clone()), 3.0);
         let (_, img) = r.draw(&v, &list, m.as_ref(), true).unwrap();
         assert_eq!(centre(&img.unwrap()), expect, "{points:?} {colors:x?}");
-        let mirror = cpu::render_with(
-            &v,
-            &list,
-            m.as_ref(),
-            Kernel::Square,
-            &Default::default(),
-            Raster::Compute,
-        )
-        .unwrap();
+        let mirror = compute_mirror(&v, &list, m.as_ref());
         assert_eq!(
             centre(&mirror.image),
             expect,
@@ -318,7 +261,7 @@ fn golden_compute_images() {
         .unwrap();
         let mut m = methods::MethodKind::open(&dir).unwrap();
         r.clear_cache(); // chunk ids are per method
-        let mut list = m
+        let list = m
             .frame(&v, Target::Tolerance(1.0), &Feedback::default())
             .unwrap();
         let (_, img) = r.draw(&v, &list, m.as_ref(), true).unwrap();
@@ -328,12 +271,8 @@ fn golden_compute_images() {
         };
         check_golden(&name, &img.unwrap(), 0.02);
         if kind == methods::MethodKind::Full {
-            for it in &mut list.items {
-                if let DrawItem::Chunk { size, .. } = it {
-                    *size = SplatSize::Pixels(1.0);
-                }
-            }
-            let (_, img) = r.draw(&v, &list, m.as_ref(), true).unwrap();
+            let points = with_pixel_size(&list, 1.0);
+            let (_, img) = r.draw(&v, &points, m.as_ref(), true).unwrap();
             check_golden("statue-compute-points", &img.unwrap(), 0.02);
         }
     }

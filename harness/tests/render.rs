@@ -10,7 +10,9 @@
 #![allow(clippy::unwrap_used)]
 
 mod common;
-use common::{check_golden, disagreement, full, settings, view};
+use common::{
+    check_golden, disagreement, front_view, full, settings, stream, view, with_pixel_size,
+};
 
 use harness::gpu::{Gpu, gpu_for_test};
 use harness::image::Image;
@@ -34,12 +36,7 @@ fn gpu_matches_cpu_mirror() {
     let radius_list = m
         .frame(&v, Target::Tolerance(1.0), &Feedback::default())
         .unwrap();
-    let mut px_list = radius_list.clone();
-    for it in &mut px_list.items {
-        if let DrawItem::Chunk { size, .. } = it {
-            *size = SplatSize::Pixels(3.0);
-        }
-    }
+    let px_list = with_pixel_size(&radius_list, 3.0);
     for &kernel in Kernel::ALL {
         let mut r = Renderer::new(&gpu, settings(200, 150, kernel)).unwrap();
         for (name, list) in [("radius", &radius_list), ("pixels", &px_list)] {
@@ -87,19 +84,6 @@ fn golden_image_per_kernel() {
     }
 }
 
-fn stream(points: &[[f32; 3]]) -> DrawList {
-    DrawList {
-        items: vec![DrawItem::Stream {
-            batch: SplatBatch {
-                positions: points.to_vec(),
-                ..Default::default()
-            },
-            size: SplatSize::Pixels(5.0),
-        }],
-        ..Default::default()
-    }
-}
-
 #[test]
 fn odd_sizes_flat_colour_and_timestamps() {
     let Some(gpu) = gpu_for_test("odd_sizes_flat_colour_and_timestamps") else {
@@ -109,21 +93,10 @@ fn odd_sizes_flat_colour_and_timestamps() {
     let cloud = Generator::Statue.generate(1_000, 1).unwrap();
     let m = full(&cloud, tmp.path());
     // 101 × 37: rows are padded to 256 bytes in the readback; the image must not shear.
-    let v = View {
-        camera: scenes::Camera {
-            position: glam::Vec3::new(0.0, 0.0, 5.0),
-            target: glam::Vec3::ZERO,
-            up: glam::Vec3::Y,
-            fov_y: 60f32.to_radians(),
-            near: 0.1,
-            far: 10.0,
-        },
-        width: 101,
-        height: 37,
-    };
+    let v = front_view(101, 37);
     let mut r = Renderer::new(&gpu, settings(101, 37, Kernel::Square)).unwrap();
     let (stats, img) = r
-        .draw(&v, &stream(&[[0.0, 0.0, 0.0]]), m.as_ref(), true)
+        .draw(&v, &stream(&[[0.0, 0.0, 0.0]], None, 5.0), m.as_ref(), true)
         .unwrap();
     let img = img.unwrap();
     assert_eq!(img.rgba.len(), 101 * 37 * 4);
@@ -151,7 +124,7 @@ fn odd_sizes_flat_colour_and_timestamps() {
     }
     // A splat behind the camera draws nothing.
     let (_, img) = r
-        .draw(&v, &stream(&[[0.0, 0.0, 9.0]]), m.as_ref(), true)
+        .draw(&v, &stream(&[[0.0, 0.0, 9.0]], None, 5.0), m.as_ref(), true)
         .unwrap();
     assert!(img.unwrap().rgba.chunks(4).all(|p| p[3] == 0));
 }

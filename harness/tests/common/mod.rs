@@ -5,6 +5,7 @@ use std::path::{Path, PathBuf};
 
 use harness::image::Image;
 use harness::render::{Kernel, RenderSettings};
+use methods::{DrawItem, DrawList, SplatBatch, SplatSize};
 use methods::{LodMethod, MethodKind, Params};
 use scenes::paths::PathSpec;
 use scenes::{PointCloud, View};
@@ -92,4 +93,54 @@ pub fn check_golden(name: &str, img: &Image, max_flip: f64) {
             out.display()
         );
     }
+}
+
+/// A camera at +Z 5 looking at the origin, 60° vertical field of view, near 0.1, far 10.
+pub fn front_view(w: u32, h: u32) -> View {
+    View {
+        camera: scenes::Camera {
+            position: glam::Vec3::new(0.0, 0.0, 5.0),
+            target: glam::Vec3::ZERO,
+            up: glam::Vec3::Y,
+            fov_y: 60f32.to_radians(),
+            near: 0.1,
+            far: 10.0,
+        },
+        width: w,
+        height: h,
+    }
+}
+
+/// One streamed batch of `size`-pixel splats with `colors` (packed RGBA8, little-endian).
+pub fn stream(points: &[[f32; 3]], colors: Option<Vec<u32>>, size: f32) -> DrawList {
+    DrawList {
+        items: vec![DrawItem::Stream {
+            batch: SplatBatch {
+                positions: points.to_vec(),
+                colors,
+                ..Default::default()
+            },
+            size: SplatSize::Pixels(size),
+        }],
+        ..Default::default()
+    }
+}
+
+/// Covered pixels (alpha > 0) of `img`, as (x, y).
+pub fn covered(img: &Image) -> Vec<(u32, u32)> {
+    (0..img.height)
+        .flat_map(|y| (0..img.width).map(move |x| (x, y)))
+        .filter(|&(x, y)| img.pixel(x, y)[3] > 0)
+        .collect()
+}
+
+/// `list` with every cached chunk drawn at `px` pixels instead of its own size mode.
+pub fn with_pixel_size(list: &DrawList, px: f32) -> DrawList {
+    let mut l = list.clone();
+    for it in &mut l.items {
+        if let DrawItem::Chunk { size, .. } = it {
+            *size = SplatSize::Pixels(px);
+        }
+    }
+    l
 }

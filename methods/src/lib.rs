@@ -29,6 +29,7 @@ pub mod params;
 pub mod qsplat;
 pub mod registry;
 pub mod sortkey;
+pub mod spill;
 pub mod spt;
 pub mod store;
 pub mod strays;

@@ -75,9 +75,9 @@ impl QTree {
 
 /// True (unquantised) properties of a node.
 #[derive(Debug, Clone, Copy)]
-struct TrueNode {
-    c: Vec3,
-    r: f32,
+pub(super) struct TrueNode {
+    pub c: Vec3,
+    pub r: f32,
     /// Mean normal, unit (zero when the scene has none or the children cancel).
     n: Vec3,
     /// Half-angle around `n` covering all normals below, radians (π = any).
@@ -101,7 +101,7 @@ pub struct Built {
 }
 
 /// A sphere code, the sphere it decodes to, and the absolute margin it was encoded with.
-type Encoded = (u16, (Vec3, f32), f64);
+pub(super) type Encoded = (u16, (Vec3, f32), f64);
 
 /// Where a range is split (`--param split=`).
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Default, serde::Deserialize, serde::Serialize)]
@@ -246,18 +246,21 @@ fn partition(
 
 impl Binary {
     /// Partitions `perm` and records the binary tree.
-    fn build(perm: &mut [u32], pos: &[[f32; 3]], opt: BuildOptions) -> Self {
+    fn build(perm: &mut [u32], pos: &[[f32; 3]], opt: BuildOptions) -> (Self, Cost) {
         let n = perm.len();
         let mut left = vec![0u32; n];
         let mut right = vec![0u32; n];
         let mut grand = vec![false; n];
-        let (root, _) = partition(perm, 0, pos, opt, &mut left, &mut right, &mut grand);
-        Self {
-            left,
-            right,
-            grand,
-            root,
-        }
+        let (root, cost) = partition(perm, 0, pos, opt, &mut left, &mut right, &mut grand);
+        (
+            Self {
+                left,
+                right,
+                grand,
+                root,
+            },
+            cost,
+        )
     }
 
     /// Children of the node `(lo, hi, m)` in the combined tree, as `(lo, hi, split)`.
@@ -284,7 +287,7 @@ fn f32_up(v: f64) -> f32 {
     if (f as f64) < v { f.next_up() } else { f }
 }
 
-fn combine(kids: &[TrueNode], normals: bool) -> TrueNode {
+pub(super) fn combine(kids: &[TrueNode], normals: bool) -> TrueNode {
     let mut lo = DVec3::splat(f64::INFINITY);
     let mut hi = DVec3::splat(f64::NEG_INFINITY);
     for k in kids {
@@ -349,18 +352,321 @@ pub fn quantise_normal(n: Vec3, cone: f64, has_normals: bool) -> (u16, u8) {
     (code as u16, quant::cone_class(need))
 }
 
+/// Per-sample inputs of a (sub)tree, indexed `0..n` in input order (the whole cloud in
+/// core; a unit's samples, in input order, out of core).
+#[derive(Clone, Copy)]
+pub(super) struct Samples<'a> {
+    pub pos: &'a [[f32; 3]],
+    pub radii: &'a [f32],
+    pub normals: Option<&'a [[f32; 3]]>,
+    pub colors: Option<&'a [[u8; 3]]>,
+}
+
+/// The combined-tree nodes below a list of roots, breadth-first: `ranges[l]` lists level
+/// `l`'s nodes as `(lo, hi, split)`; `child_start[l][i]..child_start[l][i + 1]` indexes the
+/// children of node `i` in level `l + 1`.
+pub(super) struct Forest {
+    pub ranges: Vec<Vec<(u32, u32, u32)>>,
+    pub child_start: Vec<Vec<u32>>,
+}
+
+impl Forest {
+    /// The combined subtrees of `roots` (nodes of `tree`), level by level.
+    fn new(tree: &Binary, roots: Vec<(u32, u32, u32)>) -> Self {
+        let mut ranges: Vec<Vec<(u32, u32, u32)>> = vec![roots];
+        let mut child_start: Vec<Vec<u32>> = Vec::new();
+        while let Some(cur) = ranges.last() {
+            let mut next = Vec::new();
+            let mut starts = Vec::with_capacity(cur.len() + 1);
+            for &r in cur {
+                starts.push(next.len() as u32);
+                tree.children(r, &mut next);
+            }
+            starts.push(next.len() as u32);
+            child_start.push(starts);
+            if next.is_empty() {
+                break;
+            }
+            ranges.push(next);
+        }
+        Self {
+            ranges,
+            child_start,
+        }
+    }
+
+    /// True properties of every node, bottom-up.
+    pub(super) fn truths(&self, perm: &[u32], s: Samples<'_>) -> Vec<Vec<TrueNode>> {
+        let has_n = s.normals.is_some();
+        let mut truth: Vec<Vec<TrueNode>> = vec![Vec::new(); self.ranges.len()];
+        for l in (0..self.ranges.len()).rev() {
+            let (below, this) = {
+                let (a, b) = truth.split_at_mut(l + 1);
+                (b.first().map(|v| v.as_slice()).unwrap_or(&[]), &mut a[l])
+            };
+            let starts = &self.child_start[l];
+            *this = self.ranges[l]
+                .par_iter()
+                .enumerate()
+                .map(|(i, &(lo, hi, _))| {
+                    if hi - lo == 1 {
+                        leaf_truth(s, perm[lo as usize] as usize)
+                    } else {
+                        combine(&below[starts[i] as usize..starts[i + 1] as usize], has_n)
+                    }
+                })
+                .collect();
+        }
+        truth
+    }
+}
+
+fn leaf_truth(s: Samples<'_>, i: usize) -> TrueNode {
+    let nrm = s
+        .normals
+        .map(|v| Vec3::from(v[i]).normalize_or_zero())
+        .unwrap_or(Vec3::ZERO);
+    TrueNode {
+        c: Vec3::from(s.pos[i]),
+        r: s.radii[i].max(0.0),
+        n: nrm,
+        cone: if s.normals.is_some() && nrm != Vec3::ZERO {
+            0.0
+        } else {
+            std::f64::consts::PI
+        },
+        color: s.colors.map(|c| c[i].map(|v| v as f32)).unwrap_or([0.0; 3]),
+        weight: 1,
+    }
+}
+
+/// A sphere's absolute quantisation margin, from its own coordinates ([`quant::abs_margin`]
+/// of its |centre| + radius).
+fn sphere_margin(t: &TrueNode) -> f64 {
+    quant::abs_margin(t.c.abs().max_element() + t.r)
+}
+
+/// The decoded root sphere and its margin: the true sphere grown by its margin, so every
+/// child satisfies [`quant::encode_sphere`]'s precondition.
+pub(super) fn root_sphere(root: &TrueNode) -> ((Vec3, f32), f64) {
+    let margin = sphere_margin(root);
+    let r = f32_up(quant::needed_radius(
+        root.c.as_dvec3(),
+        root.c.as_dvec3(),
+        root.r as f64,
+        margin,
+    ));
+    ((root.c, r), margin)
+}
+
+/// The sphere code of `t` inside its parent's decoded sphere `(pc, pr)` of margin
+/// `pmargin`. Each sphere's absolute margin is taken from its own coordinates, capped by its
+/// parent's: a child inside its parent has `|c|∞ + r ≤ |C|∞ + R`, so the cap only absorbs
+/// `f32` rounding, and margins shrink down the tree. `what` names the node in the error.
+pub(super) fn encode_child(
+    t: &TrueNode,
+    (pc, pr): (Vec3, f32),
+    pmargin: f64,
+    what: impl FnOnce() -> String,
+) -> Result<Encoded, MethodError> {
+    let margin = sphere_margin(t).min(pmargin);
+    quant::encode_sphere(pc, pr, t.c, t.r, margin)
+        .map(|(code, c, r)| (code as u16, (c, r), margin))
+        .ok_or_else(|| {
+            MethodError::Limit(format!(
+                "qsplat: {} has no enclosing sphere code (sphere {} r {} in parent {pc} r {pr})",
+                what(),
+                t.c,
+                t.r
+            ))
+        })
+}
+
+/// The stored node of `t`, given its sphere code and child structure.
+pub(super) fn qnode(
+    t: &TrueNode,
+    sphere: u16,
+    children: u8,
+    all_leaves: bool,
+    has_n: bool,
+    has_c: bool,
+) -> QNode {
+    let (normal, cone) = quantise_normal(t.n, t.cone, has_n);
+    QNode {
+        sphere,
+        normal,
+        cone,
+        children,
+        all_leaves,
+        color: if has_c { quant::rgb565(t.color) } else { 0 },
+    }
+}
+
+/// Where the roots of a forest get their spheres from.
+#[derive(Debug, Clone, Copy)]
+pub(super) enum Parent {
+    /// The forest is the whole tree: its one root's sphere goes into the header.
+    Root,
+    /// The roots are children of a node with this decoded sphere and margin.
+    Node((Vec3, f32), f64),
+}
+
+/// A forest quantised top-down: stored nodes per level, and (with `debug`) the decoded
+/// spheres.
+pub(super) struct Quantised {
+    pub levels: Vec<Vec<QNode>>,
+    /// The header's root sphere ([`Parent::Root`] only).
+    pub root: [f32; 4],
+    pub decoded: Vec<Vec<(Vec3, f32)>>,
+}
+
+impl Forest {
+    /// Quantises every node top-down from the *decoded* parents. `base_level` numbers the
+    /// roots' level in errors.
+    pub(super) fn quantise(
+        &self,
+        truth: &[Vec<TrueNode>],
+        parent: Parent,
+        (has_n, has_c): (bool, bool),
+        base_level: usize,
+        debug: bool,
+    ) -> Result<Quantised, MethodError> {
+        let mut root = [0.0; 4];
+        let mut decoded: Vec<Vec<(Vec3, f32)>> = Vec::new();
+        let mut margins: Vec<Vec<f64>> = Vec::new();
+        let mut levels: Vec<Vec<QNode>> = Vec::with_capacity(self.ranges.len());
+        for l in 0..self.ranges.len() {
+            let res: Vec<Encoded> = if l == 0 {
+                match parent {
+                    Parent::Root => {
+                        let ((c, r), m) = root_sphere(&truth[0][0]);
+                        root = [c.x, c.y, c.z, r];
+                        vec![(0, (c, r), m)]
+                    }
+                    Parent::Node(pd, pm) => truth[0]
+                        .iter()
+                        .enumerate()
+                        .map(|(i, t)| {
+                            encode_child(t, pd, pm, || format!("node {i} of level {base_level}"))
+                        })
+                        .collect::<Result<_, _>>()?,
+                }
+            } else {
+                let starts = &self.child_start[l - 1];
+                let mut parent = Vec::with_capacity(self.ranges[l].len());
+                for p in 0..self.ranges[l - 1].len() {
+                    parent.extend(std::iter::repeat_n(
+                        p as u32,
+                        (starts[p + 1] - starts[p]) as usize,
+                    ));
+                }
+                let (pdec, pmargin) = (&decoded[l - 1], &margins[l - 1]);
+                truth[l]
+                    .par_iter()
+                    .zip(parent.par_iter())
+                    .enumerate()
+                    .map(|(i, (t, &p))| {
+                        encode_child(t, pdec[p as usize], pmargin[p as usize], || {
+                            format!("node {i} of level {}", base_level + l)
+                        })
+                    })
+                    .collect::<Result<_, _>>()?
+            };
+            let codes: Vec<u16> = res.iter().map(|e| e.0).collect();
+            levels.push(self.stored_level(l, truth, &codes, has_n, has_c));
+            decoded.push(res.iter().map(|e| e.1).collect());
+            margins.push(res.iter().map(|e| e.2).collect());
+            // The level above is no longer needed (its children are encoded).
+            if l >= 1 && !debug {
+                decoded[l - 1] = Vec::new();
+                margins[l - 1] = Vec::new();
+            }
+        }
+        Ok(Quantised {
+            levels,
+            root,
+            decoded,
+        })
+    }
+
+    fn stored_level(
+        &self,
+        l: usize,
+        truth: &[Vec<TrueNode>],
+        codes: &[u16],
+        has_n: bool,
+        has_c: bool,
+    ) -> Vec<QNode> {
+        let starts = &self.child_start[l];
+        let next_starts = self.child_start.get(l + 1);
+        (0..self.ranges[l].len())
+            .into_par_iter()
+            .map(|i| {
+                let children = (starts[i + 1] - starts[i]) as u8;
+                let all_leaves = children > 0
+                    && next_starts.is_none_or(|ns| {
+                        (starts[i]..starts[i + 1]).all(|c| ns[c as usize + 1] == ns[c as usize])
+                    });
+                qnode(&truth[l][i], codes[i], children, all_leaves, has_n, has_c)
+            })
+            .collect()
+    }
+}
+
+/// Which roots a subtree's forest has.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub(super) enum Roots {
+    /// The subtree's root range is a node of the combined tree.
+    Whole,
+    /// Its parent took its grandchildren: the root's two binary children are the nodes.
+    Children,
+}
+
+/// A subtree partitioned and laid out as a forest: the permutation, the binary tree, and
+/// the root's split and costs.
+pub(super) struct Partitioned {
+    pub perm: Vec<u32>,
+    tree: Binary,
+    /// The root's cost: (interior nodes of its combined subtree, the same summed over its
+    /// binary children).
+    pub cost: (u64, u64),
+}
+
+impl Partitioned {
+    /// Partitions the `n` samples at `pos`.
+    pub(super) fn new(pos: &[[f32; 3]], opt: BuildOptions) -> Self {
+        let mut perm: Vec<u32> = (0..pos.len() as u32).collect();
+        let (tree, cost) = Binary::build(&mut perm, pos, opt);
+        Self { perm, tree, cost }
+    }
+
+    /// The root's split (0 for a single sample).
+    pub(super) fn root_split(&self) -> u32 {
+        self.tree.root
+    }
+
+    /// The forest of the given roots.
+    pub(super) fn forest(&self, roots: Roots) -> Forest {
+        let n = self.perm.len() as u32;
+        let m = self.tree.root;
+        let r = match roots {
+            Roots::Whole => vec![(0, n, m)],
+            Roots::Children => {
+                let i = m as usize;
+                vec![(0, m, self.tree.left[i]), (m, n, self.tree.right[i])]
+            }
+        };
+        Forest::new(&self.tree, r)
+    }
+}
+
 /// Builds and quantises the hierarchy of `cloud` with leaf radii `radii`.
 pub fn build_tree(cloud: &PointCloud, radii: &[f32]) -> Result<Built, MethodError> {
     build_tree_with(cloud, radii, BuildOptions::default())
 }
 
-/// [`build_tree`] with explicit split and combine rules.
-pub fn build_tree_with(
-    cloud: &PointCloud,
-    radii: &[f32],
-    opt: BuildOptions,
-) -> Result<Built, MethodError> {
-    let n = cloud.len();
+/// Checks that a tree of `n` samples can be built.
+pub(super) fn check_size(n: usize) -> Result<(), MethodError> {
     if n == 0 {
         return Err(MethodError::Limit(
             "qsplat: the cloud has no samples".into(),
@@ -371,161 +677,69 @@ pub fn build_tree_with(
             "qsplat: {n} samples exceed the 32-bit index"
         )));
     }
-    let pos = cloud.positions();
-    let mut perm: Vec<u32> = (0..n as u32).collect();
-    let tree = Binary::build(&mut perm, pos, opt);
+    Ok(())
+}
 
-    // Levels of ranges `(lo, hi, split)`, breadth-first; child_start[l][i] indexes level l + 1.
-    let mut ranges: Vec<Vec<(u32, u32, u32)>> = vec![vec![(0, n as u32, tree.root)]];
-    let mut child_start: Vec<Vec<u32>> = Vec::new();
-    while let Some(cur) = ranges.last() {
-        let mut next = Vec::new();
-        let mut starts = Vec::with_capacity(cur.len() + 1);
-        for &r in cur {
-            starts.push(next.len() as u32);
-            tree.children(r, &mut next);
-        }
-        starts.push(next.len() as u32);
-        child_start.push(starts);
-        if next.is_empty() {
-            break;
-        }
-        ranges.push(next);
+/// The samples of a whole cloud.
+pub(super) fn cloud_samples<'a>(cloud: &'a PointCloud, radii: &'a [f32]) -> Samples<'a> {
+    Samples {
+        pos: cloud.positions(),
+        radii,
+        normals: cloud.normals(),
+        colors: cloud.colors(),
     }
+}
 
-    drop(tree);
+/// [`build_tree`] with explicit split and combine rules, in memory, keeping the true and
+/// decoded spheres and normals for tests.
+pub fn build_tree_with(
+    cloud: &PointCloud,
+    radii: &[f32],
+    opt: BuildOptions,
+) -> Result<Built, MethodError> {
+    build_in_memory(cloud, radii, opt, true)
+}
 
-    // Bottom-up true properties.
-    let normals = cloud.normals();
-    let colors = cloud.colors();
-    let has_n = normals.is_some();
-    let mut truth: Vec<Vec<TrueNode>> = vec![Vec::new(); ranges.len()];
-    for l in (0..ranges.len()).rev() {
-        let (below, this) = {
-            let (a, b) = truth.split_at_mut(l + 1);
-            (b.first().map(|v| v.as_slice()).unwrap_or(&[]), &mut a[l])
-        };
-        let starts = &child_start[l];
-        *this = ranges[l]
-            .par_iter()
-            .enumerate()
-            .map(|(i, &(lo, hi, _))| {
-                if hi - lo == 1 {
-                    let s = perm[lo as usize] as usize;
-                    let nrm = normals
-                        .map(|v| Vec3::from(v[s]).normalize_or_zero())
-                        .unwrap_or(Vec3::ZERO);
-                    TrueNode {
-                        c: Vec3::from(pos[s]),
-                        r: radii[s].max(0.0),
-                        n: nrm,
-                        cone: if has_n && nrm != Vec3::ZERO {
-                            0.0
-                        } else {
-                            std::f64::consts::PI
-                        },
-                        color: colors.map(|c| c[s].map(|v| v as f32)).unwrap_or([0.0; 3]),
-                        weight: 1,
-                    }
-                } else {
-                    combine(&below[starts[i] as usize..starts[i + 1] as usize], has_n)
-                }
-            })
-            .collect();
+/// The in-memory build; the true and decoded spheres and normals are kept only with
+/// `debug` (empty otherwise).
+pub(super) fn build_in_memory(
+    cloud: &PointCloud,
+    radii: &[f32],
+    opt: BuildOptions,
+    debug: bool,
+) -> Result<Built, MethodError> {
+    check_size(cloud.len())?;
+    let s = cloud_samples(cloud, radii);
+    let part = Partitioned::new(s.pos, opt);
+    let forest = part.forest(Roots::Whole);
+    let truth = forest.truths(&part.perm, s);
+    let attrs = (s.normals.is_some(), s.colors.is_some());
+    let q = forest.quantise(&truth, Parent::Root, attrs, 0, debug)?;
+    if !debug {
+        return Ok(Built {
+            tree: QTree {
+                levels: q.levels,
+                root: q.root,
+                normals: attrs.0,
+                colors: attrs.1,
+            },
+            true_spheres: Vec::new(),
+            decoded_spheres: Vec::new(),
+            true_normals: Vec::new(),
+        });
     }
-
-    // Top-down quantisation.
-    let root = truth[0][0];
-    // Each sphere's absolute margin is taken from its own coordinates (`quant::abs_margin`
-    // of its |centre| + radius), capped by its parent's: a child inside its parent has
-    // `|c|∞ + r ≤ |C|∞ + R`, so the cap only absorbs `f32` rounding, and margins shrink down
-    // the tree. The stored root sphere is the true one grown by its margins, so every child
-    // satisfies `encode_sphere`'s precondition (and inductively every level below).
-    let sphere_margin = |t: &TrueNode| quant::abs_margin(t.c.abs().max_element() + t.r);
-    let root_margin = sphere_margin(&root);
-    let root_r = f32_up(quant::needed_radius(
-        root.c.as_dvec3(),
-        root.c.as_dvec3(),
-        root.r as f64,
-        root_margin,
-    ));
-    let mut decoded: Vec<Vec<(Vec3, f32)>> = vec![vec![(root.c, root_r)]];
-    let mut margins: Vec<Vec<f64>> = vec![vec![root_margin]];
-    let mut sphere_codes: Vec<Vec<u16>> = vec![vec![0]];
-    for l in 1..ranges.len() {
-        let starts = &child_start[l - 1];
-        let mut parent = Vec::with_capacity(ranges[l].len());
-        for p in 0..ranges[l - 1].len() {
-            parent.extend(std::iter::repeat_n(
-                p as u32,
-                (starts[p + 1] - starts[p]) as usize,
-            ));
-        }
-        let (pdec, pmargin) = (&decoded[l - 1], &margins[l - 1]);
-        let res: Result<Vec<Encoded>, MethodError> = truth[l]
-            .par_iter()
-            .zip(parent.par_iter())
-            .enumerate()
-            .map(|(i, (t, &p))| {
-                let (pc, pr) = pdec[p as usize];
-                let margin = sphere_margin(t).min(pmargin[p as usize]);
-                quant::encode_sphere(pc, pr, t.c, t.r, margin)
-                    .map(|(code, c, r)| (code as u16, (c, r), margin))
-                    .ok_or_else(|| {
-                        MethodError::Limit(format!(
-                            "qsplat: node {i} of level {l} has no enclosing sphere code \
-                             (sphere {} r {} in parent {pc} r {pr})",
-                            t.c, t.r
-                        ))
-                    })
-            })
-            .collect();
-        let res = res?;
-        sphere_codes.push(res.iter().map(|e| e.0).collect());
-        decoded.push(res.iter().map(|e| e.1).collect());
-        margins.push(res.iter().map(|e| e.2).collect());
-    }
-
-    let has_c = colors.is_some();
-    let levels: Vec<Vec<QNode>> = (0..ranges.len())
-        .map(|l| {
-            let starts = &child_start[l];
-            let next_starts = child_start.get(l + 1);
-            (0..ranges[l].len())
-                .into_par_iter()
-                .map(|i| {
-                    let t = &truth[l][i];
-                    let children = (starts[i + 1] - starts[i]) as u8;
-                    let all_leaves = children > 0
-                        && next_starts.is_none_or(|ns| {
-                            (starts[i]..starts[i + 1]).all(|c| ns[c as usize + 1] == ns[c as usize])
-                        });
-                    let (normal, cone) = quantise_normal(t.n, t.cone, has_n);
-                    QNode {
-                        sphere: sphere_codes[l][i],
-                        normal,
-                        cone,
-                        children,
-                        all_leaves,
-                        color: if has_c { quant::rgb565(t.color) } else { 0 },
-                    }
-                })
-                .collect()
-        })
-        .collect();
-
     Ok(Built {
         tree: QTree {
-            levels,
-            root: [root.c.x, root.c.y, root.c.z, root_r],
-            normals: has_n,
-            colors: has_c,
+            levels: q.levels,
+            root: q.root,
+            normals: attrs.0,
+            colors: attrs.1,
         },
         true_spheres: truth
             .iter()
             .map(|l| l.iter().map(|t| (t.c, t.r)).collect())
             .collect(),
-        decoded_spheres: decoded,
+        decoded_spheres: q.decoded,
         true_normals: truth
             .iter()
             .map(|l| l.iter().map(|t| t.n).collect())

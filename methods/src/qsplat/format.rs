@@ -129,57 +129,80 @@ pub struct FileStats {
     pub pointers: u64,
 }
 
+/// The nodes of a tree, level by level in breadth-first order, as the writer reads them: in
+/// memory ([`QTree`]) or from an out-of-core build's spill files.
+pub trait Levels {
+    /// Number of levels.
+    fn count(&self) -> usize;
+    /// Calls `f` with level `l`'s nodes, in order, in one or more slices.
+    fn visit(
+        &self,
+        l: usize,
+        f: &mut dyn FnMut(&[QNode]) -> Result<(), MethodError>,
+    ) -> Result<(), MethodError>;
+}
+
+impl Levels for QTree {
+    fn count(&self) -> usize {
+        self.levels.len()
+    }
+    fn visit(
+        &self,
+        l: usize,
+        f: &mut dyn FnMut(&[QNode]) -> Result<(), MethodError>,
+    ) -> Result<(), MethodError> {
+        f(&self.levels[l])
+    }
+}
+
 /// Writes `tree` to `path` (through a temporary file and a rename).
 pub fn write(path: &Path, tree: &QTree) -> Result<FileStats, MethodError> {
-    let nb = node_bytes(tree.colors);
-    let nodes = tree.nodes();
-    let mut body: Vec<u8> = Vec::with_capacity(nodes as usize * nb + nodes as usize);
-    let mut pointers = 0u64;
-    // Groups of the current level: (first node index, count, has pointer).
-    let mut groups: Vec<(usize, usize, bool)> = vec![(0, 1, nodes > 1)];
-    for (l, level) in tree.levels.iter().enumerate() {
-        let level_bytes: usize = groups
-            .iter()
-            .map(|&(_, c, p)| c * nb + 4 * p as usize)
-            .sum();
-        let mut cursor = body.len() + level_bytes;
-        let mut next = Vec::new();
-        let mut child = 0usize;
-        for &(start, count, has_ptr) in &groups {
-            if has_ptr {
-                let p = u32::try_from(cursor).map_err(|_| {
-                    MethodError::Limit(format!(
-                        "{}: level {l} needs a pointer beyond 4 GiB",
-                        path.display()
-                    ))
-                })?;
-                body.extend_from_slice(&p.to_le_bytes());
-                pointers += 1;
-            }
-            for n in &level[start..start + count] {
-                body.extend_from_slice(&pack(n).to_le_bytes());
-                if tree.colors {
-                    body.extend_from_slice(&n.color.to_le_bytes());
-                }
-                if n.children > 0 {
-                    let c = n.children as usize;
-                    next.push((child, c, !n.all_leaves));
-                    cursor += c * nb + 4 * (!n.all_leaves) as usize;
-                    child += c;
-                }
-            }
-        }
-        groups = next;
+    write_levels(path, tree, tree.root, tree.normals, tree.colors)
+}
+
+/// Bytes of the group of `n`'s children (its pointer included); 0 for a leaf.
+fn child_group_bytes(n: &QNode, nb: u64) -> u64 {
+    if n.children == 0 {
+        0
+    } else {
+        n.children as u64 * nb + 4 * (!n.all_leaves) as u64
     }
-    if u32::try_from(body.len()).is_err() {
+}
+
+/// Writes the tree whose nodes `levels` yields, with root sphere `root`, to `path` (through
+/// a temporary file and a rename). Streams: one pass over the levels counts nodes, leaves,
+/// pointers and bytes for the header, a second writes the body; besides I/O buffers it holds
+/// one byte per sibling group of the level being written.
+pub fn write_levels(
+    path: &Path,
+    levels: &dyn Levels,
+    root: [f32; 4],
+    normals: bool,
+    colors: bool,
+) -> Result<FileStats, MethodError> {
+    let nb = node_bytes(colors) as u64;
+    // Pass 1: the header's counts.
+    let (mut nodes, mut leaves, mut pointers, mut body_len) = (0u64, 0u64, 0u64, 0u64);
+    for l in 0..levels.count() {
+        levels.visit(l, &mut |level| {
+            for n in level {
+                nodes += 1;
+                leaves += (n.children == 0) as u64;
+                pointers += (n.children > 0 && !n.all_leaves) as u64;
+                body_len += child_group_bytes(n, nb);
+            }
+            Ok(())
+        })?;
+    }
+    pointers += (nodes > 1) as u64;
+    body_len += nb + 4 * (nodes > 1) as u64;
+    if u32::try_from(body_len).is_err() {
         return Err(MethodError::Limit(format!(
-            "{}: {} bytes of nodes exceed the 32-bit offsets (4 GiB)",
-            path.display(),
-            body.len()
+            "{}: {body_len} bytes of nodes exceed the 32-bit offsets (4 GiB)",
+            path.display()
         )));
     }
-    let leaves = tree.leaves();
-    let flags = (FLAG_NORMALS * tree.normals as u32) | (FLAG_COLORS * tree.colors as u32);
+    let flags = (FLAG_NORMALS * normals as u32) | (FLAG_COLORS * colors as u32);
     let mut h = Vec::with_capacity(HEADER_BYTES);
     h.extend_from_slice(&MAGIC);
     h.extend_from_slice(&VERSION.to_le_bytes());
@@ -187,29 +210,124 @@ pub fn write(path: &Path, tree: &QTree) -> Result<FileStats, MethodError> {
     h.extend_from_slice(&nodes.to_le_bytes());
     h.extend_from_slice(&leaves.to_le_bytes());
     h.extend_from_slice(&pointers.to_le_bytes());
-    h.extend_from_slice(&(tree.levels.len() as u32).to_le_bytes());
+    h.extend_from_slice(&(levels.count() as u32).to_le_bytes());
     h.extend_from_slice(&(quant::sphere_table().entries.len() as u32).to_le_bytes());
-    for v in tree.root {
+    for v in root {
         h.extend_from_slice(&v.to_le_bytes());
     }
-    h.extend_from_slice(&(body.len() as u64).to_le_bytes());
+    h.extend_from_slice(&body_len.to_le_bytes());
     debug_assert_eq!(h.len(), CHECKSUM_AT);
-    let sum = Fnv64::default().write(&h).write(&body).finish();
-    h.extend_from_slice(&sum.to_le_bytes());
+
+    // Pass 2: the body, into a temporary file removed on any error.
     let tmp = path.with_extension("qs.tmp");
-    let write_all = || -> std::io::Result<()> {
-        use std::io::Write;
-        let mut f = std::io::BufWriter::new(std::fs::File::create(&tmp)?);
-        f.write_all(&h)?;
-        f.write_all(&body)?;
-        f.into_inner().map_err(|e| e.into_error())?.sync_all()
-    };
-    write_all().map_err(|e| MethodError::io(&tmp, e))?;
+    let res = write_body(path, &tmp, levels, &h, (nodes, body_len, nb, colors));
+    if res.is_err() {
+        let _ = std::fs::remove_file(&tmp);
+    }
+    res?;
     std::fs::rename(&tmp, path).map_err(|e| MethodError::io(path, e))?;
     Ok(FileStats {
-        bytes: (h.len() + body.len()) as u64,
+        bytes: HEADER_BYTES as u64 + body_len,
         pointers,
     })
+}
+
+/// Writes the header `h` (checksum last) and the body of `levels` to `tmp`.
+fn write_body(
+    path: &Path,
+    tmp: &Path,
+    levels: &dyn Levels,
+    h: &[u8],
+    (nodes, body_len, nb, colors): (u64, u64, u64, bool),
+) -> Result<(), MethodError> {
+    // Groups of the current level: one byte each, the child count in
+    // bits 0–2 and "has a pointer" in bit 3 (the root group: one node, a pointer iff the
+    // tree has more than one node).
+    let io = |e| MethodError::io(tmp, e);
+    let mut out =
+        std::io::BufWriter::with_capacity(1 << 20, std::fs::File::create(tmp).map_err(io)?);
+    use std::io::{Seek, Write};
+    out.write_all(h).map_err(io)?;
+    out.write_all(&[0u8; 8]).map_err(io)?;
+    let mut sum = Fnv64::default();
+    sum.write(h);
+    let mut groups: Vec<u8> = vec![1 | (((nodes > 1) as u8) << 3)];
+    let mut written = 0u64;
+    let mut buf: Vec<u8> = Vec::with_capacity(1 << 16);
+    for l in 0..levels.count() {
+        let level_bytes: u64 = groups
+            .iter()
+            .map(|&g| (g & 7) as u64 * nb + 4 * (g >> 3) as u64)
+            .sum();
+        // Where the next level's first child group will start.
+        let mut cursor = written + level_bytes;
+        let mut next: Vec<u8> = Vec::new();
+        let (mut group, mut left_in_group) = (0usize, 0u8);
+        levels.visit(l, &mut |level| {
+            for n in level {
+                if left_in_group == 0 {
+                    let g = *groups.get(group).ok_or_else(|| {
+                        MethodError::Limit(format!(
+                            "{}: level {l} has more nodes than its parents' children",
+                            path.display()
+                        ))
+                    })?;
+                    group += 1;
+                    left_in_group = g & 7;
+                    if g >> 3 != 0 {
+                        let p = u32::try_from(cursor).map_err(|_| {
+                            MethodError::Limit(format!(
+                                "{}: level {l} needs a pointer beyond 4 GiB",
+                                path.display()
+                            ))
+                        })?;
+                        buf.extend_from_slice(&p.to_le_bytes());
+                    }
+                }
+                left_in_group -= 1;
+                buf.extend_from_slice(&pack(n).to_le_bytes());
+                if colors {
+                    buf.extend_from_slice(&n.color.to_le_bytes());
+                }
+                if n.children > 0 {
+                    next.push(n.children | (((!n.all_leaves) as u8) << 3));
+                    cursor += child_group_bytes(n, nb);
+                }
+                if buf.len() >= 1 << 16 {
+                    sum.write(&buf);
+                    out.write_all(&buf).map_err(io)?;
+                    written += buf.len() as u64;
+                    buf.clear();
+                }
+            }
+            Ok(())
+        })?;
+        sum.write(&buf);
+        out.write_all(&buf).map_err(io)?;
+        written += buf.len() as u64;
+        buf.clear();
+        if group != groups.len() || left_in_group != 0 {
+            return Err(MethodError::Limit(format!(
+                "{}: level {l} has fewer nodes than its parents' children",
+                path.display()
+            )));
+        }
+        groups = next;
+    }
+    if written != body_len || !groups.is_empty() {
+        return Err(MethodError::Limit(format!(
+            "{}: wrote {written} body bytes, counted {body_len}",
+            path.display()
+        )));
+    }
+    let checksum = sum.finish();
+    let mut file = out.into_inner().map_err(|e| io(e.into_error()))?;
+    file.seek(std::io::SeekFrom::Start(CHECKSUM_AT as u64))
+        .map_err(io)?;
+    file.write_all(&checksum.to_le_bytes()).map_err(io)?;
+    file.sync_all().map_err(io)?;
+    drop(file);
+    Ok(())
 }
 
 /// A mapped, validated `.qs` file.

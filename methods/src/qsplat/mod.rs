@@ -16,6 +16,7 @@
 
 pub mod build;
 pub mod format;
+pub mod ooc;
 pub mod quant;
 pub mod select;
 
@@ -46,7 +47,7 @@ pub const COLUMNS: &[&str] = &[
 ];
 
 /// Parameters of `qsplat`.
-#[derive(Debug, Clone, Default, PartialEq, serde::Deserialize, serde::Serialize)]
+#[derive(Debug, Clone, PartialEq, serde::Deserialize, serde::Serialize)]
 #[serde(deny_unknown_fields, default)]
 pub struct QsplatParams {
     /// Splat kernel asked of the renderer (`square|circle|ellipse|gaussian`); none = the
@@ -65,6 +66,23 @@ pub struct QsplatParams {
     /// the surface seen from inside faces away; and for scans whose normals are not
     /// oriented, culls half of the samples. The reference draws both sides.
     pub two_sided: bool,
+    /// Working memory of the build in MiB (≥ 16). A larger cloud is built in units of at
+    /// most `mem_mb·2²⁰ / 200` samples ([`ooc`]); the file is the same for any value.
+    pub mem_mb: u64,
+}
+
+impl Default for QsplatParams {
+    fn default() -> Self {
+        Self {
+            kernel: None,
+            target_ms: None,
+            split: build::Split::default(),
+            combine: build::Combine::default(),
+            two_sided: false,
+            // As LPC's and MWKD's builds.
+            mem_mb: 256,
+        }
+    }
 }
 
 impl QsplatParams {
@@ -88,6 +106,12 @@ impl QsplatParams {
                 })
                 .unwrap_or(e)
         })?;
+        if p.mem_mb < 16 {
+            return Err(MethodError::Param(format!(
+                "method '{NAME}': mem_mb must be ≥ 16, got {}",
+                p.mem_mb
+            )));
+        }
         if let Some(t) = p.target_ms
             && !(t.is_finite() && t > 0.0)
         {
@@ -117,11 +141,14 @@ pub fn build(
     progress.start("qsplat: leaf radii", n as u64);
     let radii = crate::leaf::leaf_radii(cloud);
     progress.finish();
-    progress.start("qsplat: hierarchy", n as u64);
-    let built = build::build_tree_with(cloud, &radii, opt)?;
-    progress.finish();
     let path = dir.join(TREE_FILE);
-    let fs = format::write(&path, &built.tree)?;
+    let budget = ooc::Budget {
+        mem_bytes: p.mem_mb << 20,
+        dir,
+        hook: None,
+    };
+    let t = ooc::build_file(cloud, &radii, opt, &path, budget, progress)?;
+    let fs = t.file;
     let attrs = Attributes {
         radii: true,
         ..cloud.attributes()
@@ -135,10 +162,9 @@ pub fn build(
         scene: scene.into(),
     }
     .write(dir)?;
-    let nodes = built.tree.nodes();
-    let leaves = built.tree.leaves();
+    let (nodes, leaves) = (t.nodes, t.leaves);
     let interior = nodes - leaves;
-    let nb = format::node_bytes(built.tree.colors) as u64;
+    let nb = format::node_bytes(cloud.colors().is_some()) as u64;
     let mut extra = serde_json::Map::new();
     let mut put = |k: &str, v: serde_json::Value| {
         extra.insert(k.into(), v);
@@ -150,6 +176,7 @@ pub fn build(
         serde_json::to_value(opt.combine).unwrap_or_default(),
     );
     put("leaves", leaves.into());
+    put("units", t.units.into());
     put("interior", interior.into());
     put(
         "interior_per_leaf",
@@ -168,7 +195,7 @@ pub fn build(
     Ok(BuildStats {
         points_in: n as u64,
         nodes,
-        levels: built.tree.levels.len() as u32,
+        levels: t.levels,
         bytes_in: cloud.column_bytes(),
         bytes_out: fs.bytes,
         seconds: t0.elapsed().as_secs_f64(),

@@ -1,0 +1,862 @@
+//! The QSplat build in bounded memory: the same tree and the same file, byte for byte, as the
+//! in-memory build, with working memory bounded by a budget (`--param mem_mb=`).
+//!
+//! A cloud of at most [`unit_capacity`] samples is built in memory ([`super::build`]). A
+//! larger one is built in **units**:
+//!
+//! 1. **Partition.** The top of the binary tree is split exactly as in memory (same bounding
+//!    boxes, axis, midpoint cut, median fallback; [`Split`]), but by streaming: the root's
+//!    samples are read from the cloud's columns in input order, every larger range from its
+//!    spill file, into two child spill files (stable, so each file keeps input order). A
+//!    median is found by a radix selection over the 64-bit keys (coordinate in
+//!    [`f32_total_order`], then sample index): four passes of 16 bits, the same order as the
+//!    in-memory `select_nth_unstable_by`. A range of at most the capacity is a unit.
+//! 2. **Costs.** Each unit is partitioned in memory; its root's split costs go into the
+//!    top tree's dynamic programme ([`Combine`]), which decides the top nodes' combining. A
+//!    unit's root is then either a node of the combined tree, or its parent took the root's
+//!    grandchildren and the root's two binary children are nodes ([`Roots`]).
+//! 3. **Truths.** Each unit's forest is laid out and its true properties computed bottom-up;
+//!    the forest roots' properties go up into the top tree, whose nodes are combined and
+//!    then quantised top-down.
+//! 4. **Quantisation.** Each unit's forest is quantised from its parent's decoded sphere and
+//!    its stored nodes written per level to spill files.
+//! 5. **Assembly.** [`format::write_levels`] streams the levels: at each level, the top
+//!    nodes and the units' nodes in left-to-right (sample-position) order, which is the
+//!    breadth-first order of the in-memory tree.
+//!
+//! A unit is partitioned three times (steps 2–4) rather than keeping its tree between steps:
+//! partitioning is ≈ 7 % of a build, the kept arrays would be ≈ 70 bytes per sample of disk
+//! traffic each way. Units are processed one at a time, each in parallel inside, so the bound
+//! holds for any thread count and the output does not depend on it.
+//!
+//! Spill files sit in `<dir>/qsplat-spill.tmp/` and are removed on success and on error; a
+//! spill file that changed or was cut short is an error naming it ([`crate::spill`]).
+
+use std::path::Path;
+
+use glam::Vec3;
+use scenes::{PointCloud, Progress};
+
+use super::build::{
+    self, BuildOptions, Combine, Parent, Partitioned, QNode, Roots, Samples, Split, TrueNode,
+};
+use super::format::{self, FileStats, Levels};
+use crate::MethodError;
+use crate::sortkey::f32_total_order;
+use crate::spill::{Spill, SpillDir};
+
+/// Working bytes per sample of a unit built in memory: the samples (≤ 31), the permutation
+/// and binary tree (13), the combined forest's ranges (≈ 21), true properties (≈ 70) and
+/// decoded spheres, margins and stored nodes (≈ 45), per node, ≈ 1.33 nodes per sample.
+pub const UNIT_BYTES_PER_SAMPLE: u64 = 200;
+
+/// Samples of the largest unit built in memory under a budget of `mem_bytes`.
+pub fn unit_capacity(mem_bytes: u64) -> u64 {
+    (mem_bytes / UNIT_BYTES_PER_SAMPLE).max(2)
+}
+
+/// What the tree file holds, for the build's statistics.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct TreeStats {
+    /// Nodes.
+    pub nodes: u64,
+    /// Leaves (= samples).
+    pub leaves: u64,
+    /// Levels.
+    pub levels: u32,
+    /// The file.
+    pub file: FileStats,
+    /// Units built one at a time (1: built in memory).
+    pub units: u64,
+}
+
+/// Called with every spill file of the units once they are partitioned (tests corrupt them
+/// to check the errors).
+pub type SpillHook<'a> = &'a dyn Fn(&[&Spill]);
+
+/// Where and within how much memory a build works.
+#[derive(Clone, Copy)]
+pub struct Budget<'a> {
+    /// Working memory in bytes.
+    pub mem_bytes: u64,
+    /// Where the spill directory is made (the build directory).
+    pub dir: &'a Path,
+    /// Called once the units' spill files are written.
+    pub hook: Option<SpillHook<'a>>,
+}
+
+/// Builds the tree of `cloud` (leaf radii `radii`) into `path` within `budget`.
+pub fn build_file(
+    cloud: &PointCloud,
+    radii: &[f32],
+    opt: BuildOptions,
+    path: &Path,
+    budget: Budget<'_>,
+    progress: &dyn Progress,
+) -> Result<TreeStats, MethodError> {
+    let Budget {
+        mem_bytes,
+        dir,
+        hook,
+    } = budget;
+    let n = cloud.len();
+    build::check_size(n)?;
+    let cap = unit_capacity(mem_bytes);
+    if n as u64 <= cap {
+        progress.start("qsplat: hierarchy", n as u64);
+        let built = build::build_in_memory(cloud, radii, opt, false)?;
+        progress.finish();
+        let t = &built.tree;
+        let file = format::write(path, t)?;
+        return Ok(TreeStats {
+            nodes: t.nodes(),
+            leaves: t.leaves(),
+            levels: t.levels.len() as u32,
+            file,
+            units: 1,
+        });
+    }
+    let spill = SpillDir::create(dir, "qsplat-spill")?;
+    let layout = Layout {
+        normals: cloud.normals().is_some(),
+        colors: cloud.colors().is_some(),
+    };
+    progress.start("qsplat: partition", n as u64);
+    let mut top = partition_top(cloud, radii, layout, opt.split, cap, &spill, progress)?;
+    progress.finish();
+    if let Some(h) = hook {
+        h(&top.units.iter().map(|u| &u.spill).collect::<Vec<_>>());
+    }
+
+    progress.start("qsplat: unit splits", n as u64);
+    for u in &mut top.units {
+        let s = u.load(layout)?;
+        let p = Partitioned::new(&s.pos, opt);
+        u.cost = p.cost;
+        u.split = p.root_split() as u64;
+        progress.inc(u.n);
+    }
+    progress.finish();
+    top.decide(opt.combine);
+    let combined = top.combined();
+
+    progress.start("qsplat: unit truths", n as u64);
+    let mut roots: Vec<Vec<TrueNode>> = Vec::with_capacity(top.units.len());
+    for (i, u) in top.units.iter().enumerate() {
+        let s = u.load(layout)?;
+        let p = Partitioned::new(&s.pos, opt);
+        let forest = p.forest(combined.unit_roots[i]);
+        let truth = forest.truths(&p.perm, s.samples());
+        roots.push(truth.into_iter().next().unwrap_or_default());
+        progress.inc(u.n);
+    }
+    progress.finish();
+    let attrs = (layout.normals, layout.colors);
+    let quantised = combined.quantise(&roots, attrs, &top)?;
+
+    progress.start("qsplat: unit nodes", n as u64);
+    let mut nodes = quantised.nodes.len() as u64;
+    let mut segments: Vec<Segment> = quantised
+        .nodes
+        .iter()
+        .map(|&(lo, level, node)| Segment {
+            lo,
+            first_level: level,
+            part: Part::Top(node),
+        })
+        .collect();
+    for (i, u) in top.units.iter().enumerate() {
+        let s = u.load(layout)?;
+        let p = Partitioned::new(&s.pos, opt);
+        let forest = p.forest(combined.unit_roots[i]);
+        let truth = forest.truths(&p.perm, s.samples());
+        let first_level = combined.unit_level[i];
+        let (pd, pm) = quantised.unit_parent[i];
+        let q = forest.quantise(&truth, Parent::Node(pd, pm), attrs, first_level, false)?;
+        nodes += q.levels.iter().map(|l| l.len() as u64).sum::<u64>();
+        let mut files = Vec::with_capacity(q.levels.len());
+        for level in &q.levels {
+            let nb = format::node_bytes(layout.colors);
+            let mut w = spill.writer("nodes", nb)?;
+            for node in level {
+                w.push(&node_bytes(node, layout.colors)[..nb])?;
+            }
+            files.push(w.finish()?);
+        }
+        segments.push(Segment {
+            lo: u.lo,
+            first_level,
+            part: Part::Unit(files),
+        });
+        progress.inc(u.n);
+    }
+    progress.finish();
+    segments.sort_by_key(|s| (s.lo, s.first_level));
+    let levels = Assembled {
+        segments,
+        colors: layout.colors,
+    };
+    progress.start("qsplat: write", 0);
+    let file = format::write_levels(path, &levels, quantised.root, attrs.0, attrs.1)?;
+    progress.finish();
+    Ok(TreeStats {
+        nodes,
+        leaves: n as u64,
+        levels: levels.count() as u32,
+        file,
+        units: top.units.len() as u64,
+    })
+}
+
+/// Which columns a sample record carries.
+#[derive(Debug, Clone, Copy)]
+struct Layout {
+    normals: bool,
+    colors: bool,
+}
+
+impl Layout {
+    /// Bytes of a record: index `u32`, position `f32 × 3`, radius `f32`, then the normal
+    /// `f32 × 3` and the colour `u8 × 3` + 1 pad byte when the scene has them.
+    fn bytes(self) -> usize {
+        20 + 12 * self.normals as usize + 4 * self.colors as usize
+    }
+
+    fn encode(self, cloud: &PointCloud, radii: &[f32], i: usize, out: &mut Vec<u8>) {
+        out.extend_from_slice(&(i as u32).to_le_bytes());
+        for v in cloud.positions()[i] {
+            out.extend_from_slice(&v.to_le_bytes());
+        }
+        out.extend_from_slice(&radii[i].to_le_bytes());
+        if let Some(ns) = cloud.normals() {
+            for v in ns[i] {
+                out.extend_from_slice(&v.to_le_bytes());
+            }
+        }
+        if let Some(cs) = cloud.colors() {
+            out.extend_from_slice(&cs[i]);
+            out.push(0);
+        }
+    }
+}
+
+fn f32_at(r: &[u8], at: usize) -> f32 {
+    f32::from_le_bytes([r[at], r[at + 1], r[at + 2], r[at + 3]])
+}
+
+fn u32_at(r: &[u8], at: usize) -> u32 {
+    u32::from_le_bytes([r[at], r[at + 1], r[at + 2], r[at + 3]])
+}
+
+fn pos_of(r: &[u8]) -> [f32; 3] {
+    [f32_at(r, 4), f32_at(r, 8), f32_at(r, 12)]
+}
+
+/// A node's stored bytes (the first 4, or 6 with colours, are meaningful).
+fn node_bytes(n: &QNode, colors: bool) -> [u8; 6] {
+    let mut b = [0u8; 6];
+    b[..4].copy_from_slice(&format::pack(n).to_le_bytes());
+    if colors {
+        b[4..].copy_from_slice(&n.color.to_le_bytes());
+    }
+    b
+}
+
+/// A unit's samples in memory, in input order.
+#[derive(Default)]
+struct UnitSamples {
+    pos: Vec<[f32; 3]>,
+    radii: Vec<f32>,
+    normals: Option<Vec<[f32; 3]>>,
+    colors: Option<Vec<[u8; 3]>>,
+}
+
+impl UnitSamples {
+    fn samples(&self) -> Samples<'_> {
+        Samples {
+            pos: &self.pos,
+            radii: &self.radii,
+            normals: self.normals.as_deref(),
+            colors: self.colors.as_deref(),
+        }
+    }
+}
+
+/// A range of samples at most the capacity, built in memory.
+struct Unit {
+    /// First sample position of the range in the tree.
+    lo: u64,
+    n: u64,
+    spill: Spill,
+    /// Its root's split costs (step 2).
+    cost: (u64, u64),
+    /// Its root's split, relative to `lo` (step 2).
+    split: u64,
+}
+
+impl Unit {
+    fn load(&self, layout: Layout) -> Result<UnitSamples, MethodError> {
+        let n = self.n as usize;
+        let mut s = UnitSamples {
+            pos: Vec::with_capacity(n),
+            radii: Vec::with_capacity(n),
+            normals: layout.normals.then(|| Vec::with_capacity(n)),
+            colors: layout.colors.then(|| Vec::with_capacity(n)),
+        };
+        let rb = layout.bytes();
+        let mut last: Option<u32> = None;
+        self.spill.read(|block| {
+            for r in block.chunks_exact(rb) {
+                // Input order, so that the in-memory tie-breaks by index hold.
+                let idx = u32_at(r, 0);
+                if last.is_some_and(|l| l >= idx) {
+                    return Err(MethodError::corrupt(
+                        &self.spill.path,
+                        format!("temporary file: sample index {idx} out of order"),
+                    ));
+                }
+                last = Some(idx);
+                s.pos.push(pos_of(r));
+                s.radii.push(f32_at(r, 16));
+                let mut at = 20;
+                if let Some(ns) = &mut s.normals {
+                    ns.push([f32_at(r, at), f32_at(r, at + 4), f32_at(r, at + 8)]);
+                    at += 12;
+                }
+                if let Some(cs) = &mut s.colors {
+                    cs.push([r[at], r[at + 1], r[at + 2]]);
+                }
+            }
+            Ok(())
+        })?;
+        if s.pos.len() != n {
+            return Err(MethodError::corrupt(
+                &self.spill.path,
+                format!("temporary file holds {} samples, {n} expected", s.pos.len()),
+            ));
+        }
+        Ok(s)
+    }
+}
+
+/// A child of a top node.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+enum Child {
+    Top(usize),
+    Unit(usize),
+}
+
+/// A binary node above the units.
+struct TopNode {
+    lo: u64,
+    kids: [Child; 2],
+    cost: (u64, u64),
+    grand: bool,
+}
+
+/// The binary tree above the units, in depth-first order (left first), and the units in
+/// left-to-right order.
+struct Top {
+    nodes: Vec<TopNode>,
+    units: Vec<Unit>,
+}
+
+/// A range waiting to be split: where its samples are, and its bounding box.
+struct Pending {
+    src: Option<Spill>,
+    lo: u64,
+    n: u64,
+    bbox: (Vec3, Vec3),
+    parent: Option<(usize, usize)>,
+}
+
+/// Calls `f` with every record of `src` (the cloud itself for `None`), in order.
+fn scan(
+    src: Option<&Spill>,
+    cloud: &PointCloud,
+    radii: &[f32],
+    layout: Layout,
+    mut f: impl FnMut(&[u8]) -> Result<(), MethodError>,
+) -> Result<(), MethodError> {
+    let rb = layout.bytes();
+    match src {
+        Some(s) => s.read(|block| {
+            for r in block.chunks_exact(rb) {
+                f(r)?;
+            }
+            Ok(())
+        }),
+        None => {
+            const BLOCK: usize = 1 << 16;
+            let mut buf = Vec::with_capacity(BLOCK * rb);
+            let n = cloud.len();
+            for start in (0..n).step_by(BLOCK) {
+                let end = (start + BLOCK).min(n);
+                buf.clear();
+                for i in start..end {
+                    layout.encode(cloud, radii, i, &mut buf);
+                }
+                for r in buf.chunks_exact(rb) {
+                    f(r)?;
+                }
+                cloud.release_pages(start..end);
+            }
+            Ok(())
+        }
+    }
+}
+
+fn grow(b: &mut (Vec3, Vec3), p: [f32; 3]) {
+    let p = Vec3::from(p);
+    b.0 = b.0.min(p);
+    b.1 = b.1.max(p);
+}
+
+const EMPTY_BOX: (Vec3, Vec3) = (Vec3::splat(f32::INFINITY), Vec3::splat(f32::NEG_INFINITY));
+
+/// The key of the in-memory median selection: coordinate in total order, then index.
+fn median_key(r: &[u8], axis: usize) -> u64 {
+    ((f32_total_order(f32_at(r, 4 + 4 * axis)) as u64) << 32) | u32_at(r, 0) as u64
+}
+
+/// The key of rank `rank` among the keys of `src`'s records: a radix selection, 16 bits per
+/// pass from the top.
+fn select_key(
+    src: Option<&Spill>,
+    cloud: &PointCloud,
+    radii: &[f32],
+    layout: Layout,
+    axis: usize,
+    mut rank: u64,
+) -> Result<u64, MethodError> {
+    let mut prefix = 0u64;
+    for pass in 0..4u32 {
+        let shift = 48 - 16 * pass;
+        let mut hist = vec![0u64; 1 << 16];
+        scan(src, cloud, radii, layout, |r| {
+            let k = median_key(r, axis);
+            if pass == 0 || k >> (shift + 16) == prefix >> (shift + 16) {
+                hist[((k >> shift) & 0xFFFF) as usize] += 1;
+            }
+            Ok(())
+        })?;
+        let mut digit = 0usize;
+        while rank >= hist[digit] {
+            rank -= hist[digit];
+            digit += 1;
+        }
+        prefix |= (digit as u64) << shift;
+    }
+    Ok(prefix)
+}
+
+/// Step 1: splits ranges larger than `cap` as the in-memory build would, into spill files.
+fn partition_top(
+    cloud: &PointCloud,
+    radii: &[f32],
+    layout: Layout,
+    split: Split,
+    cap: u64,
+    spill: &SpillDir,
+    progress: &dyn Progress,
+) -> Result<Top, MethodError> {
+    let mut top = Top {
+        nodes: Vec::new(),
+        units: Vec::new(),
+    };
+    let mut root_box = EMPTY_BOX;
+    let n = cloud.len();
+    for start in (0..n).step_by(1 << 16) {
+        let end = (start + (1 << 16)).min(n);
+        for &p in &cloud.positions()[start..end] {
+            grow(&mut root_box, p);
+        }
+        cloud.release_pages(start..end);
+    }
+    let mut stack = vec![Pending {
+        src: None,
+        lo: 0,
+        n: cloud.len() as u64,
+        bbox: root_box,
+        parent: None,
+    }];
+    while let Some(r) = stack.pop() {
+        let child = if r.n <= cap {
+            let src = r.src.ok_or_else(|| {
+                MethodError::Limit("qsplat: the root cannot be a unit out of core".into())
+            })?;
+            top.units.push(Unit {
+                lo: r.lo,
+                n: r.n,
+                spill: src,
+                cost: (0, 0),
+                split: 0,
+            });
+            progress.inc(r.n);
+            Child::Unit(top.units.len() - 1)
+        } else {
+            let (lo, hi) = r.bbox;
+            let s = hi - lo;
+            let axis = if s.x >= s.y && s.x >= s.z {
+                0
+            } else if s.y >= s.z {
+                1
+            } else {
+                2
+            };
+            let mut halves = None;
+            if split == Split::Midpoint {
+                let cut = (lo[axis] as f64 + hi[axis] as f64) * 0.5;
+                let h = split_by(&r, cloud, radii, layout, spill, |rec| {
+                    (f32_at(rec, 4 + 4 * axis) as f64) < cut
+                })?;
+                if h.0.0 == 0 || h.0.0 == r.n {
+                    h.0.1.remove();
+                    h.1.1.remove();
+                } else {
+                    halves = Some(h);
+                }
+            }
+            let ((nl, left, lbox), (nr, right, rbox)) = match halves {
+                Some(h) => h,
+                None => {
+                    let pivot = select_key(r.src.as_ref(), cloud, radii, layout, axis, r.n / 2)?;
+                    split_by(&r, cloud, radii, layout, spill, |rec| {
+                        median_key(rec, axis) < pivot
+                    })?
+                }
+            };
+            if let Some(s) = r.src {
+                s.remove();
+            }
+            let id = top.nodes.len();
+            top.nodes.push(TopNode {
+                lo: r.lo,
+                kids: [Child::Top(usize::MAX); 2],
+                cost: (0, 0),
+                grand: false,
+            });
+            stack.push(Pending {
+                src: Some(right),
+                lo: r.lo + nl,
+                n: nr,
+                bbox: rbox,
+                parent: Some((id, 1)),
+            });
+            stack.push(Pending {
+                src: Some(left),
+                lo: r.lo,
+                n: nl,
+                bbox: lbox,
+                parent: Some((id, 0)),
+            });
+            Child::Top(id)
+        };
+        if let Some((p, side)) = r.parent {
+            top.nodes[p].kids[side] = child;
+        }
+    }
+    Ok(top)
+}
+
+type Half = (u64, Spill, (Vec3, Vec3));
+
+/// Streams `r`'s records into a left file (`left(record)`) and a right file, with counts
+/// and bounding boxes.
+fn split_by(
+    r: &Pending,
+    cloud: &PointCloud,
+    radii: &[f32],
+    layout: Layout,
+    spill: &SpillDir,
+    left: impl Fn(&[u8]) -> bool,
+) -> Result<(Half, Half), MethodError> {
+    let rb = layout.bytes();
+    let mut w = [spill.writer("samples", rb)?, spill.writer("samples", rb)?];
+    let mut n = [0u64; 2];
+    let mut b = [EMPTY_BOX; 2];
+    scan(r.src.as_ref(), cloud, radii, layout, |rec| {
+        let side = (!left(rec)) as usize;
+        n[side] += 1;
+        grow(&mut b[side], pos_of(rec));
+        w[side].push(rec)
+    })?;
+    let [wl, wr] = w;
+    Ok(((n[0], wl.finish()?, b[0]), (n[1], wr.finish()?, b[1])))
+}
+
+impl Top {
+    fn child_cost(&self, c: Child) -> (u64, u64) {
+        match c {
+            Child::Top(t) => self.nodes[t].cost,
+            Child::Unit(u) => self.units[u].cost,
+        }
+    }
+
+    fn child_samples(&self, c: Child) -> u64 {
+        match c {
+            // A top node is larger than the capacity (≥ 2).
+            Child::Top(_) => u64::MAX,
+            Child::Unit(u) => self.units[u].n,
+        }
+    }
+
+    /// The top nodes' costs and combine decisions, bottom-up (children follow their parent
+    /// in depth-first order), as [`build`]'s `partition` makes them.
+    fn decide(&mut self, combine: Combine) {
+        for t in (0..self.nodes.len()).rev() {
+            let [l, r] = self.nodes[t].kids;
+            let (cl, cr) = (self.child_cost(l), self.child_cost(r));
+            let binary = cl.0 + cr.0;
+            let grandkids = cl.1 + cr.1;
+            let g = match combine {
+                Combine::Pairs => true,
+                Combine::Fewest => grandkids <= binary,
+            };
+            let node = &mut self.nodes[t];
+            node.grand = g;
+            node.cost = (1 + if g { grandkids } else { binary }, binary);
+        }
+    }
+
+    /// The combined tree above the units, breadth-first.
+    fn combined(&self) -> Combined {
+        let mut c = Combined {
+            levels: vec![vec![CNode::Top(0)]],
+            unit_roots: vec![Roots::Whole; self.units.len()],
+            unit_level: vec![0; self.units.len()],
+        };
+        loop {
+            let level = c.levels.len() - 1;
+            let mut next = Vec::new();
+            for &node in &c.levels[level] {
+                match node {
+                    CNode::Top(t) => {
+                        let t = &self.nodes[t];
+                        for k in t.kids {
+                            if self.child_samples(k) == 1 || !t.grand {
+                                next.push(CNode::of(k));
+                            } else {
+                                match k {
+                                    Child::Top(k) => {
+                                        next.extend(self.nodes[k].kids.map(CNode::of));
+                                    }
+                                    Child::Unit(u) => {
+                                        next.push(CNode::Half(u, 0));
+                                        next.push(CNode::Half(u, 1));
+                                    }
+                                }
+                            }
+                        }
+                    }
+                    CNode::Whole(u) => {
+                        c.unit_level[u] = level;
+                    }
+                    CNode::Half(u, _) => {
+                        c.unit_roots[u] = Roots::Children;
+                        c.unit_level[u] = level;
+                    }
+                }
+            }
+            if next.is_empty() {
+                break;
+            }
+            c.levels.push(next);
+        }
+        c
+    }
+}
+
+/// A node of the combined tree above or at the units.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Hash)]
+enum CNode {
+    Top(usize),
+    /// A unit's root.
+    Whole(usize),
+    /// One of a unit root's binary children.
+    Half(usize, usize),
+}
+
+impl CNode {
+    fn of(c: Child) -> CNode {
+        match c {
+            Child::Top(t) => CNode::Top(t),
+            Child::Unit(u) => CNode::Whole(u),
+        }
+    }
+}
+
+/// The combined tree down to the units' forest roots.
+struct Combined {
+    /// Breadth-first levels; units' forest roots appear, nothing below them.
+    levels: Vec<Vec<CNode>>,
+    /// Each unit's forest roots.
+    unit_roots: Vec<Roots>,
+    /// The level of each unit's forest roots.
+    unit_level: Vec<usize>,
+}
+
+/// The top nodes quantised.
+struct TopQuantised {
+    /// `(first sample position, level, stored node)` per top node.
+    nodes: Vec<(u64, usize, QNode)>,
+    /// The header's root sphere.
+    root: [f32; 4],
+    /// Per unit: the decoded sphere and margin of its forest roots' parent.
+    unit_parent: Vec<((Vec3, f32), f64)>,
+}
+
+impl Combined {
+    /// True properties of the top nodes bottom-up from the units' forest roots
+    /// (`roots[u]`), then their quantisation top-down.
+    fn quantise(
+        &self,
+        roots: &[Vec<TrueNode>],
+        (has_n, has_c): (bool, bool),
+        top: &Top,
+    ) -> Result<TopQuantised, MethodError> {
+        // Children of each top combined node: (level, index) spans of the next level.
+        let kids = |node: CNode, out: &mut Vec<CNode>| {
+            if let CNode::Top(t) = node {
+                let t = &top.nodes[t];
+                for k in t.kids {
+                    if top.child_samples(k) == 1 || !t.grand {
+                        out.push(CNode::of(k));
+                    } else {
+                        match k {
+                            Child::Top(k) => out.extend(top.nodes[k].kids.map(CNode::of)),
+                            Child::Unit(u) => out.extend([CNode::Half(u, 0), CNode::Half(u, 1)]),
+                        }
+                    }
+                }
+            }
+        };
+        let mut truth: std::collections::HashMap<CNode, TrueNode> = Default::default();
+        let mut buf = Vec::new();
+        for level in self.levels.iter().rev() {
+            for &node in level {
+                let t = match node {
+                    CNode::Whole(u) => roots[u][0],
+                    CNode::Half(u, s) => roots[u][s],
+                    CNode::Top(_) => {
+                        buf.clear();
+                        kids(node, &mut buf);
+                        let ts: Vec<TrueNode> = buf.iter().map(|k| truth[k]).collect();
+                        build::combine(&ts, has_n)
+                    }
+                };
+                truth.insert(node, t);
+            }
+        }
+        let is_leaf = |node: &CNode| match *node {
+            CNode::Top(_) => false,
+            CNode::Whole(u) => top.units[u].n == 1,
+            CNode::Half(u, 0) => top.units[u].split == 1,
+            CNode::Half(u, _) => top.units[u].n - top.units[u].split == 1,
+        };
+        let mut out = TopQuantised {
+            nodes: Vec::new(),
+            root: [0.0; 4],
+            unit_parent: vec![((Vec3::ZERO, 0.0), 0.0); top.units.len()],
+        };
+        let mut decoded: std::collections::HashMap<CNode, ((Vec3, f32), f64)> = Default::default();
+        let (rd, rm) = build::root_sphere(&truth[&CNode::Top(0)]);
+        out.root = [rd.0.x, rd.0.y, rd.0.z, rd.1];
+        decoded.insert(CNode::Top(0), (rd, rm));
+        let mut codes: std::collections::HashMap<CNode, u16> = Default::default();
+        codes.insert(CNode::Top(0), 0);
+        for (l, level) in self.levels.iter().enumerate() {
+            for (i, &node) in level.iter().enumerate() {
+                let CNode::Top(t) = node else { continue };
+                let (pd, pm) = decoded[&node];
+                buf.clear();
+                kids(node, &mut buf);
+                for &k in &buf {
+                    match k {
+                        CNode::Top(_) => {
+                            let (code, d, m) = build::encode_child(&truth[&k], pd, pm, || {
+                                format!("a child of node {i} of level {l}")
+                            })?;
+                            codes.insert(k, code);
+                            decoded.insert(k, (d, m));
+                        }
+                        CNode::Whole(u) | CNode::Half(u, _) => out.unit_parent[u] = (pd, pm),
+                    }
+                }
+                // Whole units that are single samples have an all-leaves parent too, but
+                // their own unit writes them: only the flag of this node is needed here.
+                let all_leaves = buf.iter().all(is_leaf);
+                let qn = build::qnode(
+                    &truth[&node],
+                    codes[&node],
+                    buf.len() as u8,
+                    all_leaves,
+                    has_n,
+                    has_c,
+                );
+                out.nodes.push((top.nodes[t].lo, l, qn));
+            }
+        }
+        Ok(out)
+    }
+}
+
+/// A part of the tree in left-to-right order: a top node, or a unit's forest levels.
+struct Segment {
+    lo: u64,
+    first_level: usize,
+    part: Part,
+}
+
+enum Part {
+    Top(QNode),
+    Unit(Vec<Spill>),
+}
+
+/// The tree's levels assembled from the top nodes and the units' spill files.
+struct Assembled {
+    segments: Vec<Segment>,
+    colors: bool,
+}
+
+impl Levels for Assembled {
+    fn count(&self) -> usize {
+        self.segments
+            .iter()
+            .map(|s| match &s.part {
+                Part::Top(_) => s.first_level + 1,
+                Part::Unit(files) => s.first_level + files.len(),
+            })
+            .max()
+            .unwrap_or(0)
+    }
+
+    fn visit(
+        &self,
+        l: usize,
+        f: &mut dyn FnMut(&[QNode]) -> Result<(), MethodError>,
+    ) -> Result<(), MethodError> {
+        let mut nodes = Vec::new();
+        for s in &self.segments {
+            match &s.part {
+                Part::Top(n) if s.first_level == l => f(std::slice::from_ref(n))?,
+                Part::Unit(files) if l >= s.first_level && l - s.first_level < files.len() => {
+                    let file = &files[l - s.first_level];
+                    file.read(|block| {
+                        nodes.clear();
+                        nodes.extend(block.chunks_exact(file.record).map(|b| {
+                            let mut n = format::unpack(u32_at(b, 0));
+                            if self.colors {
+                                n.color = u16::from_le_bytes([b[4], b[5]]);
+                            }
+                            n
+                        }));
+                        f(&nodes)
+                    })?;
+                }
+                _ => {}
+            }
+        }
+        Ok(())
+    }
+}

@@ -1,0 +1,264 @@
+//! Spill files: the temporary files of an out-of-core build, written once in blocks and read
+//! back block by block, with every block's length and checksum kept in memory by the writer.
+//!
+//! Contract:
+//! - [`SpillWriter::push`] appends one fixed-size record; a block is written when it holds
+//!   [`SpillWriter::block_bytes`] bytes, its [`crate::store::checksum`] kept in the returned
+//!   [`Spill`]. Nothing about the contents is stored in the file itself.
+//! - [`Spill::read`] checks the file's length first, then each block's checksum, and hands
+//!   whole blocks (whole records) to the caller. A missing, short, long or altered file is
+//!   [`MethodError::Corrupt`] naming the file and the block, never a panic and never wrong
+//!   data passed on.
+//! - Files live in a [`SpillDir`], a directory created inside the build's output directory
+//!   (so they sit on the disk the user chose for the output) and removed with everything in
+//!   it when the `SpillDir` is dropped, on success and on error alike.
+
+use std::fs::File;
+use std::io::{BufWriter, Read, Write};
+use std::path::{Path, PathBuf};
+
+use crate::MethodError;
+use crate::store::checksum;
+
+/// Bytes per block (rounded down to whole records).
+pub const BLOCK_BYTES: usize = 1 << 20;
+
+/// A directory of spill files, removed on drop.
+#[derive(Debug)]
+pub struct SpillDir {
+    path: PathBuf,
+    next: std::sync::atomic::AtomicU64,
+}
+
+impl SpillDir {
+    /// Creates `<parent>/<name>.tmp` (emptied first if a crashed build left it).
+    pub fn create(parent: &Path, name: &str) -> Result<Self, MethodError> {
+        let path = parent.join(format!("{name}.tmp"));
+        if path.exists() {
+            std::fs::remove_dir_all(&path).map_err(|e| MethodError::io(&path, e))?;
+        }
+        std::fs::create_dir_all(&path).map_err(|e| MethodError::io(&path, e))?;
+        Ok(Self {
+            path,
+            next: std::sync::atomic::AtomicU64::new(0),
+        })
+    }
+
+    /// The directory.
+    pub fn path(&self) -> &Path {
+        &self.path
+    }
+
+    /// A writer of a new file named `<stem>-<n>.bin` with records of `record` bytes.
+    pub fn writer(&self, stem: &str, record: usize) -> Result<SpillWriter, MethodError> {
+        let n = self.next.fetch_add(1, std::sync::atomic::Ordering::Relaxed);
+        SpillWriter::create(&self.path.join(format!("{stem}-{n}.bin")), record)
+    }
+}
+
+impl Drop for SpillDir {
+    fn drop(&mut self) {
+        let _ = std::fs::remove_dir_all(&self.path);
+    }
+}
+
+/// A spill file written: where it is and what it must hold.
+#[derive(Debug, Clone, PartialEq, Eq)]
+pub struct Spill {
+    /// The file.
+    pub path: PathBuf,
+    /// Bytes per record.
+    pub record: usize,
+    /// Records written.
+    pub records: u64,
+    /// Per block: length in bytes and checksum.
+    pub blocks: Vec<(u32, u64)>,
+}
+
+impl Spill {
+    /// Total bytes the file must hold.
+    pub fn bytes(&self) -> u64 {
+        self.records * self.record as u64
+    }
+
+    /// Reads the file block by block, checked, calling `f` with each block's bytes (a whole
+    /// number of records).
+    pub fn read(
+        &self,
+        mut f: impl FnMut(&[u8]) -> Result<(), MethodError>,
+    ) -> Result<(), MethodError> {
+        let corrupt = |msg: String| MethodError::corrupt(&self.path, msg);
+        let mut file = File::open(&self.path).map_err(|e| MethodError::io(&self.path, e))?;
+        let len = file
+            .metadata()
+            .map_err(|e| MethodError::io(&self.path, e))?
+            .len();
+        if len != self.bytes() {
+            return Err(corrupt(format!(
+                "temporary file holds {len} bytes, {} were written",
+                self.bytes()
+            )));
+        }
+        let mut buf = Vec::new();
+        for (i, &(n, sum)) in self.blocks.iter().enumerate() {
+            buf.resize(n as usize, 0);
+            file.read_exact(&mut buf)
+                .map_err(|e| corrupt(format!("temporary file, block {i}: {e}")))?;
+            if checksum(&buf) != sum {
+                return Err(corrupt(format!(
+                    "temporary file, block {i}: checksum mismatch (the file changed after it \
+                     was written)"
+                )));
+            }
+            f(&buf)?;
+        }
+        Ok(())
+    }
+
+    /// Reads every record into one vector of bytes.
+    pub fn read_all(&self) -> Result<Vec<u8>, MethodError> {
+        let mut out = Vec::with_capacity(self.bytes() as usize);
+        self.read(|b| {
+            out.extend_from_slice(b);
+            Ok(())
+        })?;
+        Ok(out)
+    }
+
+    /// Deletes the file (its space is needed no longer).
+    pub fn remove(self) {
+        let _ = std::fs::remove_file(&self.path);
+    }
+}
+
+/// Appends fixed-size records to a spill file.
+pub struct SpillWriter {
+    out: BufWriter<File>,
+    spill: Spill,
+    buf: Vec<u8>,
+    block_bytes: usize,
+}
+
+impl SpillWriter {
+    /// Creates `path` for records of `record` bytes.
+    pub fn create(path: &Path, record: usize) -> Result<Self, MethodError> {
+        let file = File::create(path).map_err(|e| MethodError::io(path, e))?;
+        let block_bytes = (BLOCK_BYTES / record.max(1)).max(1) * record.max(1);
+        Ok(Self {
+            out: BufWriter::with_capacity(1 << 16, file),
+            spill: Spill {
+                path: path.to_owned(),
+                record,
+                records: 0,
+                blocks: Vec::new(),
+            },
+            buf: Vec::with_capacity(block_bytes),
+            block_bytes,
+        })
+    }
+
+    /// Bytes per block.
+    pub fn block_bytes(&self) -> usize {
+        self.block_bytes
+    }
+
+    /// Appends one record (exactly [`Spill::record`] bytes).
+    pub fn push(&mut self, record: &[u8]) -> Result<(), MethodError> {
+        debug_assert_eq!(record.len(), self.spill.record);
+        self.buf.extend_from_slice(record);
+        self.spill.records += 1;
+        if self.buf.len() >= self.block_bytes {
+            self.flush_block()?;
+        }
+        Ok(())
+    }
+
+    fn flush_block(&mut self) -> Result<(), MethodError> {
+        if self.buf.is_empty() {
+            return Ok(());
+        }
+        self.spill
+            .blocks
+            .push((self.buf.len() as u32, checksum(&self.buf)));
+        self.out
+            .write_all(&self.buf)
+            .map_err(|e| MethodError::io(&self.spill.path, e))?;
+        self.buf.clear();
+        Ok(())
+    }
+
+    /// Writes the last block and closes the file.
+    pub fn finish(mut self) -> Result<Spill, MethodError> {
+        self.flush_block()?;
+        self.out
+            .flush()
+            .map_err(|e| MethodError::io(&self.spill.path, e))?;
+        Ok(self.spill)
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn written(dir: &SpillDir, records: u32) -> Spill {
+        let mut w = dir.writer("t", 12).unwrap();
+        for i in 0..records {
+            let mut r = [0u8; 12];
+            r[..4].copy_from_slice(&i.to_le_bytes());
+            w.push(&r).unwrap();
+        }
+        w.finish().unwrap()
+    }
+
+    #[test]
+    fn round_trip_in_blocks_of_whole_records() {
+        let tmp = tempfile::tempdir().unwrap();
+        let dir = SpillDir::create(tmp.path(), "x").unwrap();
+        let n = (BLOCK_BYTES / 12) as u32 * 2 + 5;
+        let s = written(&dir, n);
+        assert_eq!(s.blocks.len(), 3);
+        let mut next = 0u32;
+        s.read(|b| {
+            assert_eq!(b.len() % 12, 0);
+            for r in b.chunks_exact(12) {
+                assert_eq!(u32::from_le_bytes(r[..4].try_into().unwrap()), next);
+                next += 1;
+            }
+            Ok(())
+        })
+        .unwrap();
+        assert_eq!(next, n);
+        let path = dir.path().to_owned();
+        drop(dir);
+        assert!(!path.exists(), "the spill directory is removed on drop");
+    }
+
+    #[test]
+    fn short_long_and_altered_files_are_errors_naming_them() {
+        let tmp = tempfile::tempdir().unwrap();
+        let dir = SpillDir::create(tmp.path(), "x").unwrap();
+        let s = written(&dir, 1000);
+        let name = s.path.display().to_string();
+        let bytes = std::fs::read(&s.path).unwrap();
+        let expect = |what: &str, e: MethodError| {
+            let m = e.to_string();
+            assert!(m.contains(&name) && m.contains(what), "{what}: {m}");
+        };
+        std::fs::write(&s.path, &bytes[..bytes.len() - 1]).unwrap();
+        expect("11999 bytes, 12000", s.read(|_| Ok(())).unwrap_err());
+        let mut long = bytes.clone();
+        long.push(0);
+        std::fs::write(&s.path, &long).unwrap();
+        expect("12001 bytes", s.read(|_| Ok(())).unwrap_err());
+        let mut flipped = bytes.clone();
+        flipped[5000] ^= 0x10;
+        std::fs::write(&s.path, &flipped).unwrap();
+        expect(
+            "block 0: checksum mismatch",
+            s.read(|_| Ok(())).unwrap_err(),
+        );
+        std::fs::remove_file(&s.path).unwrap();
+        assert!(matches!(s.read(|_| Ok(())), Err(MethodError::Io { .. })));
+    }
+}

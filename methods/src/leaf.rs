@@ -78,15 +78,26 @@ pub fn cap_isolated(radii: &mut [f32]) -> u64 {
     if radii.len() < 2 {
         return 0;
     }
-    let stride = radii.len().div_ceil(QUANTILE_SAMPLES);
-    let mut sample: Vec<f32> = radii.iter().step_by(stride).copied().collect();
-    let at = ((sample.len() - 1) as f64 * OUTLIER_QUANTILE).floor() as usize;
-    let (_, q, _) = sample.select_nth_unstable_by(at, f32::total_cmp);
-    let cap = *q * OUTLIER_CAP;
+    let stride = quantile_stride(radii.len());
+    let cap = isolation_cap(radii.iter().step_by(stride).copied().collect());
     let mut capped = 0;
     for r in radii.iter_mut().filter(|r| **r > cap) {
         *r = cap;
         capped += 1;
     }
     capped
+}
+
+/// The stride of the samples that estimate the quantile of `n` radii: the radii of samples
+/// `0, s, 2s, …` (an out-of-core build gathers them by sample index).
+pub fn quantile_stride(n: usize) -> usize {
+    n.div_ceil(QUANTILE_SAMPLES).max(1)
+}
+
+/// The cap on k-NN radii given the strided `sample` of them ([`quantile_stride`]; not
+/// empty).
+pub fn isolation_cap(mut sample: Vec<f32>) -> f32 {
+    let at = ((sample.len() - 1) as f64 * OUTLIER_QUANTILE).floor() as usize;
+    let (_, q, _) = sample.select_nth_unstable_by(at, f32::total_cmp);
+    *q * OUTLIER_CAP
 }

@@ -33,6 +33,7 @@ pub mod spill;
 pub mod spt;
 pub mod store;
 pub mod strays;
+pub mod unit_knn;
 
 pub use draw::{
     ChunkId, DrawItem, DrawList, Feedback, IntervalTest, OcclusionCandidate, OcclusionPass,

@@ -14,7 +14,7 @@
 //!   it when the `SpillDir` is dropped, on success and on error alike.
 
 use std::fs::File;
-use std::io::{BufWriter, Read, Write};
+use std::io::{Read, Write};
 use std::path::{Path, PathBuf};
 
 use crate::MethodError;
@@ -49,10 +49,22 @@ impl SpillDir {
         &self.path
     }
 
-    /// A writer of a new file named `<stem>-<n>.bin` with records of `record` bytes.
+    /// A writer of a new file named `<stem>-<n>.bin` with records of `record` bytes, in
+    /// blocks of about [`BLOCK_BYTES`].
     pub fn writer(&self, stem: &str, record: usize) -> Result<SpillWriter, MethodError> {
+        self.writer_with_block(stem, record, BLOCK_BYTES)
+    }
+
+    /// [`Self::writer`] with blocks of about `block` bytes (whole records, at least one):
+    /// smaller blocks for the many writers a build keeps open at once.
+    pub fn writer_with_block(
+        &self,
+        stem: &str,
+        record: usize,
+        block: usize,
+    ) -> Result<SpillWriter, MethodError> {
         let n = self.next.fetch_add(1, std::sync::atomic::Ordering::Relaxed);
-        SpillWriter::create(&self.path.join(format!("{stem}-{n}.bin")), record)
+        SpillWriter::create(&self.path.join(format!("{stem}-{n}.bin")), record, block)
     }
 }
 
@@ -131,21 +143,21 @@ impl Spill {
     }
 }
 
-/// Appends fixed-size records to a spill file.
+/// Appends fixed-size records to a spill file; each block is written with one `write`.
 pub struct SpillWriter {
-    out: BufWriter<File>,
+    out: File,
     spill: Spill,
     buf: Vec<u8>,
     block_bytes: usize,
 }
 
 impl SpillWriter {
-    /// Creates `path` for records of `record` bytes.
-    pub fn create(path: &Path, record: usize) -> Result<Self, MethodError> {
-        let file = File::create(path).map_err(|e| MethodError::io(path, e))?;
-        let block_bytes = (BLOCK_BYTES / record.max(1)).max(1) * record.max(1);
+    /// Creates `path` for records of `record` bytes in blocks of about `block` bytes.
+    pub fn create(path: &Path, record: usize, block: usize) -> Result<Self, MethodError> {
+        let out = File::create(path).map_err(|e| MethodError::io(path, e))?;
+        let block_bytes = (block / record.max(1)).max(1) * record.max(1);
         Ok(Self {
-            out: BufWriter::with_capacity(1 << 16, file),
+            out,
             spill: Spill {
                 path: path.to_owned(),
                 record,
@@ -190,9 +202,6 @@ impl SpillWriter {
     /// Writes the last block and closes the file.
     pub fn finish(mut self) -> Result<Spill, MethodError> {
         self.flush_block()?;
-        self.out
-            .flush()
-            .map_err(|e| MethodError::io(&self.spill.path, e))?;
         Ok(self.spill)
     }
 }

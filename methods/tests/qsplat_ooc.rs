@@ -9,12 +9,10 @@ use scenes::generators::Generator;
 use scenes::{NoProgress, PointCloud};
 
 fn build(cloud: &PointCloud, opt: BuildOptions, cap: u64, out: &std::path::Path) -> (Vec<u8>, u64) {
-    let radii = methods::leaf::leaf_radii(cloud);
     std::fs::create_dir_all(out).unwrap();
     let path = out.join("tree.qs");
     let t = ooc::build_file(
         cloud,
-        &radii,
         opt,
         &path,
         ooc::Budget {
@@ -51,17 +49,57 @@ fn units_give_the_in_memory_file_byte_for_byte() {
     }
 }
 
+/// A statue with the degenerate cases of the leaf radii: 7 exact copies of 30 samples
+/// (their 6th neighbour is at distance 0: the fallback) and 6 far strays (capped as
+/// isolated).
+fn degenerate_statue() -> PointCloud {
+    let c = Generator::Statue.generate(9_000, 4).unwrap();
+    let mut pos = c.positions().to_vec();
+    let mut nrm = c.normals().unwrap().to_vec();
+    for i in 0..30 {
+        for _ in 0..7 {
+            pos.push(pos[i * 200]);
+            nrm.push(nrm[i * 200]);
+        }
+    }
+    for j in 0..6 {
+        pos.push([40.0 + 9.0 * j as f32, -30.0, 25.0 * j as f32]);
+        nrm.push([0.0, 0.0, 1.0]);
+    }
+    PointCloud::new(c.origin(), pos.into(), Some(nrm.into()), None, None).unwrap()
+}
+
+#[test]
+fn leaf_radii_by_units_are_the_in_memory_ones_with_fallback_cap_and_given_radii() {
+    let tmp = tempfile::tempdir().unwrap();
+    let cloud = degenerate_statue();
+    let radii = methods::leaf::leaf_radii(&cloud);
+    assert!(radii.capped >= 6, "{} capped", radii.capped);
+    let n = cloud.len() as u64;
+    let opt = BuildOptions::default();
+    let (whole, _) = build(&cloud, opt, n, &tmp.path().join("a"));
+    let (parts, units) = build(&cloud, opt, 900, &tmp.path().join("b"));
+    assert!(units >= 10);
+    assert!(whole == parts, "k-NN radii by units differ");
+    // A scene with its own radii carries them in the records.
+    let given: Vec<f32> = (0..cloud.len())
+        .map(|i| 0.001 + (i % 7) as f32 * 1e-4)
+        .collect();
+    let cloud = cloud.with_radii(given).unwrap();
+    let (whole, _) = build(&cloud, opt, n, &tmp.path().join("c"));
+    let (parts, _) = build(&cloud, opt, 900, &tmp.path().join("d"));
+    assert!(whole == parts, "given radii by units differ");
+}
+
 /// Builds `cloud` in units of 2000 samples into `out`, calling `hook` on the spill files.
 fn build_hooked(
     cloud: &PointCloud,
     out: &std::path::Path,
     hook: &dyn Fn(&[&methods::spill::Spill]),
 ) -> Result<ooc::TreeStats, methods::MethodError> {
-    let radii = methods::leaf::leaf_radii(cloud);
     std::fs::create_dir_all(out).unwrap();
     ooc::build_file(
         cloud,
-        &radii,
         BuildOptions::default(),
         &out.join("tree.qs"),
         ooc::Budget {

@@ -82,22 +82,105 @@ fn apply_fallback(out: &mut [f32], positions: &[[f32; 3]]) {
         .copied()
         .filter(|&d| !bad(d))
         .reduce(|| f32::INFINITY, f32::min);
-    let fallback = if smallest.is_finite() {
-        smallest
-    } else {
-        let b = crate::Aabb::from_points(positions);
-        let diag = b.size().length() / (positions.len() as f32).sqrt();
-        if diag.is_finite() && diag > 0.0 {
-            diag
-        } else {
-            1.0
-        }
-    };
+    let fallback = fallback_spacing(smallest, || crate::Aabb::from_points(positions), out.len());
     out.par_iter_mut().for_each(|d| {
         if bad(*d) {
             *d = fallback;
         }
     });
+}
+
+/// True if `d` is not a usable spacing (zero, or not finite): it is replaced by the fallback.
+#[inline]
+pub fn is_degenerate(d: f32) -> bool {
+    !(d.is_finite() && d > 0.0)
+}
+
+/// The spacing given to degenerate points (see the module docs): `smallest`, the smallest
+/// positive k-NN distance of the cloud, if finite; else the bounding-box diagonal over
+/// `√n`; else 1. `bounds` is asked for only when needed.
+pub fn fallback_spacing(smallest: f32, bounds: impl FnOnce() -> crate::Aabb, n: usize) -> f32 {
+    if smallest.is_finite() {
+        return smallest;
+    }
+    let b = bounds();
+    let diag = b.size().length() / (n as f32).sqrt();
+    if diag.is_finite() && diag > 0.0 {
+        diag
+    } else {
+        1.0
+    }
+}
+
+/// A kd-tree over a set of points answering k-nearest-neighbour queries as lists of squared
+/// distances, for builds that split a cloud into parts and merge the parts' answers: the
+/// k-th smallest of the union of every part's `k` smallest squared distances is exactly the
+/// k-th squared distance [`knn_spacing`] finds over the whole cloud (the same `f32`
+/// arithmetic, the same self exclusion by index).
+pub struct KnnIndex {
+    tree: Option<KdTree>,
+}
+
+impl KnnIndex {
+    /// Indexes `positions`.
+    pub fn new(positions: &[[f32; 3]]) -> Self {
+        Self {
+            tree: (!positions.is_empty()).then(|| KdTree::build(positions)),
+        }
+    }
+
+    /// For every indexed point, in input order, the `k` smallest squared distances to the
+    /// other indexed points, ascending, `+∞` where there are fewer: `k` values per point.
+    pub fn self_lists(&self, k: usize) -> Vec<f32> {
+        let Some(t) = &self.tree else {
+            return Vec::new();
+        };
+        let n = t.items.len();
+        let mut lists = vec![f32::INFINITY; n * k];
+        let by_tree = t.search_leaves(k, k, |h, o| o[..h.d.len()].copy_from_slice(&h.d));
+        for (item, l) in t.items.iter().zip(by_tree.chunks_exact(k)) {
+            lists[item.index * k..item.index * k + k].copy_from_slice(l);
+        }
+        lists
+    }
+
+    /// For every query point, in order, the `k` smallest squared distances to the indexed
+    /// points (none excluded), ascending, `+∞` where there are fewer.
+    pub fn query_lists(&self, queries: &[[f32; 3]], k: usize) -> Vec<f32> {
+        let mut lists = vec![f32::INFINITY; queries.len() * k];
+        let Some(t) = &self.tree else {
+            return lists;
+        };
+        // Batches of nearby queries: the leaves of a kd-tree over the queries themselves
+        // (a batch's search is pruned by the box around its queries).
+        let qt = KdTree::build(queries);
+        let mut ranges = Vec::with_capacity(qt.nodes.len() + 1);
+        leaf_ranges(0, queries.len(), qt.nodes.len(), 0, &mut ranges);
+        let n = t.items.len();
+        let by_batch: Vec<Vec<f32>> = ranges
+            .par_iter()
+            .map_init(Vec::<Knn>::new, |heaps, r| {
+                let qs = &qt.items[r.clone()];
+                heaps.resize_with(qs.len(), || Knn::new(k));
+                heaps.iter_mut().for_each(Knn::clear);
+                // No query is an indexed point: `first` lies past every tree position.
+                let mut batch = Batch::new(qs, usize::MAX / 2, heaps);
+                let mut cell = [[f32::NEG_INFINITY, f32::INFINITY]; 3];
+                t.search_batch(0, 0, n, &mut cell, &mut batch);
+                let mut out = vec![f32::INFINITY; qs.len() * k];
+                for (o, h) in out.chunks_exact_mut(k).zip(batch.heaps.iter()) {
+                    o[..h.d.len()].copy_from_slice(&h.d);
+                }
+                out
+            })
+            .collect();
+        for (r, out) in ranges.iter().zip(by_batch) {
+            for (q, l) in qt.items[r.clone()].iter().zip(out.chunks_exact(k)) {
+                lists[q.index * k..q.index * k + k].copy_from_slice(l);
+            }
+        }
+        lists
+    }
 }
 
 /// A point with its index in the input.
@@ -145,17 +228,33 @@ impl KdTree {
 
     /// k-NN distance of every point, in input order.
     fn knn_distances(&self, k: usize) -> Vec<f32> {
+        let in_tree_order = self.search_leaves(k, 1, |h, o| o[0] = h.worst().sqrt());
+        let mut out = vec![0.0f32; self.items.len()];
+        for (item, d) in self.items.iter().zip(in_tree_order) {
+            out[item.index] = d;
+        }
+        out
+    }
+
+    /// Searches every point's `k` nearest and writes `width` values per point, in tree
+    /// order, with `emit(heap, out)` (`out` starts as `+∞`).
+    fn search_leaves(
+        &self,
+        k: usize,
+        width: usize,
+        emit: impl Fn(&Knn, &mut [f32]) + Sync,
+    ) -> Vec<f32> {
         let n = self.items.len();
         let leaves = self.nodes.len() + 1;
         // Each leaf's queries run together (one traversal for its ≤ LEAF_MAX points), the
         // leaves in parallel; results land at the queries' tree positions.
-        let mut in_tree_order = vec![0.0f32; n];
+        let mut in_tree_order = vec![f32::INFINITY; n * width];
         let mut ranges = Vec::with_capacity(leaves);
         leaf_ranges(0, n, self.nodes.len(), 0, &mut ranges);
         let mut outs: Vec<&mut [f32]> = Vec::with_capacity(leaves);
         let mut rest = in_tree_order.as_mut_slice();
         for r in &ranges {
-            let (head, tail) = rest.split_at_mut(r.len());
+            let (head, tail) = rest.split_at_mut(r.len() * width);
             outs.push(head);
             rest = tail;
         }
@@ -167,16 +266,12 @@ impl KdTree {
                 let mut batch = Batch::new(&self.items[r.clone()], r.start, heaps);
                 let mut cell = [[f32::NEG_INFINITY, f32::INFINITY]; 3];
                 self.search_batch(0, 0, n, &mut cell, &mut batch);
-                for (d, h) in out.iter_mut().zip(batch.heaps.iter()) {
-                    *d = h.worst().sqrt();
+                for (o, h) in out.chunks_exact_mut(width).zip(batch.heaps.iter()) {
+                    emit(h, o);
                 }
             },
         );
-        let mut out = vec![0.0f32; n];
-        for (item, d) in self.items.iter().zip(in_tree_order) {
-            out[item.index] = d;
-        }
-        out
+        in_tree_order
     }
 
     /// k-NN search of a leaf's queries below `node` (index range `lo..hi`, whose points lie
@@ -467,6 +562,56 @@ mod tests {
                 d[k - 1].sqrt()
             })
             .collect()
+    }
+
+    #[test]
+    fn lists_of_parts_merge_to_the_whole_clouds_spacing() {
+        // Random points with duplicates, cut into three parts by index (so the parts
+        // overlap in space): each point's own part's list merged with every other part's
+        // answer gives, at rank k, exactly knn_spacing's (squared) value.
+        let mut r = crate::rng::Pcg32::new(9);
+        let mut p: Vec<[f32; 3]> = (0..3000)
+            .map(|_| [r.f32(), r.f32() * 0.5, r.f32() * 0.01])
+            .collect();
+        p.extend_from_slice(&p[..40].to_vec());
+        let k = 6;
+        let whole = knn_spacing(&p, k);
+        let cuts = [0, 700, 2100, p.len()];
+        let parts: Vec<&[[f32; 3]]> = cuts.windows(2).map(|w| &p[w[0]..w[1]]).collect();
+        let index: Vec<KnnIndex> = parts.iter().map(|q| KnnIndex::new(q)).collect();
+        let mut merged = Vec::new();
+        for (a, q) in parts.iter().enumerate() {
+            let mut lists: Vec<Vec<f32>> = index[a]
+                .self_lists(k)
+                .chunks_exact(k)
+                .map(|l| l.to_vec())
+                .collect();
+            assert!(lists.iter().all(|l| l.windows(2).all(|w| w[0] <= w[1])));
+            for (b, other) in index.iter().enumerate() {
+                if a != b {
+                    for (l, o) in lists
+                        .iter_mut()
+                        .zip(other.query_lists(q, k).chunks_exact(k))
+                    {
+                        l.extend_from_slice(o);
+                    }
+                }
+            }
+            for mut l in lists {
+                l.sort_by(f32::total_cmp);
+                merged.push(l[k - 1].sqrt());
+            }
+        }
+        assert_eq!(merged, whole);
+        // Fewer indexed points than k: padded with +∞.
+        let small = KnnIndex::new(&p[..3]);
+        let l = small.self_lists(4);
+        assert_eq!(l.len(), 12);
+        assert!(l[1].is_finite() && l[2] == f32::INFINITY && l[3] == f32::INFINITY);
+        assert_eq!(
+            KnnIndex::new(&[]).query_lists(&p[..2], 3),
+            vec![f32::INFINITY; 6]
+        );
     }
 
     #[test]

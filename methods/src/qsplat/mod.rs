@@ -138,16 +138,13 @@ pub fn build(
     };
     let t0 = Instant::now();
     let n = cloud.len();
-    progress.start("qsplat: leaf radii", n as u64);
-    let radii = crate::leaf::leaf_radii(cloud);
-    progress.finish();
     let path = dir.join(TREE_FILE);
     let budget = ooc::Budget {
         mem_bytes: p.mem_mb << 20,
         dir,
         hook: None,
     };
-    let t = ooc::build_file(cloud, &radii, opt, &path, budget, progress)?;
+    let t = ooc::build_file(cloud, opt, &path, budget, progress)?;
     let fs = t.file;
     let attrs = Attributes {
         radii: true,
@@ -170,7 +167,7 @@ pub fn build(
         extra.insert(k.into(), v);
     };
     put("split", serde_json::to_value(opt.split).unwrap_or_default());
-    put("leaf_radii_capped", radii.capped.into());
+    put("leaf_radii_capped", t.radii_capped.into());
     put(
         "combine",
         serde_json::to_value(opt.combine).unwrap_or_default(),

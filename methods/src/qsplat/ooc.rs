@@ -35,7 +35,7 @@
 use std::path::Path;
 
 use glam::Vec3;
-use scenes::{PointCloud, Progress};
+use scenes::{Aabb, PointCloud, Progress};
 
 use super::build::{
     self, BuildOptions, Combine, Parent, Partitioned, QNode, Roots, Samples, Split, TrueNode,
@@ -44,11 +44,14 @@ use super::format::{self, FileStats, Levels};
 use crate::MethodError;
 use crate::sortkey::f32_total_order;
 use crate::spill::{Spill, SpillDir};
+use crate::unit_knn::{UnitBox, unit_radii};
 
 /// Working bytes per sample of a unit built in memory: the samples (≤ 31), the permutation
-/// and binary tree (13), the combined forest's ranges (≈ 21), true properties (≈ 70) and
-/// decoded spheres, margins and stored nodes (≈ 45), per node, ≈ 1.33 nodes per sample.
-pub const UNIT_BYTES_PER_SAMPLE: u64 = 200;
+/// and binary tree (13), and per node (≈ 1.33 per sample) the combined forest's ranges
+/// (16), true properties (52) and the quantisation's spheres, margins and stored nodes (up
+/// to ≈ 60 while a level is encoded): ≈ 200 by count; 240 measured as peak RSS per unit
+/// sample (terrain 2 M, two units, `mem_mb` 256: 266 MB), rounded up.
+pub const UNIT_BYTES_PER_SAMPLE: u64 = 256;
 
 /// Samples of the largest unit built in memory under a budget of `mem_bytes`.
 pub fn unit_capacity(mem_bytes: u64) -> u64 {
@@ -68,6 +71,8 @@ pub struct TreeStats {
     pub file: FileStats,
     /// Units built one at a time (1: built in memory).
     pub units: u64,
+    /// Leaf radii capped as isolated ([`crate::leaf`]).
+    pub radii_capped: u64,
 }
 
 /// Called with every spill file of the units once they are partitioned (tests corrupt them
@@ -85,10 +90,10 @@ pub struct Budget<'a> {
     pub hook: Option<SpillHook<'a>>,
 }
 
-/// Builds the tree of `cloud` (leaf radii `radii`) into `path` within `budget`.
+/// Builds the tree of `cloud` into `path` within `budget`, with the leaf radii of
+/// [`crate::leaf::leaf_radii`] (computed per unit out of core: [`crate::unit_knn`]).
 pub fn build_file(
     cloud: &PointCloud,
-    radii: &[f32],
     opt: BuildOptions,
     path: &Path,
     budget: Budget<'_>,
@@ -103,8 +108,11 @@ pub fn build_file(
     build::check_size(n)?;
     let cap = unit_capacity(mem_bytes);
     if n as u64 <= cap {
+        progress.start("qsplat: leaf radii", n as u64);
+        let radii = crate::leaf::leaf_radii(cloud);
+        progress.finish();
         progress.start("qsplat: hierarchy", n as u64);
-        let built = build::build_in_memory(cloud, radii, opt, false)?;
+        let built = build::build_in_memory(cloud, &radii, opt, false)?;
         progress.finish();
         let t = &built.tree;
         let file = format::write(path, t)?;
@@ -114,36 +122,71 @@ pub fn build_file(
             levels: t.levels.len() as u32,
             file,
             units: 1,
+            radii_capped: radii.capped,
         });
     }
     let spill = SpillDir::create(dir, "qsplat-spill")?;
     let layout = Layout {
+        radii: cloud.radii().is_some(),
         normals: cloud.normals().is_some(),
         colors: cloud.colors().is_some(),
     };
     progress.start("qsplat: partition", n as u64);
-    let mut top = partition_top(cloud, radii, layout, opt.split, cap, &spill, progress)?;
+    let (mut top, bounds) = partition_top(cloud, layout, opt.split, cap, &spill, progress)?;
     progress.finish();
     if let Some(h) = hook {
         h(&top.units.iter().map(|u| &u.spill).collect::<Vec<_>>());
     }
-
+    let radii = if layout.radii {
+        None
+    } else {
+        progress.start("qsplat: leaf radii (3 passes)", 3 * n as u64);
+        let boxes: Vec<UnitBox> = top
+            .units
+            .iter()
+            .map(|u| UnitBox {
+                n: u.n,
+                bbox: u.bbox,
+            })
+            .collect();
+        let load = |u: usize| top.units[u].positions(layout);
+        let r = unit_radii(&boxes, &load, n, bounds, &spill, progress)?;
+        progress.finish();
+        Some(r)
+    };
     progress.start("qsplat: unit splits", n as u64);
-    for u in &mut top.units {
-        let s = u.load(layout)?;
-        let p = Partitioned::new(&s.pos, opt);
-        u.cost = p.cost;
-        u.split = p.root_split() as u64;
+    let mut costs = Vec::with_capacity(top.units.len());
+    for u in &top.units {
+        let (_, pos) = u.positions(layout)?;
+        let p = Partitioned::new(&pos, opt);
+        costs.push((p.cost, p.root_split() as u64));
         progress.inc(u.n);
+    }
+    for (u, (cost, split)) in top.units.iter_mut().zip(costs) {
+        u.cost = cost;
+        u.split = split;
     }
     progress.finish();
     top.decide(opt.combine);
     let combined = top.combined();
+    let mut capped = 0;
+    let load = |u: usize, capped: &mut u64| {
+        let r = match &radii {
+            Some(r) => {
+                let (r, c) = r.load(u)?;
+                *capped += c;
+                Some(r)
+            }
+            None => None,
+        };
+        top.units[u].load(layout, r)
+    };
 
     progress.start("qsplat: unit truths", n as u64);
     let mut roots: Vec<Vec<TrueNode>> = Vec::with_capacity(top.units.len());
     for (i, u) in top.units.iter().enumerate() {
-        let s = u.load(layout)?;
+        // The radii's cap count is taken once, here.
+        let s = load(i, &mut capped)?;
         let p = Partitioned::new(&s.pos, opt);
         let forest = p.forest(combined.unit_roots[i]);
         let truth = forest.truths(&p.perm, s.samples());
@@ -166,7 +209,7 @@ pub fn build_file(
         })
         .collect();
     for (i, u) in top.units.iter().enumerate() {
-        let s = u.load(layout)?;
+        let s = load(i, &mut 0)?;
         let p = Partitioned::new(&s.pos, opt);
         let forest = p.forest(combined.unit_roots[i]);
         let truth = forest.truths(&p.perm, s.samples());
@@ -205,29 +248,33 @@ pub fn build_file(
         levels: levels.count() as u32,
         file,
         units: top.units.len() as u64,
+        radii_capped: capped,
     })
 }
 
 /// Which columns a sample record carries.
 #[derive(Debug, Clone, Copy)]
 struct Layout {
+    radii: bool,
     normals: bool,
     colors: bool,
 }
 
 impl Layout {
-    /// Bytes of a record: index `u32`, position `f32 × 3`, radius `f32`, then the normal
+    /// Bytes of a record: index `u32`, position `f32 × 3`, then the radius `f32`, the normal
     /// `f32 × 3` and the colour `u8 × 3` + 1 pad byte when the scene has them.
     fn bytes(self) -> usize {
-        20 + 12 * self.normals as usize + 4 * self.colors as usize
+        16 + 4 * self.radii as usize + 12 * self.normals as usize + 4 * self.colors as usize
     }
 
-    fn encode(self, cloud: &PointCloud, radii: &[f32], i: usize, out: &mut Vec<u8>) {
+    fn encode(self, cloud: &PointCloud, i: usize, out: &mut Vec<u8>) {
         out.extend_from_slice(&(i as u32).to_le_bytes());
         for v in cloud.positions()[i] {
             out.extend_from_slice(&v.to_le_bytes());
         }
-        out.extend_from_slice(&radii[i].to_le_bytes());
+        if let Some(rs) = cloud.radii() {
+            out.extend_from_slice(&rs[i].to_le_bytes());
+        }
         if let Some(ns) = cloud.normals() {
             for v in ns[i] {
                 out.extend_from_slice(&v.to_le_bytes());
@@ -292,14 +339,18 @@ struct Unit {
     cost: (u64, u64),
     /// Its root's split, relative to `lo` (step 2).
     split: u64,
+    /// Bounding box of its positions.
+    bbox: (Vec3, Vec3),
 }
 
 impl Unit {
-    fn load(&self, layout: Layout) -> Result<UnitSamples, MethodError> {
+    /// The unit's samples; the radii from the records, or `radii` when the scene has none.
+    fn load(&self, layout: Layout, radii: Option<Vec<f32>>) -> Result<UnitSamples, MethodError> {
         let n = self.n as usize;
+        let given = radii.is_some();
         let mut s = UnitSamples {
             pos: Vec::with_capacity(n),
-            radii: Vec::with_capacity(n),
+            radii: radii.unwrap_or_else(|| Vec::with_capacity(n)),
             normals: layout.normals.then(|| Vec::with_capacity(n)),
             colors: layout.colors.then(|| Vec::with_capacity(n)),
         };
@@ -317,8 +368,11 @@ impl Unit {
                 }
                 last = Some(idx);
                 s.pos.push(pos_of(r));
-                s.radii.push(f32_at(r, 16));
-                let mut at = 20;
+                let mut at = 16;
+                if layout.radii {
+                    s.radii.push(f32_at(r, at));
+                    at += 4;
+                }
                 if let Some(ns) = &mut s.normals {
                     ns.push([f32_at(r, at), f32_at(r, at + 4), f32_at(r, at + 8)]);
                     at += 12;
@@ -329,13 +383,27 @@ impl Unit {
             }
             Ok(())
         })?;
-        if s.pos.len() != n {
+        if s.pos.len() != n || (given && s.radii.len() != n) {
             return Err(MethodError::corrupt(
                 &self.spill.path,
                 format!("temporary file holds {} samples, {n} expected", s.pos.len()),
             ));
         }
         Ok(s)
+    }
+
+    /// The unit's sample indices and positions.
+    fn positions(&self, layout: Layout) -> Result<(Vec<u32>, Vec<[f32; 3]>), MethodError> {
+        let mut idx = Vec::with_capacity(self.n as usize);
+        let mut pos = Vec::with_capacity(self.n as usize);
+        self.spill.read(|block| {
+            for r in block.chunks_exact(layout.bytes()) {
+                idx.push(u32_at(r, 0));
+                pos.push(pos_of(r));
+            }
+            Ok(())
+        })?;
+        Ok((idx, pos))
     }
 }
 
@@ -374,7 +442,6 @@ struct Pending {
 fn scan(
     src: Option<&Spill>,
     cloud: &PointCloud,
-    radii: &[f32],
     layout: Layout,
     mut f: impl FnMut(&[u8]) -> Result<(), MethodError>,
 ) -> Result<(), MethodError> {
@@ -394,7 +461,7 @@ fn scan(
                 let end = (start + BLOCK).min(n);
                 buf.clear();
                 for i in start..end {
-                    layout.encode(cloud, radii, i, &mut buf);
+                    layout.encode(cloud, i, &mut buf);
                 }
                 for r in buf.chunks_exact(rb) {
                     f(r)?;
@@ -424,7 +491,6 @@ fn median_key(r: &[u8], axis: usize) -> u64 {
 fn select_key(
     src: Option<&Spill>,
     cloud: &PointCloud,
-    radii: &[f32],
     layout: Layout,
     axis: usize,
     mut rank: u64,
@@ -433,7 +499,7 @@ fn select_key(
     for pass in 0..4u32 {
         let shift = 48 - 16 * pass;
         let mut hist = vec![0u64; 1 << 16];
-        scan(src, cloud, radii, layout, |r| {
+        scan(src, cloud, layout, |r| {
             let k = median_key(r, axis);
             if pass == 0 || k >> (shift + 16) == prefix >> (shift + 16) {
                 hist[((k >> shift) & 0xFFFF) as usize] += 1;
@@ -453,13 +519,12 @@ fn select_key(
 /// Step 1: splits ranges larger than `cap` as the in-memory build would, into spill files.
 fn partition_top(
     cloud: &PointCloud,
-    radii: &[f32],
     layout: Layout,
     split: Split,
     cap: u64,
     spill: &SpillDir,
     progress: &dyn Progress,
-) -> Result<Top, MethodError> {
+) -> Result<(Top, Aabb), MethodError> {
     let mut top = Top {
         nodes: Vec::new(),
         units: Vec::new(),
@@ -491,6 +556,7 @@ fn partition_top(
                 spill: src,
                 cost: (0, 0),
                 split: 0,
+                bbox: r.bbox,
             });
             progress.inc(r.n);
             Child::Unit(top.units.len() - 1)
@@ -507,7 +573,7 @@ fn partition_top(
             let mut halves = None;
             if split == Split::Midpoint {
                 let cut = (lo[axis] as f64 + hi[axis] as f64) * 0.5;
-                let h = split_by(&r, cloud, radii, layout, spill, |rec| {
+                let h = split_by(&r, cloud, layout, spill, |rec| {
                     (f32_at(rec, 4 + 4 * axis) as f64) < cut
                 })?;
                 if h.0.0 == 0 || h.0.0 == r.n {
@@ -520,8 +586,8 @@ fn partition_top(
             let ((nl, left, lbox), (nr, right, rbox)) = match halves {
                 Some(h) => h,
                 None => {
-                    let pivot = select_key(r.src.as_ref(), cloud, radii, layout, axis, r.n / 2)?;
-                    split_by(&r, cloud, radii, layout, spill, |rec| {
+                    let pivot = select_key(r.src.as_ref(), cloud, layout, axis, r.n / 2)?;
+                    split_by(&r, cloud, layout, spill, |rec| {
                         median_key(rec, axis) < pivot
                     })?
                 }
@@ -556,7 +622,13 @@ fn partition_top(
             top.nodes[p].kids[side] = child;
         }
     }
-    Ok(top)
+    Ok((
+        top,
+        Aabb {
+            min: root_box.0,
+            max: root_box.1,
+        },
+    ))
 }
 
 type Half = (u64, Spill, (Vec3, Vec3));
@@ -566,7 +638,6 @@ type Half = (u64, Spill, (Vec3, Vec3));
 fn split_by(
     r: &Pending,
     cloud: &PointCloud,
-    radii: &[f32],
     layout: Layout,
     spill: &SpillDir,
     left: impl Fn(&[u8]) -> bool,
@@ -575,7 +646,7 @@ fn split_by(
     let mut w = [spill.writer("samples", rb)?, spill.writer("samples", rb)?];
     let mut n = [0u64; 2];
     let mut b = [EMPTY_BOX; 2];
-    scan(r.src.as_ref(), cloud, radii, layout, |rec| {
+    scan(r.src.as_ref(), cloud, layout, |rec| {
         let side = (!left(rec)) as usize;
         n[side] += 1;
         grow(&mut b[side], pos_of(rec));

@@ -1,0 +1,382 @@
+//! Leaf radii ([`crate::leaf`]) of a cloud split into units that are loaded one at a time:
+//! the same values, bit for bit, as [`crate::leaf::leaf_radii`] over the whole cloud, in
+//! memory bounded by the largest unit.
+//!
+//! Three passes over the units, with spill files between them:
+//! 1. **Own.** Each unit's points are indexed ([`KnnIndex`]) and every point gets its `k`
+//!    smallest squared distances within the unit. A point's true k nearest are all within
+//!    its own k-th distance `r`, so only units whose bounding box lies within `r` of it can
+//!    hold a nearer one: those units (found through a small tree over the units' boxes) are
+//!    sent a query, and the point's own list is kept.
+//! 2. **Others.** Each unit answers the queries sent to it with its own `k` smallest
+//!    squared distances to the query point, sent back to the query's unit.
+//! 3. **Merge.** Each point's k-th smallest over its own list and the answers is its k-NN
+//!    distance: the union holds every one of its true k nearest, and every distance in it is
+//!    a distance to another point, computed with the same `f32` arithmetic as in memory.
+//!
+//! The degenerate-distance fallback (smallest positive distance of the cloud) and the cap
+//! on isolated samples (a quantile over the samples `0, s, 2s, …` by input index) need the
+//! whole cloud's distances: they are gathered in pass 3 and applied when a unit's radii are
+//! loaded ([`UnitRadii::load`]).
+
+use glam::{DVec3, Vec3};
+use scenes::spacing::{KnnIndex, fallback_spacing, is_degenerate};
+use scenes::{Aabb, Progress};
+
+use crate::MethodError;
+use crate::leaf::{LEAF_K, isolation_cap, quantile_stride};
+use crate::spill::{Spill, SpillDir, SpillWriter};
+
+/// Bytes per block of the query and answer spill files (one writer per unit is open at a
+/// time during passes 1 and 2, so these are small).
+const SMALL_BLOCK: usize = 1 << 16;
+
+/// A unit as pass 1 needs it: its sample count and the bounding box of its positions.
+#[derive(Debug, Clone, Copy)]
+pub struct UnitBox {
+    /// Samples.
+    pub n: u64,
+    /// Bounding box of its positions.
+    pub bbox: (Vec3, Vec3),
+}
+
+/// Loads unit `u`'s sample indices and positions, in the unit's order.
+pub type LoadPositions<'a> = &'a dyn Fn(usize) -> Result<(Vec<u32>, Vec<[f32; 3]>), MethodError>;
+
+/// Every unit's k-NN radii, before the fallback and the cap.
+pub struct UnitRadii {
+    files: Vec<Spill>,
+    /// The spacing given to degenerate distances.
+    pub fallback: f32,
+    /// The cap on isolated samples' radii.
+    pub cap: f32,
+}
+
+impl UnitRadii {
+    /// Unit `u`'s leaf radii, in the unit's order, and how many were capped.
+    pub fn load(&self, u: usize) -> Result<(Vec<f32>, u64), MethodError> {
+        let mut r = Vec::with_capacity(self.files[u].records as usize);
+        let mut capped = 0;
+        self.files[u].read(|b| {
+            for v in b.chunks_exact(4) {
+                let mut d = f32::from_le_bytes([v[0], v[1], v[2], v[3]]);
+                if is_degenerate(d) {
+                    d = self.fallback;
+                }
+                if d > self.cap {
+                    d = self.cap;
+                    capped += 1;
+                }
+                r.push(d);
+            }
+            Ok(())
+        })?;
+        Ok((r, capped))
+    }
+}
+
+/// A tree over the units' boxes, to find the units near a point.
+struct BoxTree {
+    /// Per node: its box and either two children or one unit.
+    nodes: Vec<((DVec3, DVec3), BoxKid)>,
+}
+
+#[derive(Clone, Copy)]
+enum BoxKid {
+    Inner(usize, usize),
+    Unit(usize),
+}
+
+impl BoxTree {
+    fn new(units: &[UnitBox]) -> Self {
+        let mut t = Self { nodes: Vec::new() };
+        let mut ids: Vec<usize> = (0..units.len()).collect();
+        if !ids.is_empty() {
+            t.add(units, &mut ids);
+        }
+        t
+    }
+
+    fn add(&mut self, units: &[UnitBox], ids: &mut [usize]) -> usize {
+        let b = |u: usize| (units[u].bbox.0.as_dvec3(), units[u].bbox.1.as_dvec3());
+        let mut lo = DVec3::INFINITY;
+        let mut hi = DVec3::NEG_INFINITY;
+        for &u in ids.iter() {
+            lo = lo.min(b(u).0);
+            hi = hi.max(b(u).1);
+        }
+        let me = self.nodes.len();
+        if ids.len() == 1 {
+            self.nodes.push(((lo, hi), BoxKid::Unit(ids[0])));
+            return me;
+        }
+        self.nodes.push(((lo, hi), BoxKid::Unit(usize::MAX)));
+        let axis = (hi - lo).max_position();
+        let centre = |u: usize| (b(u).0[axis] + b(u).1[axis]) * 0.5;
+        let mid = ids.len() / 2;
+        ids.select_nth_unstable_by(mid, |&a, &b| {
+            centre(a).total_cmp(&centre(b)).then(a.cmp(&b))
+        });
+        let (l, r) = ids.split_at_mut(mid);
+        let a = self.add(units, l);
+        let c = self.add(units, r);
+        self.nodes[me].1 = BoxKid::Inner(a, c);
+        me
+    }
+
+    /// Units other than `home` whose box may hold a point within squared distance `r2` of
+    /// `p` (generous by a relative 1e-5 for the `f32` rounding of `r2`).
+    fn near(&self, p: [f32; 3], r2: f32, home: usize, out: &mut Vec<usize>) {
+        out.clear();
+        if self.nodes.is_empty() {
+            return;
+        }
+        let p = Vec3::from(p).as_dvec3();
+        let reach = r2 as f64 * (1.0 + 1e-5);
+        let mut stack = vec![0usize];
+        while let Some(i) = stack.pop() {
+            let ((lo, hi), kid) = self.nodes[i];
+            let gap = (lo - p).max(p - hi).max(DVec3::ZERO);
+            if gap.length_squared() > reach {
+                continue;
+            }
+            match kid {
+                BoxKid::Inner(a, b) => stack.extend([a, b]),
+                BoxKid::Unit(u) if u != home => out.push(u),
+                BoxKid::Unit(_) => {}
+            }
+        }
+        out.sort_unstable();
+    }
+}
+
+fn f32s(b: &[u8]) -> impl Iterator<Item = f32> + '_ {
+    b.chunks_exact(4)
+        .map(|v| f32::from_le_bytes([v[0], v[1], v[2], v[3]]))
+}
+
+fn u32_at(b: &[u8], at: usize) -> u32 {
+    u32::from_le_bytes([b[at], b[at + 1], b[at + 2], b[at + 3]])
+}
+
+/// Lazily opened writers, one per unit.
+struct Writers<'a> {
+    dir: &'a SpillDir,
+    stem: &'static str,
+    record: usize,
+    open: Vec<Option<SpillWriter>>,
+}
+
+impl<'a> Writers<'a> {
+    fn new(dir: &'a SpillDir, stem: &'static str, record: usize, units: usize) -> Self {
+        Self {
+            dir,
+            stem,
+            record,
+            open: (0..units).map(|_| None).collect(),
+        }
+    }
+    fn get(&mut self, u: usize) -> Result<&mut SpillWriter, MethodError> {
+        if self.open[u].is_none() {
+            self.open[u] = Some(
+                self.dir
+                    .writer_with_block(self.stem, self.record, SMALL_BLOCK)?,
+            );
+        }
+        Ok(self.open[u].as_mut().expect("just opened"))
+    }
+    fn finish(self) -> Result<Vec<Option<Spill>>, MethodError> {
+        self.open
+            .into_iter()
+            .map(|w| w.map(SpillWriter::finish).transpose())
+            .collect()
+    }
+}
+
+/// The leaf radii of a cloud of `total` samples (bounds `bounds`) held as `units`, whose
+/// positions `load` reads; spill files go in `dir`. `progress` counts 3 × `total`.
+pub fn unit_radii(
+    units: &[UnitBox],
+    load: LoadPositions<'_>,
+    total: usize,
+    bounds: Aabb,
+    dir: &SpillDir,
+    progress: &dyn Progress,
+) -> Result<UnitRadii, MethodError> {
+    let k = LEAF_K.clamp(1, total.saturating_sub(1).max(1));
+    let boxes = BoxTree::new(units);
+    let stride = quantile_stride(total);
+    let list_bytes = 4 + 4 * k;
+
+    // Pass 1: own lists, queries to other units.
+    let mut queries = Writers::new(dir, "knn-query", 20, units.len());
+    let mut raw: Vec<Spill> = Vec::with_capacity(units.len());
+    let mut own: Vec<Spill> = Vec::with_capacity(units.len());
+    // (unit, position in unit) of the samples the quantile is estimated from.
+    let mut strided: Vec<(u32, u32)> = Vec::new();
+    let mut near = Vec::new();
+    for (u, unit) in units.iter().enumerate() {
+        let (idx, pos) = load(u)?;
+        if idx.len() as u64 != unit.n {
+            return Err(MethodError::Limit(format!(
+                "leaf radii: unit {u} loaded {} samples, {} expected",
+                idx.len(),
+                unit.n
+            )));
+        }
+        let lists = KnnIndex::new(&pos).self_lists(k);
+        let mut r = dir.writer("knn-raw", 4)?;
+        let mut o = dir.writer_with_block("knn-own", list_bytes, SMALL_BLOCK)?;
+        let mut rec = Vec::with_capacity(list_bytes.max(20));
+        for (i, (p, l)) in pos.iter().zip(lists.chunks_exact(k)).enumerate() {
+            r.push(&l[k - 1].sqrt().to_le_bytes())?;
+            if (idx[i] as usize).is_multiple_of(stride) {
+                strided.push((u as u32, i as u32));
+            }
+            boxes.near(*p, l[k - 1], u, &mut near);
+            if near.is_empty() {
+                continue;
+            }
+            rec.clear();
+            rec.extend_from_slice(&(i as u32).to_le_bytes());
+            l.iter()
+                .for_each(|d| rec.extend_from_slice(&d.to_le_bytes()));
+            o.push(&rec)?;
+            rec.clear();
+            rec.extend_from_slice(&(u as u32).to_le_bytes());
+            rec.extend_from_slice(&(i as u32).to_le_bytes());
+            p.iter()
+                .for_each(|c| rec.extend_from_slice(&c.to_le_bytes()));
+            for &v in &near {
+                queries.get(v)?.push(&rec)?;
+            }
+        }
+        raw.push(r.finish()?);
+        own.push(o.finish()?);
+        progress.inc(unit.n);
+    }
+    let queries = queries.finish()?;
+
+    // Pass 2: answers.
+    let mut answers = Writers::new(dir, "knn-answer", list_bytes, units.len());
+    let mut rec = Vec::with_capacity(list_bytes);
+    for (v, q) in queries.into_iter().enumerate() {
+        if let Some(q) = q {
+            let (_, pos) = load(v)?;
+            let index = KnnIndex::new(&pos);
+            drop(pos);
+            let mut homes: Vec<(u32, u32)> = Vec::new();
+            let mut qpos: Vec<[f32; 3]> = Vec::new();
+            q.read(|b| {
+                homes.clear();
+                qpos.clear();
+                for r in b.chunks_exact(20) {
+                    let home = u32_at(r, 0);
+                    if home as usize >= units.len() || home as usize == v {
+                        return Err(MethodError::corrupt(
+                            &q.path,
+                            format!("temporary file: query from unit {home}"),
+                        ));
+                    }
+                    homes.push((home, u32_at(r, 4)));
+                    let c: Vec<f32> = f32s(&r[8..20]).collect();
+                    qpos.push([c[0], c[1], c[2]]);
+                }
+                let lists = index.query_lists(&qpos, k);
+                for (&(home, i), l) in homes.iter().zip(lists.chunks_exact(k)) {
+                    rec.clear();
+                    rec.extend_from_slice(&i.to_le_bytes());
+                    l.iter()
+                        .for_each(|d| rec.extend_from_slice(&d.to_le_bytes()));
+                    answers.get(home as usize)?.push(&rec)?;
+                }
+                Ok(())
+            })?;
+            q.remove();
+        }
+        progress.inc(units[v].n);
+    }
+    let answers = answers.finish()?;
+
+    // Pass 3: merge; the smallest positive distance and the strided sample.
+    let mut files = Vec::with_capacity(units.len());
+    let mut smallest = f32::INFINITY;
+    let mut sample: Vec<f32> = Vec::with_capacity(strided.len());
+    let mut next_strided = 0usize;
+    for (u, ((raw, own), answers)) in raw.into_iter().zip(own).zip(answers).enumerate() {
+        let mut r: Vec<f32> = Vec::with_capacity(units[u].n as usize);
+        raw.read(|b| {
+            r.extend(f32s(b));
+            Ok(())
+        })?;
+        let mut locals: Vec<u32> = Vec::new();
+        let mut lists: Vec<f32> = Vec::new();
+        own.read(|b| {
+            for rec in b.chunks_exact(list_bytes) {
+                locals.push(u32_at(rec, 0));
+                lists.extend(f32s(&rec[4..]));
+            }
+            Ok(())
+        })?;
+        if let Some(a) = &answers {
+            let mut merged = Vec::with_capacity(2 * k);
+            a.read(|b| {
+                for rec in b.chunks_exact(list_bytes) {
+                    let i = u32_at(rec, 0);
+                    let at = locals.binary_search(&i).map_err(|_| {
+                        MethodError::corrupt(
+                            &a.path,
+                            format!("temporary file: an answer for sample {i}, which asked none"),
+                        )
+                    })?;
+                    let mine = &mut lists[at * k..at * k + k];
+                    merged.clear();
+                    merged.extend_from_slice(mine);
+                    merged.extend(f32s(&rec[4..]));
+                    merged.sort_unstable_by(f32::total_cmp);
+                    mine.copy_from_slice(&merged[..k]);
+                }
+                Ok(())
+            })?;
+            a.clone().remove();
+        }
+        for (&i, l) in locals.iter().zip(lists.chunks_exact(k)) {
+            r[i as usize] = l[k - 1].sqrt();
+        }
+        smallest = r
+            .iter()
+            .copied()
+            .filter(|&d| !is_degenerate(d))
+            .fold(smallest, f32::min);
+        while let Some(&(su, si)) = strided.get(next_strided)
+            && su as usize == u
+        {
+            sample.push(r[si as usize]);
+            next_strided += 1;
+        }
+        let mut w = dir.writer("knn-radii", 4)?;
+        for d in &r {
+            w.push(&d.to_le_bytes())?;
+        }
+        files.push(w.finish()?);
+        raw.remove();
+        own.remove();
+        progress.inc(units[u].n);
+    }
+    let fallback = fallback_spacing(smallest, || bounds, total);
+    for d in &mut sample {
+        if is_degenerate(*d) {
+            *d = fallback;
+        }
+    }
+    let cap = if total >= 2 && !sample.is_empty() {
+        isolation_cap(sample)
+    } else {
+        f32::INFINITY
+    };
+    Ok(UnitRadii {
+        files,
+        fallback,
+        cap,
+    })
+}

@@ -43,6 +43,9 @@ use super::build::{
 use super::format::{self, FileStats, Levels};
 use crate::MethodError;
 use crate::sortkey::f32_total_order;
+use crate::spill::samples::{
+    self, EMPTY_BOX, SampleColumns, SampleLayout as Layout, f32_at, grow, pos_of, u32_at,
+};
 use crate::spill::{Spill, SpillDir};
 use crate::unit_knn::{UnitBox, unit_radii};
 
@@ -126,11 +129,7 @@ pub fn build_file(
         });
     }
     let spill = SpillDir::create(dir, "qsplat-spill")?;
-    let layout = Layout {
-        radii: cloud.radii().is_some(),
-        normals: cloud.normals().is_some(),
-        colors: cloud.colors().is_some(),
-    };
+    let layout = Layout::of(cloud);
     progress.start("qsplat: partition", n as u64);
     let (mut top, bounds) = partition_top(cloud, layout, opt.split, cap, &spill, progress)?;
     progress.finish();
@@ -189,7 +188,7 @@ pub fn build_file(
         let s = load(i, &mut capped)?;
         let p = Partitioned::new(&s.pos, opt);
         let forest = p.forest(combined.unit_roots[i]);
-        let truth = forest.truths(&p.perm, s.samples());
+        let truth = forest.truths(&p.perm, samples_of(&s));
         roots.push(truth.into_iter().next().unwrap_or_default());
         progress.inc(u.n);
     }
@@ -212,7 +211,7 @@ pub fn build_file(
         let s = load(i, &mut 0)?;
         let p = Partitioned::new(&s.pos, opt);
         let forest = p.forest(combined.unit_roots[i]);
-        let truth = forest.truths(&p.perm, s.samples());
+        let truth = forest.truths(&p.perm, samples_of(&s));
         let first_level = combined.unit_level[i];
         let (pd, pm) = quantised.unit_parent[i];
         let q = forest.quantise(&truth, Parent::Node(pd, pm), attrs, first_level, false)?;
@@ -252,53 +251,6 @@ pub fn build_file(
     })
 }
 
-/// Which columns a sample record carries.
-#[derive(Debug, Clone, Copy)]
-struct Layout {
-    radii: bool,
-    normals: bool,
-    colors: bool,
-}
-
-impl Layout {
-    /// Bytes of a record: index `u32`, position `f32 × 3`, then the radius `f32`, the normal
-    /// `f32 × 3` and the colour `u8 × 3` + 1 pad byte when the scene has them.
-    fn bytes(self) -> usize {
-        16 + 4 * self.radii as usize + 12 * self.normals as usize + 4 * self.colors as usize
-    }
-
-    fn encode(self, cloud: &PointCloud, i: usize, out: &mut Vec<u8>) {
-        out.extend_from_slice(&(i as u32).to_le_bytes());
-        for v in cloud.positions()[i] {
-            out.extend_from_slice(&v.to_le_bytes());
-        }
-        if let Some(rs) = cloud.radii() {
-            out.extend_from_slice(&rs[i].to_le_bytes());
-        }
-        if let Some(ns) = cloud.normals() {
-            for v in ns[i] {
-                out.extend_from_slice(&v.to_le_bytes());
-            }
-        }
-        if let Some(cs) = cloud.colors() {
-            out.extend_from_slice(&cs[i]);
-            out.push(0);
-        }
-    }
-}
-
-fn f32_at(r: &[u8], at: usize) -> f32 {
-    f32::from_le_bytes([r[at], r[at + 1], r[at + 2], r[at + 3]])
-}
-
-fn u32_at(r: &[u8], at: usize) -> u32 {
-    u32::from_le_bytes([r[at], r[at + 1], r[at + 2], r[at + 3]])
-}
-
-fn pos_of(r: &[u8]) -> [f32; 3] {
-    [f32_at(r, 4), f32_at(r, 8), f32_at(r, 12)]
-}
-
 /// A node's stored bytes (the first 4, or 6 with colours, are meaningful).
 fn node_bytes(n: &QNode, colors: bool) -> [u8; 6] {
     let mut b = [0u8; 6];
@@ -309,23 +261,12 @@ fn node_bytes(n: &QNode, colors: bool) -> [u8; 6] {
     b
 }
 
-/// A unit's samples in memory, in input order.
-#[derive(Default)]
-struct UnitSamples {
-    pos: Vec<[f32; 3]>,
-    radii: Vec<f32>,
-    normals: Option<Vec<[f32; 3]>>,
-    colors: Option<Vec<[u8; 3]>>,
-}
-
-impl UnitSamples {
-    fn samples(&self) -> Samples<'_> {
-        Samples {
-            pos: &self.pos,
-            radii: &self.radii,
-            normals: self.normals.as_deref(),
-            colors: self.colors.as_deref(),
-        }
+fn samples_of(s: &SampleColumns) -> Samples<'_> {
+    Samples {
+        pos: &s.pos,
+        radii: &s.radii,
+        normals: s.normals.as_deref(),
+        colors: s.colors.as_deref(),
     }
 }
 
@@ -345,65 +286,13 @@ struct Unit {
 
 impl Unit {
     /// The unit's samples; the radii from the records, or `radii` when the scene has none.
-    fn load(&self, layout: Layout, radii: Option<Vec<f32>>) -> Result<UnitSamples, MethodError> {
-        let n = self.n as usize;
-        let given = radii.is_some();
-        let mut s = UnitSamples {
-            pos: Vec::with_capacity(n),
-            radii: radii.unwrap_or_else(|| Vec::with_capacity(n)),
-            normals: layout.normals.then(|| Vec::with_capacity(n)),
-            colors: layout.colors.then(|| Vec::with_capacity(n)),
-        };
-        let rb = layout.bytes();
-        let mut last: Option<u32> = None;
-        self.spill.read(|block| {
-            for r in block.chunks_exact(rb) {
-                // Input order, so that the in-memory tie-breaks by index hold.
-                let idx = u32_at(r, 0);
-                if last.is_some_and(|l| l >= idx) {
-                    return Err(MethodError::corrupt(
-                        &self.spill.path,
-                        format!("temporary file: sample index {idx} out of order"),
-                    ));
-                }
-                last = Some(idx);
-                s.pos.push(pos_of(r));
-                let mut at = 16;
-                if layout.radii {
-                    s.radii.push(f32_at(r, at));
-                    at += 4;
-                }
-                if let Some(ns) = &mut s.normals {
-                    ns.push([f32_at(r, at), f32_at(r, at + 4), f32_at(r, at + 8)]);
-                    at += 12;
-                }
-                if let Some(cs) = &mut s.colors {
-                    cs.push([r[at], r[at + 1], r[at + 2]]);
-                }
-            }
-            Ok(())
-        })?;
-        if s.pos.len() != n || (given && s.radii.len() != n) {
-            return Err(MethodError::corrupt(
-                &self.spill.path,
-                format!("temporary file holds {} samples, {n} expected", s.pos.len()),
-            ));
-        }
-        Ok(s)
+    fn load(&self, layout: Layout, radii: Option<Vec<f32>>) -> Result<SampleColumns, MethodError> {
+        samples::load(&self.spill, layout, self.n as usize, radii)
     }
 
     /// The unit's sample indices and positions.
     fn positions(&self, layout: Layout) -> Result<(Vec<u32>, Vec<[f32; 3]>), MethodError> {
-        let mut idx = Vec::with_capacity(self.n as usize);
-        let mut pos = Vec::with_capacity(self.n as usize);
-        self.spill.read(|block| {
-            for r in block.chunks_exact(layout.bytes()) {
-                idx.push(u32_at(r, 0));
-                pos.push(pos_of(r));
-            }
-            Ok(())
-        })?;
-        Ok((idx, pos))
+        samples::positions(&self.spill, layout)
     }
 }
 
@@ -472,14 +361,6 @@ fn scan(
         }
     }
 }
-
-fn grow(b: &mut (Vec3, Vec3), p: [f32; 3]) {
-    let p = Vec3::from(p);
-    b.0 = b.0.min(p);
-    b.1 = b.1.max(p);
-}
-
-const EMPTY_BOX: (Vec3, Vec3) = (Vec3::splat(f32::INFINITY), Vec3::splat(f32::NEG_INFINITY));
 
 /// The key of the in-memory median selection: coordinate in total order, then index.
 fn median_key(r: &[u8], axis: usize) -> u64 {

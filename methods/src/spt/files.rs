@@ -1,7 +1,6 @@
 //! SPT's files beside the node columns: `index.json` (clusters and chunks of the list) and
 //! `lod.bin` (the interval-test entries, checksummed).
 
-use std::io::Write;
 use std::path::Path;
 
 use super::*;
@@ -56,24 +55,6 @@ pub struct Index {
     pub clusters: Vec<ClusterInfo>,
     /// Chunks, in list order (chunk id = position here).
     pub chunks: Vec<ChunkInfo>,
-}
-
-pub(super) fn write_lod(path: &Path, lod: &[[f32; 4]]) -> Result<(), MethodError> {
-    let data: &[u8] = bytemuck::cast_slice(lod);
-    let tmp = path.with_extension("bin.tmp");
-    let mut f =
-        std::io::BufWriter::new(std::fs::File::create(&tmp).map_err(|e| MethodError::io(&tmp, e))?);
-    let io = |e| MethodError::io(&tmp, e);
-    f.write_all(LOD_MAGIC).map_err(io)?;
-    f.write_all(&(lod.len() as u64).to_le_bytes()).map_err(io)?;
-    f.write_all(&scenes::hash::fnv1a64(data).to_le_bytes())
-        .map_err(io)?;
-    f.write_all(data).map_err(io)?;
-    f.into_inner()
-        .map_err(|e| MethodError::io(&tmp, e.into_error()))?
-        .sync_all()
-        .map_err(io)?;
-    std::fs::rename(&tmp, path).map_err(|e| MethodError::io(path, e))
 }
 
 pub(super) fn read_lod(path: &Path, count: u64) -> Result<Vec<[f32; 4]>, MethodError> {

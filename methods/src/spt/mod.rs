@@ -28,11 +28,12 @@
 pub mod build;
 pub mod errors;
 mod files;
+pub mod list;
 mod params;
 pub mod select;
 
+use files::read_lod;
 pub use files::{ChunkInfo, ClusterInfo, Index};
-use files::{read_lod, write_lod};
 pub use params::{SptBound, SptMode, SptParams};
 
 use std::path::Path;
@@ -63,7 +64,7 @@ const LOD_FILE: &str = "lod.bin";
 const INDEX_FILE: &str = "index.json";
 const LOD_MAGIC: &[u8; 8] = b"SPTLOD01";
 
-fn sphere_of(points: impl Iterator<Item = (Vec3, f32)> + Clone) -> ([f32; 3], f32) {
+pub(crate) fn sphere_of(points: impl Iterator<Item = (Vec3, f32)> + Clone) -> ([f32; 3], f32) {
     let (lo, hi) = points.clone().fold(
         (Vec3::splat(f32::INFINITY), Vec3::splat(f32::NEG_INFINITY)),
         |(lo, hi), (p, _)| (lo.min(p), hi.max(p)),
@@ -164,90 +165,33 @@ pub fn build(
     keys.par_sort_unstable();
     let order: Vec<u32> = keys.iter().map(|&k| k as u32).collect();
     drop(keys);
-    // Clusters and chunks.
-    let mut clusters = Vec::new();
-    let mut chunks = Vec::new();
-    let mut s = 0usize;
-    while s < order.len() {
-        let id = cluster(order[s] as usize);
-        let e = s + order[s..].partition_point(|&i| cluster(i as usize) == id);
-        let members = &order[s..e];
-        let axis = members
-            .iter()
-            .map(|&i| nodes[i as usize].n)
-            .sum::<Vec3>()
-            .try_normalize()
-            .unwrap_or(Vec3::Z);
-        let half_angle = if p.normal_clusters {
-            members
-                .iter()
-                .map(|&i| axis.dot(nodes[i as usize].n).clamp(-1.0, 1.0).acos())
-                .fold(0.0f32, f32::max)
-                * (1.0 + 1e-4)
-                + 1e-4
-        } else {
-            std::f32::consts::PI
-        };
-        let (center, radius) = sphere_of(members.iter().map(|&i| (nodes[i as usize].p, 0.0)));
-        let ci = clusters.len() as u32;
-        clusters.push(ClusterInfo {
-            id,
-            start: s as u64,
-            count: (e - s) as u64,
-            axis: axis.to_array(),
-            half_angle,
-            center,
-            radius,
-        });
-        for (k, part) in members.chunks(CHUNK_NODES).enumerate() {
-            let (center, radius) = sphere_of(
-                part.iter()
-                    .map(|&i| (nodes[i as usize].p, nodes[i as usize].r)),
-            );
-            chunks.push(ChunkInfo {
-                cluster: ci,
-                start: (s + k * CHUNK_NODES) as u64,
-                count: part.len() as u32,
-                max_e_par: lod[part[0] as usize][1],
-                center,
-                radius,
-            });
-        }
-        s = e;
-    }
     // Files.
     let mut attrs = cloud.attributes();
     attrs.radii = true;
-    let nodes_path = dir.join(NODES_FILE);
-    let mut w = scenes::colfile::ColumnWriter::create(
-        &nodes_path,
+    let mut w = list::ListWriter::create(
+        dir,
         attrs,
         cloud.origin(),
         order.len() as u64,
+        p.normal_clusters,
     )?;
     progress.start("spt: writing", order.len() as u64);
     for block in order.chunks(1 << 16) {
-        let at = |i: &u32| &nodes[*i as usize];
-        let pos: Vec<[f32; 3]> = block.iter().map(|i| at(i).p.to_array()).collect();
-        let nrm: Option<Vec<[f32; 3]>> =
-            has_normals.then(|| block.iter().map(|i| at(i).n.to_array()).collect());
-        let col: Option<Vec<[u8; 3]>> = cloud
-            .colors()
-            .map(|_| block.iter().map(|i| at(i).color).collect());
-        let rad: Vec<f32> = block.iter().map(|i| at(i).r).collect();
-        w.push(&pos, nrm.as_deref(), col.as_deref(), Some(&rad))?;
+        for &i in block {
+            let nd = &nodes[i as usize];
+            w.push(&list::ListNode {
+                p: nd.p,
+                n: nd.n,
+                color: nd.color,
+                r: nd.r,
+                lod: lod[i as usize],
+                cluster: cluster(i as usize),
+            })?;
+        }
         progress.inc(block.len() as u64);
     }
-    w.finish()?;
+    let (index, _) = w.finish(tree.levels)?;
     progress.finish();
-    let sorted_lod: Vec<[f32; 4]> = order.iter().map(|&i| lod[i as usize]).collect();
-    write_lod(&dir.join(LOD_FILE), &sorted_lod)?;
-    let index = Index {
-        nodes: order.len() as u64,
-        levels: tree.levels,
-        clusters,
-        chunks,
-    };
     crate::method::write_json(&dir.join(INDEX_FILE), &index)?;
     Manifest {
         method: NAME.into(),

@@ -13,6 +13,8 @@
 //!   (so they sit on the disk the user chose for the output) and removed with everything in
 //!   it when the `SpillDir` is dropped, on success and on error alike.
 
+pub mod samples;
+
 use std::fs::File;
 use std::io::{Read, Write};
 use std::path::{Path, PathBuf};

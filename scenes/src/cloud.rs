@@ -236,8 +236,10 @@ impl PointCloud {
         check_len("color", colors.as_ref().map(|c| c.len()))?;
         check_len("radius", radii.as_ref().map(|c| c.len()))?;
         // Validate in blocks and release each block's pages once checked: a mapped 100 M
-        // sample scene is never resident all at once (its columns are 2.4 GB).
-        const BLOCK: usize = 1 << 20;
+        // sample scene is never resident all at once (its columns are 2.4 GB). Blocks of
+        // 2¹⁶ samples (≤ 1.8 MiB of columns): a build that writes and reopens a file of
+        // nodes within a small `mem_mb` holds one block.
+        const BLOCK: usize = 1 << 16;
         let mut bounds = Aabb::EMPTY;
         for lo in (0..n).step_by(BLOCK) {
             let hi = (lo + BLOCK).min(n);

@@ -43,6 +43,7 @@ use super::build::{
 use super::format::{self, FileStats, Levels};
 use crate::MethodError;
 use crate::sortkey::f32_total_order;
+pub use crate::spill::Budget;
 use crate::spill::samples::{
     self, EMPTY_BOX, SampleColumns, SampleLayout as Layout, f32_at, grow, pos_of, u32_at,
 };
@@ -76,21 +77,6 @@ pub struct TreeStats {
     pub units: u64,
     /// Leaf radii capped as isolated ([`crate::leaf`]).
     pub radii_capped: u64,
-}
-
-/// Called with every spill file of the units once they are partitioned (tests corrupt them
-/// to check the errors).
-pub type SpillHook<'a> = &'a dyn Fn(&[&Spill]);
-
-/// Where and within how much memory a build works.
-#[derive(Clone, Copy)]
-pub struct Budget<'a> {
-    /// Working memory in bytes.
-    pub mem_bytes: u64,
-    /// Where the spill directory is made (the build directory).
-    pub dir: &'a Path,
-    /// Called once the units' spill files are written.
-    pub hook: Option<SpillHook<'a>>,
 }
 
 /// Builds the tree of `cloud` into `path` within `budget`, with the leaf radii of

@@ -22,6 +22,21 @@ use std::path::{Path, PathBuf};
 use crate::MethodError;
 use crate::store::checksum;
 
+/// Where and within how much memory a build in units works.
+#[derive(Clone, Copy)]
+pub struct Budget<'a> {
+    /// Working memory in bytes.
+    pub mem_bytes: u64,
+    /// Where the spill directory is made (the build directory).
+    pub dir: &'a Path,
+    /// Called with the units' sample files once they are written (tests damage them to
+    /// check the errors).
+    pub hook: Option<SpillHook<'a>>,
+}
+
+/// Called with the units' sample files of a build in units.
+pub type SpillHook<'a> = &'a dyn Fn(&[&Spill]);
+
 /// Bytes per block (rounded down to whole records).
 pub const BLOCK_BYTES: usize = 1 << 20;
 
@@ -139,9 +154,71 @@ impl Spill {
         Ok(out)
     }
 
+    /// A reader handing out one record at a time (for merging several files).
+    pub fn reader(&self) -> Result<SpillReader<'_>, MethodError> {
+        let file = File::open(&self.path).map_err(|e| MethodError::io(&self.path, e))?;
+        let len = file
+            .metadata()
+            .map_err(|e| MethodError::io(&self.path, e))?
+            .len();
+        if len != self.bytes() {
+            return Err(MethodError::corrupt(
+                &self.path,
+                format!(
+                    "temporary file holds {len} bytes, {} were written",
+                    self.bytes()
+                ),
+            ));
+        }
+        Ok(SpillReader {
+            spill: self,
+            file,
+            block: 0,
+            buf: Vec::new(),
+            at: 0,
+        })
+    }
+
     /// Deletes the file (its space is needed no longer).
     pub fn remove(self) {
         let _ = std::fs::remove_file(&self.path);
+    }
+}
+
+/// Reads a spill file record by record, each block checked as it is read.
+pub struct SpillReader<'a> {
+    spill: &'a Spill,
+    file: File,
+    block: usize,
+    buf: Vec<u8>,
+    at: usize,
+}
+
+impl SpillReader<'_> {
+    /// The next record, or `None` at the end.
+    pub fn next_record(&mut self) -> Result<Option<&[u8]>, MethodError> {
+        if self.at == self.buf.len() {
+            let Some(&(n, sum)) = self.spill.blocks.get(self.block) else {
+                return Ok(None);
+            };
+            let corrupt = |msg: String| MethodError::corrupt(&self.spill.path, msg);
+            self.buf.resize(n as usize, 0);
+            self.file
+                .read_exact(&mut self.buf)
+                .map_err(|e| corrupt(format!("temporary file, block {}: {e}", self.block)))?;
+            if checksum(&self.buf) != sum {
+                return Err(corrupt(format!(
+                    "temporary file, block {}: checksum mismatch (the file changed after it \
+                     was written)",
+                    self.block
+                )));
+            }
+            self.block += 1;
+            self.at = 0;
+        }
+        let r = &self.buf[self.at..self.at + self.spill.record];
+        self.at += self.spill.record;
+        Ok(Some(r))
     }
 }
 

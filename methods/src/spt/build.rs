@@ -37,7 +37,8 @@ pub const NO_PARENT: u32 = u32::MAX;
 pub const MIN_INNER_ERROR: f32 = 1e-30;
 /// Smallest stored radius (radii must be > 0 in a column file).
 pub const MIN_RADIUS: f32 = 1e-30;
-const BITS: u32 = 21;
+/// Bits per axis of the Morton codes: the deepest cells are `BITS` levels below the root.
+pub(super) const BITS: u32 = 21;
 
 /// One node of the point tree.
 #[derive(Debug, Clone, Copy, PartialEq)]
@@ -83,11 +84,45 @@ impl PointTree {
     }
 }
 
-struct Builder<'a> {
-    cloud: &'a PointCloud,
-    radii: &'a [f32],
+/// The samples a tree is built over, indexed `0..n` in input order (a whole cloud, or a
+/// unit of one).
+#[derive(Clone, Copy)]
+pub(super) struct Samples<'a> {
+    pub pos: &'a [[f32; 3]],
+    pub radii: &'a [f32],
+    pub normals: Option<&'a [[f32; 3]]>,
+    pub colors: Option<&'a [[u8; 3]]>,
+}
+
+/// The Morton code of a position: 21 bits per axis in the cube of side `size` at `lo` (the
+/// cloud's bounds).
+#[derive(Debug, Clone, Copy)]
+pub(super) struct MortonGrid {
+    lo: Vec3,
+    size: f32,
+}
+
+impl MortonGrid {
+    /// The grid of a cloud with bounds `b`.
+    pub(super) fn new(b: scenes::Aabb) -> Self {
+        Self {
+            lo: b.min,
+            size: b.size().max_element().max(f32::MIN_POSITIVE),
+        }
+    }
+
+    /// The code of `p`.
+    pub(super) fn code(&self, p: [f32; 3]) -> u64 {
+        let cells = (1u32 << BITS) as f32;
+        let q = |v: f32, lo: f32| (((v - lo) / self.size * cells) as u32).min((1 << BITS) - 1);
+        crate::morton::morton63([q(p[0], self.lo.x), q(p[1], self.lo.y), q(p[2], self.lo.z)])
+    }
+}
+
+pub(super) struct Builder<'a> {
+    s: Samples<'a>,
     keys: Vec<(u64, u32)>,
-    nodes: Vec<Node>,
+    pub nodes: Vec<Node>,
     leaf_of: Vec<u32>,
     color_threshold: f32,
 }
@@ -95,30 +130,14 @@ struct Builder<'a> {
 /// Builds the point tree of `cloud` with leaf radii `radii` (one per sample);
 /// `color_threshold` is the colour rule's threshold in 0..=255 units (ignored without colours).
 pub fn build_tree(cloud: &PointCloud, radii: &[f32], color_threshold: f32) -> PointTree {
-    let b = cloud.bounds();
-    let size = b.size().max_element().max(f32::MIN_POSITIVE);
-    let cells = (1u32 << BITS) as f32;
-    let q = |v: f32, lo: f32| (((v - lo) / size * cells) as u32).min((1 << BITS) - 1);
-    let mut keys: Vec<(u64, u32)> = cloud
-        .positions()
-        .par_iter()
-        .enumerate()
-        .map(|(i, p)| {
-            let code =
-                crate::morton::morton63([q(p[0], b.min.x), q(p[1], b.min.y), q(p[2], b.min.z)]);
-            (code, i as u32)
-        })
-        .collect();
-    keys.par_sort_unstable();
-    let n = cloud.len();
-    let mut bld = Builder {
-        cloud,
+    let s = Samples {
+        pos: cloud.positions(),
         radii,
-        keys,
-        nodes: Vec::with_capacity(n + n / 2),
-        leaf_of: vec![0; n],
-        color_threshold,
+        normals: cloud.normals(),
+        colors: cloud.colors(),
     };
+    let mut bld = Builder::new(s, MortonGrid::new(cloud.bounds()), color_threshold);
+    let n = cloud.len();
     let (_, height) = bld.subtree(0, n, BITS);
     PointTree {
         nodes: bld.nodes,
@@ -127,10 +146,31 @@ pub fn build_tree(cloud: &PointCloud, radii: &[f32], color_threshold: f32) -> Po
     }
 }
 
+impl<'a> Builder<'a> {
+    /// A builder over `s`, sorted by Morton code in `grid` (ties by index).
+    pub(super) fn new(s: Samples<'a>, grid: MortonGrid, color_threshold: f32) -> Self {
+        let mut keys: Vec<(u64, u32)> = s
+            .pos
+            .par_iter()
+            .enumerate()
+            .map(|(i, &p)| (grid.code(p), i as u32))
+            .collect();
+        keys.par_sort_unstable();
+        let n = s.pos.len();
+        Self {
+            s,
+            keys,
+            nodes: Vec::with_capacity(n + n / 2),
+            leaf_of: vec![0; n],
+            color_threshold,
+        }
+    }
+}
+
 impl Builder<'_> {
     /// Builds the cell holding `keys[lo..hi]` whose codes agree above `level·3` bits;
     /// returns (node index, height).
-    fn subtree(&mut self, lo: usize, hi: usize, level: u32) -> (u32, u32) {
+    pub(super) fn subtree(&mut self, lo: usize, hi: usize, level: u32) -> (u32, u32) {
         if hi - lo == 1 {
             return (self.leaf(lo), 1);
         }
@@ -169,18 +209,18 @@ impl Builder<'_> {
         let idx = self.nodes.len() as u32;
         self.leaf_of[i] = idx;
         self.nodes.push(Node {
-            p: Vec3::from(self.cloud.positions()[i]),
+            p: Vec3::from(self.s.pos[i]),
             n: self
-                .cloud
-                .normals()
+                .s
+                .normals
                 .map_or(Vec3::Z, |n| Vec3::from(n[i]).normalize_or(Vec3::Z)),
-            r: self.radii[i].max(MIN_RADIUS),
+            r: self.s.radii[i].max(MIN_RADIUS),
             e_p: 0.0,
             e_t: 0.0,
             e_g: 0.0,
             phi_q: 0,
             parent: NO_PARENT,
-            color: self.cloud.colors().map_or([0; 3], |c| c[i]),
+            color: self.s.colors.map_or([0; 3], |c| c[i]),
             leaf: true,
         });
         idx
@@ -189,107 +229,122 @@ impl Builder<'_> {
     fn inner(&mut self, children: &[u32]) -> u32 {
         let idx = self.nodes.len() as u32;
         let kids: Vec<Node> = children.iter().map(|&c| self.nodes[c as usize]).collect();
-        let disks: Vec<ChildDisk> = kids
-            .iter()
-            .map(|c| ChildDisk {
-                p: c.p,
-                n: c.n,
-                r: c.r,
-            })
-            .collect();
-        let has_normals = self.cloud.normals().is_some();
-        let (p, n, r, mut e_p, mut e_t, mut e_g);
-        if has_normals {
-            n = kids
-                .iter()
-                .map(|c| c.n)
-                .sum::<Vec3>()
-                .try_normalize()
-                .unwrap_or(kids[0].n);
-            (p, r) = errors::bounding_disk(n, &disks);
-            e_p = errors::perpendicular_error(p, n, &disks);
-            e_t = errors::tangential_error(n, 2.0 * r, &disks);
-            e_g = errors::geometric_error(e_p, e_t);
-        } else {
-            n = Vec3::Z;
-            (p, r) = errors::bounding_ball(&disks);
-            e_p = 0.0;
-            e_t = 0.0;
-            e_g = 2.0 * r;
-        }
-        let mut color = [0u8; 3];
-        if self.cloud.colors().is_some() {
-            let cols: Vec<[u8; 3]> = kids.iter().map(|c| c.color).collect();
-            for (ch, out) in color.iter_mut().enumerate() {
-                let sum: u32 = cols.iter().map(|c| c[ch] as u32).sum();
-                *out = ((sum + cols.len() as u32 / 2) / cols.len() as u32) as u8;
-            }
-            if errors::color_spread(&cols) as f32 > self.color_threshold {
-                let d = 2.0 * r;
-                e_p = e_p.max(d * std::f32::consts::FRAC_1_SQRT_2);
-                e_t = e_t.max(d * std::f32::consts::FRAC_1_SQRT_2);
-                e_g = e_g.max(d);
-            }
-        }
-        // Monotone errors, then e_g = sqrt(e_p² + e_t²) exactly.
-        for c in &kids {
-            e_p = e_p.max(c.e_p);
-            e_t = e_t.max(c.e_t);
-            e_g = e_g.max(c.e_g);
-        }
-        let mut phi_q = 0;
-        if has_normals {
-            e_g = e_g
-                .max(errors::geometric_error(e_p, e_t))
-                .max(MIN_INNER_ERROR);
-            // Quantise φ (floor or ceil, whichever needs less raising) and raise e_g so that
-            // the quantised components still dominate (e_p, e_t), hence every child's.
-            let phi = e_t.atan2(e_p) / std::f32::consts::FRAC_PI_2 * select::PHI_STEPS;
-            let need = |q: f32| {
-                let a = q * (std::f32::consts::FRAC_PI_2 / select::PHI_STEPS);
-                let (s, c) = a.sin_cos();
-                let part = |e: f32, w: f32| {
-                    if e <= 0.0 {
-                        0.0
-                    } else if w > 0.0 {
-                        e / w
-                    } else {
-                        f32::INFINITY
-                    }
-                };
-                e_g.max(part(e_p, c)).max(part(e_t, s))
-            };
-            // Candidates around φ (a neighbour too: at q = 0 or q = 255 one component
-            // would need an infinite factor).
-            let base = phi.floor();
-            let q = [base - 1.0, base, base + 1.0, base + 2.0]
-                .into_iter()
-                .filter(|q| (0.0..=select::PHI_STEPS).contains(q))
-                .min_by(|&a, &b| need(a).total_cmp(&need(b)))
-                .unwrap_or(0.0);
-            e_g = need(q) * (1.0 + 1e-6);
-            let (s, c) = (q * (std::f32::consts::FRAC_PI_2 / select::PHI_STEPS)).sin_cos();
-            e_p = e_g * c;
-            e_t = e_g * s;
-            phi_q = q as u32;
-        } else {
-            e_g = e_g.max(MIN_INNER_ERROR);
-        }
+        let node = inner_node(
+            &kids,
+            self.s.normals.is_some(),
+            self.s.colors.is_some(),
+            self.color_threshold,
+        );
         for &c in children {
             self.nodes[c as usize].parent = idx;
         }
-        self.nodes.push(Node {
-            p,
-            n,
-            r: r.max(MIN_RADIUS),
-            e_p,
-            e_t,
-            e_g,
-            phi_q,
-            parent: NO_PARENT,
-            color,
-            leaf: false,
-        });
+        self.nodes.push(node);
         idx
+    }
+}
+
+/// The inner node over `kids` (see the module docs); its `parent` is [`NO_PARENT`].
+pub(super) fn inner_node(
+    kids: &[Node],
+    has_normals: bool,
+    has_colors: bool,
+    color_threshold: f32,
+) -> Node {
+    let disks: Vec<ChildDisk> = kids
+        .iter()
+        .map(|c| ChildDisk {
+            p: c.p,
+            n: c.n,
+            r: c.r,
+        })
+        .collect();
+    let (p, n, r, mut e_p, mut e_t, mut e_g);
+    if has_normals {
+        n = kids
+            .iter()
+            .map(|c| c.n)
+            .sum::<Vec3>()
+            .try_normalize()
+            .unwrap_or(kids[0].n);
+        (p, r) = errors::bounding_disk(n, &disks);
+        e_p = errors::perpendicular_error(p, n, &disks);
+        e_t = errors::tangential_error(n, 2.0 * r, &disks);
+        e_g = errors::geometric_error(e_p, e_t);
+    } else {
+        n = Vec3::Z;
+        (p, r) = errors::bounding_ball(&disks);
+        e_p = 0.0;
+        e_t = 0.0;
+        e_g = 2.0 * r;
+    }
+    let mut color = [0u8; 3];
+    if has_colors {
+        let cols: Vec<[u8; 3]> = kids.iter().map(|c| c.color).collect();
+        for (ch, out) in color.iter_mut().enumerate() {
+            let sum: u32 = cols.iter().map(|c| c[ch] as u32).sum();
+            *out = ((sum + cols.len() as u32 / 2) / cols.len() as u32) as u8;
+        }
+        if errors::color_spread(&cols) as f32 > color_threshold {
+            let d = 2.0 * r;
+            e_p = e_p.max(d * std::f32::consts::FRAC_1_SQRT_2);
+            e_t = e_t.max(d * std::f32::consts::FRAC_1_SQRT_2);
+            e_g = e_g.max(d);
+        }
+    }
+    // Monotone errors, then e_g = sqrt(e_p² + e_t²) exactly.
+    for c in kids {
+        e_p = e_p.max(c.e_p);
+        e_t = e_t.max(c.e_t);
+        e_g = e_g.max(c.e_g);
+    }
+    let mut phi_q = 0;
+    if has_normals {
+        e_g = e_g
+            .max(errors::geometric_error(e_p, e_t))
+            .max(MIN_INNER_ERROR);
+        // Quantise φ (floor or ceil, whichever needs less raising) and raise e_g so that
+        // the quantised components still dominate (e_p, e_t), hence every child's.
+        let phi = e_t.atan2(e_p) / std::f32::consts::FRAC_PI_2 * select::PHI_STEPS;
+        let need = |q: f32| {
+            let a = q * (std::f32::consts::FRAC_PI_2 / select::PHI_STEPS);
+            let (s, c) = a.sin_cos();
+            let part = |e: f32, w: f32| {
+                if e <= 0.0 {
+                    0.0
+                } else if w > 0.0 {
+                    e / w
+                } else {
+                    f32::INFINITY
+                }
+            };
+            e_g.max(part(e_p, c)).max(part(e_t, s))
+        };
+        // Candidates around φ (a neighbour too: at q = 0 or q = 255 one component
+        // would need an infinite factor).
+        let base = phi.floor();
+        let q = [base - 1.0, base, base + 1.0, base + 2.0]
+            .into_iter()
+            .filter(|q| (0.0..=select::PHI_STEPS).contains(q))
+            .min_by(|&a, &b| need(a).total_cmp(&need(b)))
+            .unwrap_or(0.0);
+        e_g = need(q) * (1.0 + 1e-6);
+        let (s, c) = (q * (std::f32::consts::FRAC_PI_2 / select::PHI_STEPS)).sin_cos();
+        e_p = e_g * c;
+        e_t = e_g * s;
+        phi_q = q as u32;
+    } else {
+        e_g = e_g.max(MIN_INNER_ERROR);
+    }
+    Node {
+        p,
+        n,
+        r: r.max(MIN_RADIUS),
+        e_p,
+        e_t,
+        e_g,
+        phi_q,
+        parent: NO_PARENT,
+        color,
+        leaf: false,
     }
 }

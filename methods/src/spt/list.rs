@@ -202,26 +202,42 @@ impl ListWriter {
         drop(f);
         std::fs::rename(&self.lod_tmp, &self.lod_path)
             .map_err(|e| MethodError::io(&self.lod_path, e))?;
-        // Second pass: each cluster's cone and sphere from the written centres and normals.
+        // Second pass: each cluster's cone and sphere from the written centres and normals,
+        // in blocks whose pages are released behind (the file may exceed the budget).
         let pos = nodes.positions();
         let nrm = nodes.normals();
         for c in &mut self.clusters {
-            let range = c.start as usize..(c.start + c.count) as usize;
+            let (start, end) = (c.start as usize, (c.start + c.count) as usize);
+            let axis = Vec3::from(c.axis);
+            let (mut angle, mut lo, mut hi) = (0.0f32, Vec3::INFINITY, Vec3::NEG_INFINITY);
+            for b in (start..end).step_by(BLOCK) {
+                let e = (b + BLOCK).min(end);
+                for i in b..e {
+                    let n = nrm.map_or(Vec3::Z, |v| Vec3::from(v[i]));
+                    angle = angle.max(axis.dot(n).clamp(-1.0, 1.0).acos());
+                    lo = lo.min(Vec3::from(pos[i]));
+                    hi = hi.max(Vec3::from(pos[i]));
+                }
+                nodes.release_pages(b..e);
+            }
             c.half_angle = if self.normal_clusters {
-                let axis = Vec3::from(c.axis);
-                range
-                    .clone()
-                    .map(|i| {
-                        let n = nrm.map_or(Vec3::Z, |v| Vec3::from(v[i]));
-                        axis.dot(n).clamp(-1.0, 1.0).acos()
-                    })
-                    .fold(0.0f32, f32::max)
-                    * (1.0 + 1e-4)
-                    + 1e-4
+                angle * (1.0 + 1e-4) + 1e-4
             } else {
                 std::f32::consts::PI
             };
-            (c.center, c.radius) = sphere_of(range.map(|i| (Vec3::from(pos[i]), 0.0)));
+            // `sphere_of` over the centres, its two passes split: the box above, the radius
+            // here.
+            let centre = (lo + hi) * 0.5;
+            let mut r = 0.0f32;
+            for b in (start..end).step_by(BLOCK) {
+                let e = (b + BLOCK).min(end);
+                for p in &pos[b..e] {
+                    r = r.max(Vec3::from(*p).distance(centre) + 0.0);
+                }
+                nodes.release_pages(b..e);
+            }
+            c.center = centre.to_array();
+            c.radius = r * (1.0 + 1e-5);
         }
         Ok((
             Index {

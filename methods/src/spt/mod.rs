@@ -29,6 +29,7 @@ pub mod build;
 pub mod errors;
 mod files;
 pub mod list;
+pub mod ooc;
 mod params;
 pub mod select;
 
@@ -88,30 +89,70 @@ pub fn lod_entries(nodes: &[build::Node]) -> Vec<[f32; 4]> {
     nodes
         .iter()
         .map(|nd| {
-            if nd.parent == NO_PARENT {
-                select::pack_lod(
-                    nd.e_g,
-                    ROOT_PARENT_ERROR,
-                    0.0,
-                    nd.phi_q,
-                    select::PHI_STEPS as u32,
-                    select::GAMMA_UNBOUNDED,
-                )
-            } else {
-                let par = &nodes[nd.parent as usize];
-                let delta = nd.p.distance(par.p) * (1.0 + 1e-5) + f32::MIN_POSITIVE;
-                let gamma = nd.n.dot(par.n).clamp(-1.0, 1.0).acos() + 1e-3;
-                select::pack_lod(
-                    nd.e_g,
-                    par.e_g,
-                    delta,
-                    nd.phi_q,
-                    par.phi_q,
-                    select::quantize_gamma(gamma),
-                )
-            }
+            let parent = (nd.parent != NO_PARENT).then(|| &nodes[nd.parent as usize]);
+            lod_entry(nd, parent)
         })
         .collect()
+}
+
+/// The `lod` entry of `nd` whose parent is `parent` (`None` at the root).
+pub fn lod_entry(nd: &build::Node, parent: Option<&build::Node>) -> [f32; 4] {
+    match parent {
+        None => select::pack_lod(
+            nd.e_g,
+            ROOT_PARENT_ERROR,
+            0.0,
+            nd.phi_q,
+            select::PHI_STEPS as u32,
+            select::GAMMA_UNBOUNDED,
+        ),
+        Some(par) => {
+            let delta = nd.p.distance(par.p) * (1.0 + 1e-5) + f32::MIN_POSITIVE;
+            let gamma = nd.n.dot(par.n).clamp(-1.0, 1.0).acos() + 1e-3;
+            select::pack_lod(
+                nd.e_g,
+                par.e_g,
+                delta,
+                nd.phi_q,
+                par.phi_q,
+                select::quantize_gamma(gamma),
+            )
+        }
+    }
+}
+
+/// The list's sort key of node `id` with `lod` entry `lod` in normal cluster `cluster`:
+/// cluster ascending, then parent error descending, then own error descending, then node
+/// index (a total order, so the list is unique).
+pub fn list_key(cluster: u32, lod: &[f32; 4], id: u32) -> u128 {
+    let descending = |x: f32| u128::from(!crate::sortkey::f32_total_order(x));
+    (u128::from(cluster) << 96)
+        | (descending(lod[1]) << 64)
+        | (descending(lod[0]) << 32)
+        | id as u128
+}
+
+/// What writing the list reports to [`build`].
+pub(crate) struct Listed {
+    /// `index.json`'s contents.
+    pub index: Index,
+    /// Inner nodes.
+    pub inner: u64,
+    /// Leaf radii capped as isolated.
+    pub radii_capped: u64,
+    /// Seconds until the tree was built.
+    pub tree_seconds: f64,
+    /// Units built one at a time (1: in memory).
+    pub units: u64,
+}
+
+/// The normal cluster of a node of normal `n`.
+pub(crate) fn cluster_of(p: &SptParams, has_normals: bool, n: Vec3) -> u32 {
+    if p.normal_clusters && has_normals {
+        select::cluster_of(n) as u32
+    } else {
+        0
+    }
 }
 
 /// Builds the SPT of `cloud` into `dir`.
@@ -123,76 +164,36 @@ pub fn build(
     progress: &dyn Progress,
 ) -> Result<BuildStats, MethodError> {
     let p = SptParams::parse(params, cloud.attributes())?;
+    let budget = crate::spill::Budget {
+        mem_bytes: p.mem_mb << 20,
+        dir,
+        hook: None,
+    };
+    build_with_budget(cloud, params, scene, progress, budget)
+}
+
+/// [`build`] within an explicit budget (tests force units with a tiny one, and damage the
+/// spill files through its hook); the directory is `budget.dir`.
+pub fn build_with_budget(
+    cloud: &PointCloud,
+    params: &Params,
+    scene: &str,
+    progress: &dyn Progress,
+    budget: crate::spill::Budget<'_>,
+) -> Result<BuildStats, MethodError> {
+    let p = SptParams::parse(params, cloud.attributes())?;
     let t0 = Instant::now();
     let n = cloud.len();
-    progress.start("spt: leaf radii", n as u64);
-    let radii = crate::leaf::leaf_radii(cloud);
-    progress.finish();
-    progress.start("spt: point tree", n as u64);
-    let tree = build::build_tree(cloud, &radii, p.color_threshold);
-    progress.finish();
-    let t_tree = t0.elapsed().as_secs_f64();
-    let nodes = &tree.nodes;
-    let has_normals = cloud.normals().is_some();
-    let lod = lod_entries(nodes);
-    if let Some(i) = lod.iter().position(|l| !l.iter().all(|v| v.is_finite())) {
-        return Err(MethodError::Limit(format!(
-            "spt: node {i} got a non-finite lod entry {:?} (centre {}, radius {})",
-            lod[i], nodes[i].p, nodes[i].r
-        )));
-    }
-    let cluster = |i: usize| {
-        if p.normal_clusters && has_normals {
-            select::cluster_of(nodes[i].n) as u32
-        } else {
-            0
-        }
+    let dir = budget.dir;
+    let listed = if n as u64 <= ooc::unit_capacity(budget.mem_bytes) {
+        list_in_memory(cloud, &p, dir, progress, t0)?
+    } else {
+        ooc::list_in_units(cloud, &p, budget, progress, t0)?
     };
-    // The list order: cluster ascending, then parent error descending, then own error
-    // descending, then node index (a total order, so the result is unique). Sorted as packed
-    // 128-bit keys in parallel: each comparison of the former comparator recomputed two
-    // normal clusters, and the sort was a fifth of the build (2 M points, `perf`).
-    let mut keys: Vec<u128> = (0..nodes.len())
-        .into_par_iter()
-        .map(|i| {
-            let descending = |x: f32| u128::from(!crate::sortkey::f32_total_order(x));
-            (u128::from(cluster(i)) << 96)
-                | (descending(lod[i][1]) << 64)
-                | (descending(lod[i][0]) << 32)
-                | i as u128
-        })
-        .collect();
-    keys.par_sort_unstable();
-    let order: Vec<u32> = keys.iter().map(|&k| k as u32).collect();
-    drop(keys);
-    // Files.
+    let index = &listed.index;
+    crate::method::write_json(&dir.join(INDEX_FILE), index)?;
     let mut attrs = cloud.attributes();
     attrs.radii = true;
-    let mut w = list::ListWriter::create(
-        dir,
-        attrs,
-        cloud.origin(),
-        order.len() as u64,
-        p.normal_clusters,
-    )?;
-    progress.start("spt: writing", order.len() as u64);
-    for block in order.chunks(1 << 16) {
-        for &i in block {
-            let nd = &nodes[i as usize];
-            w.push(&list::ListNode {
-                p: nd.p,
-                n: nd.n,
-                color: nd.color,
-                r: nd.r,
-                lod: lod[i as usize],
-                cluster: cluster(i as usize),
-            })?;
-        }
-        progress.inc(block.len() as u64);
-    }
-    let (index, _) = w.finish(tree.levels)?;
-    progress.finish();
-    crate::method::write_json(&dir.join(INDEX_FILE), &index)?;
     Manifest {
         method: NAME.into(),
         format_version: FORMAT_VERSION,
@@ -210,16 +211,16 @@ pub fn build(
             .len();
     }
     let mut extra = serde_json::Map::new();
-    let inner = nodes.iter().filter(|n| !n.leaf).count();
-    extra.insert("inner_nodes".into(), inner.into());
+    extra.insert("inner_nodes".into(), listed.inner.into());
     extra.insert("clusters".into(), index.clusters.len().into());
     extra.insert("chunks".into(), index.chunks.len().into());
-    extra.insert("tree_seconds".into(), t_tree.into());
-    extra.insert("leaf_radii_capped".into(), radii.capped.into());
+    extra.insert("tree_seconds".into(), listed.tree_seconds.into());
+    extra.insert("leaf_radii_capped".into(), listed.radii_capped.into());
+    extra.insert("units".into(), listed.units.into());
     Ok(BuildStats {
         points_in: n as u64,
-        nodes: order.len() as u64,
-        levels: tree.levels,
+        nodes: index.nodes,
+        levels: index.levels,
         bytes_in: cloud.column_bytes(),
         bytes_out,
         seconds: t0.elapsed().as_secs_f64(),
@@ -227,6 +228,81 @@ pub fn build(
         ..Default::default()
     }
     .finish())
+}
+
+/// Builds the tree in memory and writes the list's files (not `index.json`).
+fn list_in_memory(
+    cloud: &PointCloud,
+    p: &SptParams,
+    dir: &Path,
+    progress: &dyn Progress,
+    t0: Instant,
+) -> Result<Listed, MethodError> {
+    let n = cloud.len();
+    progress.start("spt: leaf radii", n as u64);
+    let radii = crate::leaf::leaf_radii(cloud);
+    progress.finish();
+    progress.start("spt: point tree", n as u64);
+    let tree = build::build_tree(cloud, &radii, p.color_threshold);
+    progress.finish();
+    let tree_seconds = t0.elapsed().as_secs_f64();
+    let nodes = &tree.nodes;
+    let has_normals = cloud.normals().is_some();
+    let lod = lod_entries(nodes);
+    if let Some(i) = lod.iter().position(|l| !l.iter().all(|v| v.is_finite())) {
+        return Err(non_finite(i as u64, &lod[i], &nodes[i]));
+    }
+    let cluster = |i: usize| cluster_of(p, has_normals, nodes[i].n);
+    // The list order ([`list_key`]), sorted as packed 128-bit keys in parallel: each
+    // comparison of a comparator recomputed two normal clusters, and the sort was a fifth of
+    // the build (2 M points, `perf`).
+    let mut keys: Vec<u128> = (0..nodes.len())
+        .into_par_iter()
+        .map(|i| list_key(cluster(i), &lod[i], i as u32))
+        .collect();
+    keys.par_sort_unstable();
+    let mut attrs = cloud.attributes();
+    attrs.radii = true;
+    let mut w = list::ListWriter::create(
+        dir,
+        attrs,
+        cloud.origin(),
+        keys.len() as u64,
+        p.normal_clusters,
+    )?;
+    progress.start("spt: writing", keys.len() as u64);
+    for block in keys.chunks(1 << 16) {
+        for &k in block {
+            let i = k as u32 as usize;
+            let nd = &nodes[i];
+            w.push(&list::ListNode {
+                p: nd.p,
+                n: nd.n,
+                color: nd.color,
+                r: nd.r,
+                lod: lod[i],
+                cluster: cluster(i),
+            })?;
+        }
+        progress.inc(block.len() as u64);
+    }
+    let (index, _) = w.finish(tree.levels)?;
+    progress.finish();
+    Ok(Listed {
+        index,
+        inner: nodes.iter().filter(|n| !n.leaf).count() as u64,
+        radii_capped: radii.capped,
+        tree_seconds,
+        units: 1,
+    })
+}
+
+/// The error for a node whose `lod` entry is not finite.
+pub(crate) fn non_finite(id: u64, lod: &[f32; 4], nd: &build::Node) -> MethodError {
+    MethodError::Limit(format!(
+        "spt: node {id} got a non-finite lod entry {lod:?} (centre {}, radius {})",
+        nd.p, nd.r
+    ))
 }
 
 /// An opened SPT build.

@@ -47,6 +47,9 @@ pub struct SptParams {
     pub cpu_mirror: bool,
     /// Bounding volume of the per-frame lower bound `r_lo` (`sphere`, the default, or `box`).
     pub bound: SptBound,
+    /// Working memory of the build in MiB (≥ 16): a larger cloud is built in units
+    /// ([`super::ooc`]); the files are the same for any value.
+    pub mem_mb: u64,
 }
 
 impl Default for SptParams {
@@ -59,6 +62,8 @@ impl Default for SptParams {
             gpu_limit_mb: 4096,
             cpu_mirror: false,
             bound: SptBound::Sphere,
+            // As the other methods' builds.
+            mem_mb: 256,
         }
     }
 }
@@ -76,6 +81,12 @@ impl SptParams {
             return Err(MethodError::Param(format!(
                 "method 'spt': color_threshold must be a finite number ≥ 0, got {}",
                 p.color_threshold
+            )));
+        }
+        if p.mem_mb < 16 {
+            return Err(MethodError::Param(format!(
+                "method 'spt': mem_mb must be ≥ 16, got {}",
+                p.mem_mb
             )));
         }
         if p.gpu_limit_mb == 0 {

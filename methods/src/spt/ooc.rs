@@ -1,0 +1,625 @@
+//! The SPT build in bounded memory: the same files, byte for byte, as the in-memory build,
+//! with working memory bounded by `--param mem_mb`.
+//!
+//! The point tree is an octree over Morton codes ([`build`](mod@super::build)), so a subtree
+//! is a function of one octree cell's samples. A cloud of more than [`unit_capacity`]
+//! samples is built in **units**, octree cells of at most that many samples:
+//! 1. **Cells.** One pass over the cloud counts samples per cell of depth 6 (in the cloud's
+//!    Morton grid); a cell with more than the capacity is refined by further passes, three
+//!    levels at a time, down to the finest cells (which may exceed the capacity only with
+//!    that many coincident samples). The cells of at most the capacity under the oversized
+//!    ones are the units, in Morton order.
+//! 2. **Routing.** A second pass writes every sample to its unit's spill file (input order
+//!    within each), and the leaf radii are computed per unit ([`crate::unit_knn`]).
+//! 3. **Trees.** The octree above the units is walked as the in-memory recursion walks it
+//!    (a cell with one occupied child is not a node); each unit's subtree is built in
+//!    memory when reached, its nodes numbered on from the nodes before it (post-order, as in
+//!    memory), their `lod` entries and list keys ([`list_key`]) computed, and written to a
+//!    spill file sorted by key. The unit's root and the nodes above the units stay in
+//!    memory; their parents are known once the walk returns.
+//! 4. **List.** The sorted files and the nodes in memory are merged by key into the
+//!    [`ListWriter`], which writes the same files as the in-memory build.
+//!
+//! Spill files sit in `<dir>/spt-spill.tmp/`, checked per block, removed on success and on
+//! error.
+
+use std::cmp::Reverse;
+use std::collections::{BinaryHeap, HashMap};
+use std::time::Instant;
+
+use glam::Vec3;
+use rayon::prelude::*;
+use scenes::{Aabb, PointCloud, Progress};
+
+use super::build::{self, BITS, Builder, MortonGrid, NO_PARENT, Node, Samples};
+use super::list::{ListNode, ListWriter};
+use super::{Listed, SptParams, cluster_of, list_key, lod_entry, non_finite};
+use crate::MethodError;
+use crate::spill::samples::{self, EMPTY_BOX, SampleLayout, f32_at, grow, pos_of};
+use crate::spill::{Budget, Spill, SpillDir};
+use crate::unit_knn::{UnitBox, unit_radii};
+
+/// Working bytes per sample of a unit built in memory: samples (≤ 35 with the index),
+/// Morton keys (16), and per node (≈ 1.33–1.5 per sample) the node (52), its `lod` entry
+/// (16), its sort key and record (16 + 64 while the unit's run is sorted and written).
+pub const UNIT_BYTES_PER_SAMPLE: u64 = 256;
+
+/// Samples of the largest unit built in memory under `mem_bytes`.
+pub fn unit_capacity(mem_bytes: u64) -> u64 {
+    (mem_bytes / UNIT_BYTES_PER_SAMPLE).max(2)
+}
+
+/// Depth of the first count of samples per cell.
+const FIRST_DEPTH: u32 = 6;
+/// Levels a refinement pass adds.
+const STEP: u32 = 3;
+/// Samples per block when streaming the cloud.
+const BLOCK: usize = 1 << 16;
+/// Bytes of a node record: key `u128`, centre, normal, colour + pad, radius, `lod`.
+const RECORD: usize = 64;
+
+/// An octree cell: depth below the root and Morton prefix (`3·depth` bits).
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Hash)]
+struct Cell {
+    depth: u32,
+    prefix: u64,
+}
+
+impl Cell {
+    const ROOT: Cell = Cell {
+        depth: 0,
+        prefix: 0,
+    };
+    fn child(self, o: u64) -> Cell {
+        Cell {
+            depth: self.depth + 1,
+            prefix: (self.prefix << 3) | o,
+        }
+    }
+    /// The codes of the cell's samples: `[start, end)`.
+    fn codes(self) -> (u64, u64) {
+        let shift = 3 * (BITS - self.depth);
+        (self.prefix << shift, (self.prefix + 1) << shift)
+    }
+}
+
+/// Samples per cell: a first count at [`FIRST_DEPTH`] and refinements of oversized cells.
+struct Counts {
+    /// Prefix sums over the cells of depth [`FIRST_DEPTH`], in Morton order.
+    first: Vec<u64>,
+    /// Per refined cell: prefix sums over its descendants [`STEP`] levels down.
+    refined: HashMap<Cell, Vec<u64>>,
+}
+
+impl Counts {
+    fn count(&self, c: Cell) -> u64 {
+        let (sums, depth, base) = if c.depth <= FIRST_DEPTH {
+            (&self.first, FIRST_DEPTH, 0)
+        } else {
+            let d = FIRST_DEPTH + STEP * ((c.depth - FIRST_DEPTH - 1) / STEP);
+            let anc = Cell {
+                depth: d,
+                prefix: c.prefix >> (3 * (c.depth - d)),
+            };
+            let deepest = (d + STEP).min(BITS);
+            let Some(s) = self.refined.get(&anc) else {
+                return 0;
+            };
+            (s, deepest, anc.prefix << (3 * (deepest - d)))
+        };
+        let shift = 3 * (depth - c.depth);
+        let lo = ((c.prefix << shift) - base) as usize;
+        let hi = (((c.prefix + 1) << shift) - base) as usize;
+        sums[hi] - sums[lo]
+    }
+}
+
+fn prefix_sums(counts: &[u64]) -> Vec<u64> {
+    let mut s = Vec::with_capacity(counts.len() + 1);
+    s.push(0);
+    let mut acc = 0;
+    for &c in counts {
+        acc += c;
+        s.push(acc);
+    }
+    s
+}
+
+/// Calls `f` with each block of the cloud's Morton codes (computed in parallel), releasing
+/// the positions' pages behind.
+fn for_codes(
+    cloud: &PointCloud,
+    grid: MortonGrid,
+    mut f: impl FnMut(usize, &[u64]) -> Result<(), MethodError>,
+) -> Result<(), MethodError> {
+    let n = cloud.len();
+    let mut codes = Vec::with_capacity(BLOCK);
+    for start in (0..n).step_by(BLOCK) {
+        let end = (start + BLOCK).min(n);
+        codes.clear();
+        codes.par_extend(
+            cloud.positions()[start..end]
+                .par_iter()
+                .map(|&p| grid.code(p)),
+        );
+        f(start, &codes)?;
+        cloud.release_pages(start..end);
+    }
+    Ok(())
+}
+
+/// Step 1: the counts, refined until every cell holding more than `cap` samples is split
+/// (or is a finest cell).
+fn count_cells(cloud: &PointCloud, grid: MortonGrid, cap: u64) -> Result<Counts, MethodError> {
+    let mut first = vec![0u64; 1 << (3 * FIRST_DEPTH)];
+    let shift = 3 * (BITS - FIRST_DEPTH);
+    for_codes(cloud, grid, |_, codes| {
+        for &c in codes {
+            first[(c >> shift) as usize] += 1;
+        }
+        Ok(())
+    })?;
+    let mut counts = Counts {
+        first: prefix_sums(&first),
+        refined: HashMap::new(),
+    };
+    drop(first);
+    let mut depth = FIRST_DEPTH;
+    while depth < BITS {
+        let big: Vec<Cell> = (0..1u64 << (3 * depth))
+            .filter(|_| depth == FIRST_DEPTH)
+            .map(|prefix| Cell { depth, prefix })
+            .chain(
+                counts
+                    .refined
+                    .keys()
+                    .filter(|c| c.depth + STEP == depth)
+                    .flat_map(|c| {
+                        let below = 3 * STEP;
+                        (0..1u64 << below).map(move |o| Cell {
+                            depth,
+                            prefix: (c.prefix << below) | o,
+                        })
+                    }),
+            )
+            .filter(|&c| counts.count(c) > cap)
+            .collect();
+        if big.is_empty() {
+            break;
+        }
+        let deepest = (depth + STEP).min(BITS);
+        let mut hist: HashMap<u64, Vec<u64>> = big
+            .iter()
+            .map(|c| (c.prefix, vec![0u64; 1 << (3 * (deepest - depth))]))
+            .collect();
+        let (cell_shift, sub_shift) = (3 * (BITS - depth), 3 * (BITS - deepest));
+        let mask = (1u64 << (3 * (deepest - depth))) - 1;
+        for_codes(cloud, grid, |_, codes| {
+            for &c in codes {
+                if let Some(h) = hist.get_mut(&(c >> cell_shift)) {
+                    h[((c >> sub_shift) & mask) as usize] += 1;
+                }
+            }
+            Ok(())
+        })?;
+        for (prefix, h) in hist {
+            counts
+                .refined
+                .insert(Cell { depth, prefix }, prefix_sums(&h));
+        }
+        depth = deepest;
+    }
+    Ok(counts)
+}
+
+/// The units: cells of at most `cap` samples (or finest) whose ancestors all hold more, in
+/// Morton order.
+fn units_of(counts: &Counts, cap: u64) -> Vec<(Cell, u64)> {
+    let mut out = Vec::new();
+    let mut stack = vec![Cell::ROOT];
+    while let Some(c) = stack.pop() {
+        let n = counts.count(c);
+        if n == 0 {
+            continue;
+        }
+        if n <= cap || c.depth == BITS {
+            out.push((c, n));
+        } else {
+            stack.extend((0..8).rev().map(|o| c.child(o)));
+        }
+    }
+    out
+}
+
+/// A unit as built.
+struct Unit {
+    cell: Cell,
+    n: u64,
+    spill: Spill,
+    bbox: (Vec3, Vec3),
+}
+
+/// Steps 1 and 2: the units' sample files.
+fn route(
+    cloud: &PointCloud,
+    grid: MortonGrid,
+    cap: u64,
+    layout: SampleLayout,
+    dir: &SpillDir,
+) -> Result<Vec<Unit>, MethodError> {
+    let counts = count_cells(cloud, grid, cap)?;
+    let cells = units_of(&counts, cap);
+    drop(counts);
+    let starts: Vec<u64> = cells.iter().map(|(c, _)| c.codes().0).collect();
+    let mut writers = Vec::with_capacity(cells.len());
+    for _ in &cells {
+        writers.push(dir.writer_with_block("samples", layout.bytes(), 1 << 16)?);
+    }
+    let mut boxes = vec![EMPTY_BOX; cells.len()];
+    let mut rec = Vec::with_capacity(layout.bytes());
+    for_codes(cloud, grid, |start, codes| {
+        for (j, &c) in codes.iter().enumerate() {
+            let u = starts.partition_point(|&s| s <= c) - 1;
+            rec.clear();
+            layout.encode(cloud, start + j, &mut rec);
+            writers[u].push(&rec)?;
+            grow(&mut boxes[u], pos_of(&rec));
+        }
+        Ok(())
+    })?;
+    let mut units = Vec::with_capacity(cells.len());
+    for (((cell, n), w), bbox) in cells.into_iter().zip(writers).zip(boxes) {
+        let spill = w.finish()?;
+        if spill.records != n {
+            return Err(MethodError::Limit(format!(
+                "spt: {} samples routed to a cell counted with {n}",
+                spill.records
+            )));
+        }
+        units.push(Unit {
+            cell,
+            n,
+            spill,
+            bbox,
+        });
+    }
+    Ok(units)
+}
+
+/// A node record of a sorted run.
+fn encode_record(key: u128, nd: &ListNode, out: &mut Vec<u8>) {
+    out.clear();
+    out.extend_from_slice(&key.to_le_bytes());
+    for v in nd.p.to_array().into_iter().chain(nd.n.to_array()) {
+        out.extend_from_slice(&v.to_le_bytes());
+    }
+    out.extend_from_slice(&nd.color);
+    out.push(0);
+    out.extend_from_slice(&nd.r.to_le_bytes());
+    for v in nd.lod {
+        out.extend_from_slice(&v.to_le_bytes());
+    }
+}
+
+fn decode_record(r: &[u8]) -> (u128, ListNode) {
+    let mut k = [0u8; 16];
+    k.copy_from_slice(&r[..16]);
+    let key = u128::from_le_bytes(k);
+    let v = |i: usize| f32_at(r, 16 + 4 * i);
+    (
+        key,
+        ListNode {
+            p: Vec3::new(v(0), v(1), v(2)),
+            n: Vec3::new(v(3), v(4), v(5)),
+            color: [r[40], r[41], r[42]],
+            r: f32_at(r, 44),
+            lod: [v(8), v(9), v(10), v(11)],
+            cluster: (key >> 96) as u32,
+        },
+    )
+}
+
+/// The walk of step 3.
+struct Walk<'a> {
+    p: &'a SptParams,
+    grid: MortonGrid,
+    has_normals: bool,
+    has_colors: bool,
+    units: &'a [Unit],
+    next_unit: usize,
+    load: &'a dyn Fn(usize) -> Result<samples::SampleColumns, MethodError>,
+    dir: &'a SpillDir,
+    /// Nodes numbered so far.
+    next_id: u64,
+    /// Nodes kept in memory (unit roots and nodes above the units), by id.
+    kept: Vec<(u64, Node)>,
+    runs: Vec<Spill>,
+    inner: u64,
+    progress: &'a dyn Progress,
+}
+
+impl Walk<'_> {
+    /// Samples in cell `c`, from the units (the walk only asks for cells at or above them).
+    fn count(&self, c: Cell) -> u64 {
+        let (lo, hi) = c.codes();
+        let from = self.units.partition_point(|u| u.cell.codes().1 <= lo);
+        self.units[from..]
+            .iter()
+            .take_while(|u| u.cell.codes().0 < hi)
+            .map(|u| u.n)
+            .sum()
+    }
+
+    /// The subtree of cell `c` (samples `n`), as the in-memory `subtree` makes it: (index
+    /// into `kept`, height).
+    fn cell(&mut self, c: Cell, n: u64) -> Result<(usize, u32), MethodError> {
+        let unit = self.units.get(self.next_unit);
+        if unit.is_some_and(|u| u.cell == c) {
+            return self.unit();
+        }
+        // Above the units: more than the capacity, so more than one sample.
+        let kids: Vec<(Cell, u64)> = (0..8)
+            .map(|o| c.child(o))
+            .map(|k| (k, self.count(k)))
+            .filter(|&(_, m)| m > 0)
+            .collect();
+        debug_assert_eq!(kids.iter().map(|k| k.1).sum::<u64>(), n);
+        if kids.len() == 1 {
+            return self.cell(kids[0].0, kids[0].1);
+        }
+        let mut children = Vec::with_capacity(kids.len());
+        let mut height = 0;
+        for (k, m) in kids {
+            let (i, h) = self.cell(k, m)?;
+            children.push(i);
+            height = height.max(h);
+        }
+        let nodes: Vec<Node> = children.iter().map(|&i| self.kept[i].1).collect();
+        let node = build::inner_node(
+            &nodes,
+            self.has_normals,
+            self.has_colors,
+            self.p.color_threshold,
+        );
+        let id = self.next_id;
+        self.next_id += 1;
+        self.inner += 1;
+        let me = self.kept.len();
+        for &i in &children {
+            self.kept[i].1.parent = id as u32;
+        }
+        self.kept.push((id, node));
+        Ok((me, height + 1))
+    }
+
+    /// Builds the next unit: its sorted run of non-root nodes; its root is kept.
+    fn unit(&mut self) -> Result<(usize, u32), MethodError> {
+        let u = self.next_unit;
+        self.next_unit += 1;
+        let unit = &self.units[u];
+        let s = (self.load)(u)?;
+        let samples = Samples {
+            pos: &s.pos,
+            radii: &s.radii,
+            normals: s.normals.as_deref(),
+            colors: s.colors.as_deref(),
+        };
+        let mut bld = Builder::new(samples, self.grid, self.p.color_threshold);
+        let (_, height) = bld.subtree(0, s.pos.len(), BITS - unit.cell.depth);
+        let nodes = std::mem::take(&mut bld.nodes);
+        drop(bld);
+        drop(s);
+        let base = self.next_id;
+        let (p, has_n) = (self.p, self.has_normals);
+        let root = nodes.len() - 1;
+        let mut keyed: Vec<(u128, u32)> = nodes[..root]
+            .par_iter()
+            .enumerate()
+            .map(|(i, nd)| {
+                let lod = lod_entry(nd, Some(&nodes[nd.parent as usize]));
+                (
+                    list_key(cluster_of(p, has_n, nd.n), &lod, (base + i as u64) as u32),
+                    i as u32,
+                )
+            })
+            .collect();
+        keyed.par_sort_unstable();
+        // Small blocks: every run has a reader open during the merge.
+        let mut w = self.dir.writer_with_block("run", RECORD, 1 << 16)?;
+        let mut rec = Vec::with_capacity(RECORD);
+        for &(key, i) in &keyed {
+            let nd = &nodes[i as usize];
+            let lod = lod_entry(nd, Some(&nodes[nd.parent as usize]));
+            if !lod.iter().all(|v| v.is_finite()) {
+                return Err(non_finite(base + i as u64, &lod, nd));
+            }
+            let ln = ListNode {
+                p: nd.p,
+                n: nd.n,
+                color: nd.color,
+                r: nd.r,
+                lod,
+                cluster: (key >> 96) as u32,
+            };
+            encode_record(key, &ln, &mut rec);
+            w.push(&rec)?;
+        }
+        self.runs.push(w.finish()?);
+        self.inner += nodes.iter().filter(|n| !n.leaf).count() as u64;
+        self.next_id += nodes.len() as u64;
+        let mut r = nodes[root];
+        r.parent = NO_PARENT;
+        self.kept.push((self.next_id - 1, r));
+        self.progress.inc(unit.n);
+        Ok((self.kept.len() - 1, height))
+    }
+}
+
+/// Builds the tree in units and writes the list's files (not `index.json`).
+pub(crate) fn list_in_units(
+    cloud: &PointCloud,
+    p: &SptParams,
+    budget: Budget<'_>,
+    progress: &dyn Progress,
+    t0: Instant,
+) -> Result<Listed, MethodError> {
+    let n = cloud.len();
+    let cap = unit_capacity(budget.mem_bytes);
+    let layout = SampleLayout::of(cloud);
+    let grid = MortonGrid::new(cloud.bounds());
+    let dir = SpillDir::create(budget.dir, "spt-spill")?;
+    progress.start("spt: cells and units", n as u64);
+    let units = route(cloud, grid, cap, layout, &dir)?;
+    progress.finish();
+    if let Some(h) = budget.hook {
+        h(&units.iter().map(|u| &u.spill).collect::<Vec<_>>());
+    }
+    let radii = if layout.radii {
+        None
+    } else {
+        progress.start("spt: leaf radii (3 passes)", 3 * n as u64);
+        let boxes: Vec<UnitBox> = units
+            .iter()
+            .map(|u| UnitBox {
+                n: u.n,
+                bbox: u.bbox,
+            })
+            .collect();
+        let load = |u: usize| samples::positions(&units[u].spill, layout);
+        let bounds = units.iter().fold(EMPTY_BOX, |mut b, u| {
+            grow(&mut b, u.bbox.0.to_array());
+            grow(&mut b, u.bbox.1.to_array());
+            b
+        });
+        let bounds = Aabb {
+            min: bounds.0,
+            max: bounds.1,
+        };
+        let r = unit_radii(&boxes, &load, n, bounds, &dir, progress)?;
+        progress.finish();
+        Some(r)
+    };
+    let capped = std::cell::Cell::new(0u64);
+    let load = |u: usize| {
+        let r = match &radii {
+            Some(r) => {
+                let (r, c) = r.load(u)?;
+                capped.set(capped.get() + c);
+                Some(r)
+            }
+            None => None,
+        };
+        samples::load(&units[u].spill, layout, units[u].n as usize, r)
+    };
+    progress.start("spt: point tree (units)", n as u64);
+    let mut walk = Walk {
+        p,
+        grid,
+        has_normals: layout.normals,
+        has_colors: layout.colors,
+        units: &units,
+        next_unit: 0,
+        load: &load,
+        dir: &dir,
+        next_id: 0,
+        kept: Vec::new(),
+        runs: Vec::new(),
+        inner: 0,
+        progress,
+    };
+    let (_, levels) = walk.cell(Cell::ROOT, n as u64)?;
+    progress.finish();
+    if walk.next_unit != units.len() {
+        return Err(MethodError::Limit(format!(
+            "spt: the walk reached {} of {} units",
+            walk.next_unit,
+            units.len()
+        )));
+    }
+    let tree_seconds = t0.elapsed().as_secs_f64();
+    let total = walk.next_id;
+    let Walk {
+        kept, runs, inner, ..
+    } = walk;
+    drop(radii);
+    // The kept nodes' own run, in memory.
+    let by_id: HashMap<u64, usize> = kept.iter().enumerate().map(|(i, k)| (k.0, i)).collect();
+    let mut top: Vec<(u128, ListNode)> = Vec::with_capacity(kept.len());
+    for (id, nd) in &kept {
+        let parent = (nd.parent != NO_PARENT).then(|| &kept[by_id[&(nd.parent as u64)]].1);
+        let lod = lod_entry(nd, parent);
+        if !lod.iter().all(|v| v.is_finite()) {
+            return Err(non_finite(*id, &lod, nd));
+        }
+        let cluster = cluster_of(p, layout.normals, nd.n);
+        top.push((
+            list_key(cluster, &lod, *id as u32),
+            ListNode {
+                p: nd.p,
+                n: nd.n,
+                color: nd.color,
+                r: nd.r,
+                lod,
+                cluster,
+            },
+        ));
+    }
+    top.sort_unstable_by_key(|t| t.0);
+    // Step 4: merge.
+    let mut attrs = cloud.attributes();
+    attrs.radii = true;
+    let mut w = ListWriter::create(budget.dir, attrs, cloud.origin(), total, p.normal_clusters)?;
+    progress.start("spt: writing", total);
+    let mut readers = runs
+        .iter()
+        .map(Spill::reader)
+        .collect::<Result<Vec<_>, _>>()?;
+    let mut heap: BinaryHeap<Reverse<(u128, usize)>> = BinaryHeap::new();
+    let mut heads: Vec<Option<ListNode>> = vec![None; readers.len()];
+    for (i, r) in readers.iter_mut().enumerate() {
+        if let Some(rec) = r.next_record()? {
+            let (k, nd) = decode_record(rec);
+            heads[i] = Some(nd);
+            heap.push(Reverse((k, i)));
+        }
+    }
+    let mut top_at = 0;
+    let mut written = 0u64;
+    loop {
+        let from_runs = heap.peek().map(|Reverse((k, _))| *k);
+        let from_top = top.get(top_at).map(|t| t.0);
+        match (from_runs, from_top) {
+            (None, None) => break,
+            (Some(k), t) if t.is_none_or(|t| k < t) => {
+                let Some(Reverse((_, i))) = heap.pop() else {
+                    break;
+                };
+                if let Some(nd) = heads[i].take() {
+                    w.push(&nd)?;
+                }
+                if let Some(rec) = readers[i].next_record()? {
+                    let (k, nd) = decode_record(rec);
+                    heads[i] = Some(nd);
+                    heap.push(Reverse((k, i)));
+                }
+            }
+            _ => {
+                w.push(&top[top_at].1)?;
+                top_at += 1;
+            }
+        }
+        written += 1;
+        if written.is_multiple_of(BLOCK as u64) {
+            progress.inc(BLOCK as u64);
+        }
+    }
+    let (index, _) = w.finish(levels)?;
+    progress.finish();
+    Ok(Listed {
+        index,
+        inner,
+        radii_capped: capped.get(),
+        tree_seconds,
+        units: runs.len() as u64,
+    })
+}

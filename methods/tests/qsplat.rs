@@ -180,6 +180,11 @@ fn split_and_combine_params() {
             .to_string();
         assert!(e.contains(key) && e.contains(kv), "{e}");
     }
+    let e = MethodKind::Qsplat
+        .check_params(&Params::parse(&["mem_mb=15"]).unwrap())
+        .unwrap_err()
+        .to_string();
+    assert!(e.contains("mem_mb must be ≥ 16, got 15"), "{e}");
 }
 
 #[test]

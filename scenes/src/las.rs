@@ -86,6 +86,18 @@ struct Pass {
     /// An even stride of at most [`SAMPLE_MAX`] world positions, for
     /// [`crate::framing::inlier_origin`].
     sample: Vec<[f64; 3]>,
+    /// Every colour channel of the file is ≤ 255 (8-bit values stored as they are).
+    eight_bit: bool,
+}
+
+/// Where [`read_pass`] puts the points it stores.
+enum Store<'a> {
+    /// Nowhere (bounds and sample only).
+    None,
+    /// In the pass's vectors.
+    Memory,
+    /// Streamed to a column writer, colours converted with the given 8-bit flag.
+    Columns(&'a mut crate::colfile::ColumnWriter, bool),
 }
 
 /// At most this many world positions are kept per pass to find far outliers.
@@ -95,9 +107,11 @@ const SAMPLE_MAX: u64 = 1 << 16;
 fn read_pass(
     path: &Path,
     origin: DVec3,
-    store: bool,
+    mut to: Store<'_>,
     want: Option<Scalar>,
 ) -> Result<Pass, SceneError> {
+    let store = matches!(to, Store::Memory);
+    let streamed = matches!(to, Store::Columns(..));
     let mut reader = open(path)?;
     let header = reader.header();
     let n = header.number_of_points();
@@ -123,6 +137,8 @@ fn read_pass(
     let mut sample = Vec::with_capacity(n.min(SAMPLE_MAX) as usize);
     let mut pd = PointDataBuilder::new().for_header(reader.header()).build();
     let mut done: u64 = 0;
+    let mut eight_bit = true;
+    let (mut block_pos, mut block_rgb): (Vec<[f32; 3]>, Vec<[u8; 3]>) = (Vec::new(), Vec::new());
     while done < n {
         let got = reader.fill_points(BATCH, &mut pd).map_err(|e| {
             ferr(
@@ -152,13 +168,36 @@ fn read_pass(
             if (done + j as u64).is_multiple_of(stride) {
                 sample.push(p.to_array());
             }
-            if store {
+            if store || streamed {
                 let l = p - origin;
-                local.push([l.x as f32, l.y as f32, l.z as f32]);
+                let l = [l.x as f32, l.y as f32, l.z as f32];
+                if store {
+                    local.push(l);
+                } else {
+                    block_pos.push(l);
+                }
             }
         }
-        if let (Some(out), Some(cols)) = (rgb.as_mut(), pd.rgb()) {
-            out.extend(cols.map(|(r, g, b)| [r, g, b]));
+        if let Some(cols) = pd.rgb() {
+            if let Some(out) = rgb.as_mut() {
+                out.extend(cols.map(|(r, g, b)| [r, g, b]));
+            } else if let Store::Columns(_, eight) = to {
+                block_rgb.extend(cols.map(|(r, g, b)| [r, g, b].map(|v| narrow(v, eight))));
+            } else {
+                eight_bit &= cols
+                    .into_iter()
+                    .all(|(r, g, b)| r <= 255 && g <= 255 && b <= 255);
+            }
+        }
+        if let Store::Columns(w, _) = &mut to {
+            w.push(
+                &block_pos,
+                None,
+                has_color.then_some(block_rgb.as_slice()),
+                None,
+            )?;
+            block_pos.clear();
+            block_rgb.clear();
         }
         if let Some(out) = scalar.as_mut() {
             match want {
@@ -191,6 +230,9 @@ fn read_pass(
             format!("{} scalar values for {} points", v.len(), local.len()),
         ));
     }
+    if let Some(c) = &rgb {
+        eight_bit = c.iter().all(|c| c.iter().all(|&v| v <= 255));
+    }
     Ok(Pass {
         local,
         rgb,
@@ -198,7 +240,14 @@ fn read_pass(
         lo,
         hi,
         sample,
+        eight_bit,
     })
+}
+
+/// A 16-bit LAS colour channel as 8 bits: as it is in a file of 8-bit values, else its high
+/// byte.
+fn narrow(v: u16, eight_bit: bool) -> u8 {
+    if eight_bit { v as u8 } else { (v >> 8) as u8 }
 }
 
 /// Reads a LAS or LAZ file into a [`PointCloud`] (see the module docs).
@@ -215,11 +264,18 @@ pub fn read_with(
     crate::las_check::contained(path, || read_checked(path, want))
 }
 
-/// [`read_with`] after the header checks, with panics of the crates not yet contained.
-fn read_checked(
-    path: &Path,
-    want: Option<Scalar>,
-) -> Result<(PointCloud, Option<Vec<f32>>), SceneError> {
+/// What the header says about where the points are.
+struct HeaderFrame {
+    n: u64,
+    /// Centre of the header bounds (zero when they are unusable).
+    guess: DVec3,
+    header_ok: bool,
+    hlo: DVec3,
+    hhi: DVec3,
+    scale: DVec3,
+}
+
+fn header_frame(path: &Path) -> Result<HeaderFrame, SceneError> {
     let reader = open(path)?;
     let header = reader.header();
     let n = header.number_of_points();
@@ -236,32 +292,65 @@ fn read_checked(
         DVec3::new(b.max.x, b.max.y, b.max.z),
     );
     let scale = DVec3::new(t.x.scale.abs(), t.y.scale.abs(), t.z.scale.abs());
-    drop(reader);
     let header_ok = hlo.is_finite() && hhi.is_finite() && hlo.cmple(hhi).all();
     let guess = if header_ok {
         (hlo + hhi) * 0.5
     } else {
         DVec3::ZERO
     };
-    let first = read_pass(path, guess, header_ok, want)?;
-    let contains = |lo: DVec3, hi: DVec3| {
-        let tol = 2.0 * scale + 1e-9 * hlo.abs().max(hhi.abs());
-        header_ok && (lo - hlo).cmpge(-tol).all() && (hhi - hi).cmpge(-tol).all()
-    };
-    let inliers = crate::framing::inlier_origin(&first.sample, first.lo, first.hi);
-    let (origin, pass) = match inliers {
-        // Far outliers: the origin goes to the inliers' centre, so they keep their precision.
-        Some(origin) => (origin, read_pass(path, origin, true, want)?),
-        None if contains(first.lo, first.hi) => (guess, first),
-        None => {
-            let origin = (first.lo + first.hi) * 0.5;
-            (origin, read_pass(path, origin, true, want)?)
+    Ok(HeaderFrame {
+        n,
+        guess,
+        header_ok,
+        hlo,
+        hhi,
+        scale,
+    })
+}
+
+impl HeaderFrame {
+    /// The origin the points are stored relative to, given the first pass over them (read
+    /// relative to `guess`): `None` keeps `guess` (the first pass's positions stand),
+    /// `Some(o)` asks for a pass relative to `o` (see the module docs).
+    fn origin(&self, first: &Pass) -> Option<DVec3> {
+        let contains = |lo: DVec3, hi: DVec3| {
+            let tol = 2.0 * self.scale + 1e-9 * self.hlo.abs().max(self.hhi.abs());
+            self.header_ok && (lo - self.hlo).cmpge(-tol).all() && (self.hhi - hi).cmpge(-tol).all()
+        };
+        match crate::framing::inlier_origin(&first.sample, first.lo, first.hi) {
+            // Far outliers: the origin goes to the inliers' centre, so they keep their
+            // precision.
+            Some(origin) => Some(origin),
+            None if contains(first.lo, first.hi) => None,
+            None => Some((first.lo + first.hi) * 0.5),
         }
+    }
+}
+
+/// [`read_with`] after the header checks, with panics of the crates not yet contained.
+fn read_checked(
+    path: &Path,
+    want: Option<Scalar>,
+) -> Result<(PointCloud, Option<Vec<f32>>), SceneError> {
+    let h = header_frame(path)?;
+    let first = read_pass(
+        path,
+        h.guess,
+        if h.header_ok {
+            Store::Memory
+        } else {
+            Store::None
+        },
+        want,
+    )?;
+    let (origin, pass) = match h.origin(&first) {
+        None => (h.guess, first),
+        Some(origin) => (origin, read_pass(path, origin, Store::Memory, want)?),
     };
+    let eight_bit = pass.eight_bit;
     let colors = pass.rgb.map(|rgb| {
-        let eight_bit = rgb.iter().all(|c| c.iter().all(|&v| v <= 255));
         rgb.into_iter()
-            .map(|c| c.map(|v| if eight_bit { v as u8 } else { (v >> 8) as u8 }))
+            .map(|c| c.map(|v| narrow(v, eight_bit)))
             .collect::<Vec<[u8; 3]>>()
     });
     let cloud = PointCloud::new(
@@ -276,6 +365,34 @@ fn read_checked(
         other => other,
     })?;
     Ok((cloud, pass.scalar))
+}
+
+/// The number of points the header of the LAS/LAZ file `path` declares (after the header
+/// checks of [`read`]).
+pub fn point_count(path: &Path) -> Result<u64, SceneError> {
+    crate::las_check::check(path)?;
+    crate::las_check::contained(path, || Ok(open(path)?.header().number_of_points()))
+}
+
+/// Reads a LAS or LAZ file into the column file `out` ([`crate::colfile`]) and opens it
+/// mapped: the same cloud as [`read`] (origin, positions, colours), but streamed, so a file
+/// larger than memory can be read. One pass finds the bounds, the far outliers and whether
+/// the colours are 8-bit; a second writes the columns.
+pub fn read_to_columns(path: &Path, out: &Path) -> Result<PointCloud, SceneError> {
+    crate::las_check::check(path)?;
+    crate::las_check::contained(path, || {
+        let h = header_frame(path)?;
+        let first = read_pass(path, h.guess, Store::None, None)?;
+        let origin = h.origin(&first).unwrap_or(h.guess);
+        let has_color = open(path)?.header().point_format().has_color;
+        let attrs = crate::Attributes {
+            colors: has_color,
+            ..Default::default()
+        };
+        let mut w = crate::colfile::ColumnWriter::create(out, attrs, origin, h.n)?;
+        read_pass(path, origin, Store::Columns(&mut w, first.eight_bit), None)?;
+        w.finish()
+    })
 }
 
 /// The LAS coordinate scale [`write()`] uses for a cloud whose local coordinates span `span`

@@ -17,7 +17,10 @@
 //!
 //! Generated scenes of more than [`CACHE_MIN_POINTS`] points are written once to a column file
 //! in the cache directory and memory-mapped from then on, so a 100 M-point scene is generated
-//! once and streamed, never held in memory.
+//! once and streamed, never held in memory. So are LAS/LAZ files of that many points (read by
+//! streaming, [`crate::las::read_to_columns`]; the cached file is named by a hash of the
+//! file's canonical path, length and modification time, so an edited file is read again),
+//! unless a `--shading` needs their intensity or classification (read in memory then).
 
 use std::path::{Path, PathBuf};
 
@@ -32,6 +35,33 @@ pub const MAX_SAMPLE: usize = 500_000_000;
 pub const CACHE_MIN_POINTS: usize = 2_000_000;
 /// Bumped whenever a generator's output changes, so cached scenes and references refresh.
 pub const GENERATOR_VERSION: u32 = 1;
+/// Bumped whenever the LAS reader's output changes, so cached LAS scenes refresh.
+pub const LAS_CACHE_VERSION: u32 = 1;
+
+/// The cached column file of the LAS/LAZ file `path` under `dir`, or `None` when the file has
+/// fewer than [`CACHE_MIN_POINTS`] points (or its header cannot be read: the reader then
+/// reports that).
+pub fn las_cache_path(dir: &Path, path: &Path) -> Option<PathBuf> {
+    let meta = std::fs::metadata(path).ok()?;
+    if crate::las::point_count(path).ok()? < CACHE_MIN_POINTS as u64 {
+        return None;
+    }
+    let canonical = std::fs::canonicalize(path).ok()?;
+    let mtime = meta
+        .modified()
+        .ok()
+        .and_then(|t| t.duration_since(std::time::UNIX_EPOCH).ok())
+        .map_or(0, |d| d.as_nanos());
+    let key = Fnv64::default()
+        .write_str(&canonical.to_string_lossy())
+        .write(&meta.len().to_le_bytes())
+        .write(&mtime.to_le_bytes())
+        .finish();
+    Some(
+        dir.join("scenes")
+            .join(format!("las-{key:016x}-v{LAS_CACHE_VERSION}.sbc")),
+    )
+}
 
 /// Where a scene's samples come from.
 #[derive(Debug, Clone, PartialEq)]
@@ -434,8 +464,20 @@ impl SceneSpec {
                 return Ok((Loaded { cloud, warnings }, None));
             }
             SceneSource::Las { path } => {
-                let (cloud, scalar) = crate::las::read_with(path, self.colour_from)?;
-                return Ok((Loaded::quiet(cloud), scalar));
+                if self.colour_from.is_none()
+                    && let Some(cached) = cache_dir.and_then(|d| las_cache_path(d, path))
+                {
+                    if cached.exists() {
+                        crate::colfile::open(&cached)
+                    } else {
+                        let dir = cached.parent().unwrap_or(Path::new("."));
+                        std::fs::create_dir_all(dir).map_err(|e| SceneError::io(dir, e))?;
+                        crate::las::read_to_columns(path, &cached)
+                    }
+                } else {
+                    let (cloud, scalar) = crate::las::read_with(path, self.colour_from)?;
+                    return Ok((Loaded::quiet(cloud), scalar));
+                }
             }
             SceneSource::Columns { path } => crate::colfile::open(path),
             SceneSource::E57 { path } => {

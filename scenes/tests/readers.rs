@@ -1071,3 +1071,104 @@ fn las_errors_name_the_file() {
     let m = scenes::las::read(&z).unwrap_err().to_string();
     assert!(m.contains("trunc.laz"), "{m}");
 }
+
+/// The streamed LAS reader gives exactly the in-memory reader's cloud (origin, positions,
+/// colours): good header, wrong header bounds, 16-bit colours in LAZ, far strays.
+#[test]
+fn las_read_to_columns_is_the_in_memory_cloud() {
+    let dir = tmp();
+    let d = dir.path();
+    let tile = d.join("tile.las");
+    scenes::las::write(&tile, &terrain(5000, true)).unwrap();
+    let bad = d.join("badbounds.las");
+    scenes::las::write(&bad, &terrain(3000, false)).unwrap();
+    let mut bytes = std::fs::read(&bad).unwrap();
+    bytes[179..227].fill(0);
+    std::fs::write(&bad, &bytes).unwrap();
+    let deep = d.join("sixteen.laz");
+    let strays = d.join("strays.las");
+    let mut r = Pcg32::new(3);
+    let mut pts: Vec<(f64, f64, f64, Option<[u16; 3]>)> = (0..4000)
+        .map(|i| {
+            let (x, y) = (r.f32() as f64 * 500.0, r.f32() as f64 * 500.0);
+            (
+                300_000.0 + x,
+                5_000_000.0 + y,
+                20.0 + (x * 0.01).sin(),
+                Some([i as u16 * 16, 300, 7]),
+            )
+        })
+        .collect();
+    write_raw_las(&deep, &pts);
+    pts.push((0.0, 0.0, 0.0, Some([0, 0, 0])));
+    pts.push((0.0, 1.0, 0.0, Some([0, 0, 0])));
+    write_raw_las(&strays, &pts);
+    for p in [&tile, &bad, &deep, &strays] {
+        let mem = scenes::las::read(p).unwrap();
+        let out = d.join("cols.sbc");
+        let col = scenes::las::read_to_columns(p, &out).unwrap();
+        assert!(col.is_mapped());
+        assert_eq!(col.origin(), mem.origin(), "{}", p.display());
+        assert_eq!(col.positions(), mem.positions(), "{}", p.display());
+        assert_eq!(col.colors(), mem.colors(), "{}", p.display());
+        assert_eq!(col.attributes(), mem.attributes(), "{}", p.display());
+    }
+    // The strays moved the origin to the inliers (not to the strays' side).
+    let s = scenes::las::read(&strays).unwrap();
+    assert!(s.origin().x > 299_000.0, "{}", s.origin());
+    // Errors name the file, and no column file is left.
+    let fake = write_bytes(d, "fake.las", b"ply\nformat ascii 1.0\n");
+    let out = d.join("fake.sbc");
+    let m = scenes::las::read_to_columns(&fake, &out)
+        .unwrap_err()
+        .to_string();
+    assert!(m.contains("fake.las"), "{m}");
+    assert!(!out.exists());
+}
+
+/// A LAS file of at least `CACHE_MIN_POINTS` points loads through a column file in the cache
+/// (the second load maps it), and an edited file is read again.
+#[test]
+fn large_las_files_are_cached_as_column_files() {
+    let dir = tmp();
+    let d = dir.path();
+    let las = d.join("big.las");
+    let cloud = scenes::generators::Generator::Terrain
+        .generate(scenes::spec::CACHE_MIN_POINTS, 1)
+        .unwrap()
+        .without_normals();
+    scenes::las::write(&las, &cloud).unwrap();
+    let cache = d.join("cache");
+    let spec = scenes::spec::SceneSpec::parse(las.to_str().unwrap(), None, 1).unwrap();
+    let load = || spec.load(Some(&cache), &scenes::NoProgress).unwrap().cloud;
+    let first = load();
+    assert!(first.is_mapped());
+    let cached = scenes::spec::las_cache_path(&cache, &las).unwrap();
+    assert!(cached.exists());
+    let stamp = std::fs::metadata(&cached).unwrap().modified().unwrap();
+    let second = load();
+    assert_eq!(
+        std::fs::metadata(&cached).unwrap().modified().unwrap(),
+        stamp
+    );
+    let mem = scenes::las::read(&las).unwrap();
+    assert_eq!(second.positions(), mem.positions());
+    assert_eq!(second.colors(), mem.colors());
+    assert_eq!(second.origin(), mem.origin());
+    // Without a cache directory the file is read in memory.
+    assert!(
+        !spec
+            .load(None, &scenes::NoProgress)
+            .unwrap()
+            .cloud
+            .is_mapped()
+    );
+    // An edited file gets another cache entry.
+    std::thread::sleep(std::time::Duration::from_millis(20));
+    scenes::las::write(&las, &cloud).unwrap();
+    assert_ne!(scenes::spec::las_cache_path(&cache, &las).unwrap(), cached);
+    // A small file is not cached.
+    let small = d.join("small.las");
+    scenes::las::write(&small, &terrain(100, true)).unwrap();
+    assert_eq!(scenes::spec::las_cache_path(&cache, &small), None);
+}

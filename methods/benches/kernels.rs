@@ -35,6 +35,11 @@ fn kernels(c: &mut Criterion) {
     g.bench_function("knn_spacing_k6_terrain", |b| {
         b.iter(|| scenes::spacing::knn_spacing(terrain.positions(), methods::leaf::LEAF_K))
     });
+    // QSplat's hierarchy (partition, properties, quantisation; radii given).
+    let radii = methods::leaf::leaf_radii(&terrain).radii.into_owned();
+    g.bench_function("qsplat_tree_terrain", |b| {
+        b.iter(|| methods::qsplat::build::build_tree(&terrain, &radii).unwrap())
+    });
     for generator in Generator::ALL {
         g.bench_function(format!("generate_{}", generator.name()), |b| {
             b.iter(|| generator.generate(n, 1).unwrap())

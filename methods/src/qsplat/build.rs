@@ -162,29 +162,41 @@ struct Binary {
 /// over its binary children). Leaves cost (0, 0).
 type Cost = (u64, u64);
 
-/// Partitions `perm` (positions `base..base + perm.len()`) in place, records the splits of
-/// its binary nodes in `left`/`right`/`grand` (slices of the same positions) and returns the
-/// range's split (absolute, 0 for a single sample) and cost.
+/// A sample during partitioning: its position (copied, so that the scans are sequential)
+/// and index.
+#[derive(Clone, Copy)]
+struct Item {
+    p: Vec3,
+    i: u32,
+}
+
+type Bounds = (Vec3, Vec3);
+
+fn bounds_of(items: &[Item]) -> Bounds {
+    items.iter().fold(
+        (Vec3::splat(f32::INFINITY), Vec3::splat(f32::NEG_INFINITY)),
+        |(lo, hi), it| (lo.min(it.p), hi.max(it.p)),
+    )
+}
+
+/// Partitions `items` (positions `base..base + items.len()`, bounding box `bounds`) in
+/// place, records the splits of its binary nodes in `left`/`right`/`grand` (slices of the
+/// same positions) and returns the range's split (absolute, 0 for a single sample) and cost.
+/// The midpoint scan grows the two halves' boxes as it goes, so a level costs one pass.
 fn partition(
-    perm: &mut [u32],
+    items: &mut [Item],
+    bounds: Bounds,
     base: u32,
-    pos: &[[f32; 3]],
     opt: BuildOptions,
     left: &mut [u32],
     right: &mut [u32],
     grand: &mut [bool],
 ) -> (u32, Cost) {
-    let n = perm.len();
+    let n = items.len();
     if n <= 1 {
         return (0, (0, 0));
     }
-    let mut lo = Vec3::splat(f32::INFINITY);
-    let mut hi = Vec3::splat(f32::NEG_INFINITY);
-    for &i in perm.iter() {
-        let p = Vec3::from(pos[i as usize]);
-        lo = lo.min(p);
-        hi = hi.max(p);
-    }
+    let (lo, hi) = bounds;
     let s = hi - lo;
     let axis = if s.x >= s.y && s.x >= s.z {
         0
@@ -193,43 +205,48 @@ fn partition(
     } else {
         2
     };
+    let empty = (Vec3::splat(f32::INFINITY), Vec3::splat(f32::NEG_INFINITY));
+    let (mut lb, mut rb) = (empty, empty);
     let mut mid = 0;
     if opt.split == Split::Midpoint {
         let cut = (lo[axis] as f64 + hi[axis] as f64) * 0.5;
         // Deterministic two-pointer partition: samples with coordinate < cut first.
         let (mut a, mut b) = (0, n);
         while a < b {
-            if (pos[perm[a] as usize][axis] as f64) < cut {
+            let p = items[a].p;
+            if (p[axis] as f64) < cut {
+                lb = (lb.0.min(p), lb.1.max(p));
                 a += 1;
             } else {
+                rb = (rb.0.min(p), rb.1.max(p));
                 b -= 1;
-                perm.swap(a, b);
+                items.swap(a, b);
             }
         }
         mid = a;
     }
     if mid == 0 || mid == n {
         mid = n / 2;
-        perm.select_nth_unstable_by(mid, |&a, &b| {
-            pos[a as usize][axis]
-                .total_cmp(&pos[b as usize][axis])
-                .then(a.cmp(&b))
+        items.select_nth_unstable_by(mid, |a, b| {
+            a.p[axis].total_cmp(&b.p[axis]).then(a.i.cmp(&b.i))
         });
+        lb = bounds_of(&items[..mid]);
+        rb = bounds_of(&items[mid..]);
     }
-    let (pl, pr) = perm.split_at_mut(mid);
+    let (pl, pr) = items.split_at_mut(mid);
     let (ll, lr) = left.split_at_mut(mid);
     let (rl, rr) = right.split_at_mut(mid);
     let (gl, gr) = grand.split_at_mut(mid);
     let m = base + mid as u32;
     let ((sl, cl), (sr, cr)) = if n >= PAR_THRESHOLD {
         rayon::join(
-            || partition(pl, base, pos, opt, ll, rl, gl),
-            || partition(pr, m, pos, opt, lr, rr, gr),
+            || partition(pl, lb, base, opt, ll, rl, gl),
+            || partition(pr, rb, m, opt, lr, rr, gr),
         )
     } else {
         (
-            partition(pl, base, pos, opt, ll, rl, gl),
-            partition(pr, m, pos, opt, lr, rr, gr),
+            partition(pl, lb, base, opt, ll, rl, gl),
+            partition(pr, rb, m, opt, lr, rr, gr),
         )
     };
     lr[0] = sl;
@@ -246,12 +263,26 @@ fn partition(
 
 impl Binary {
     /// Partitions `perm` and records the binary tree.
-    fn build(perm: &mut [u32], pos: &[[f32; 3]], opt: BuildOptions) -> (Self, Cost) {
-        let n = perm.len();
+    /// Partitions the samples at `pos`; returns the tree, the permutation (samples in
+    /// leaf order) and the root's cost.
+    fn build(pos: &[[f32; 3]], opt: BuildOptions) -> (Self, Vec<u32>, Cost) {
+        let n = pos.len();
+        let mut items: Vec<Item> = pos
+            .iter()
+            .enumerate()
+            .map(|(i, &p)| Item {
+                p: Vec3::from(p),
+                i: i as u32,
+            })
+            .collect();
         let mut left = vec![0u32; n];
         let mut right = vec![0u32; n];
         let mut grand = vec![false; n];
-        let (root, cost) = partition(perm, 0, pos, opt, &mut left, &mut right, &mut grand);
+        let bounds = bounds_of(&items);
+        let (root, cost) = partition(
+            &mut items, bounds, 0, opt, &mut left, &mut right, &mut grand,
+        );
+        let perm = items.iter().map(|it| it.i).collect();
         (
             Self {
                 left,
@@ -259,6 +290,7 @@ impl Binary {
                 grand,
                 root,
             },
+            perm,
             cost,
         )
     }
@@ -635,8 +667,7 @@ pub(super) struct Partitioned {
 impl Partitioned {
     /// Partitions the `n` samples at `pos`.
     pub(super) fn new(pos: &[[f32; 3]], opt: BuildOptions) -> Self {
-        let mut perm: Vec<u32> = (0..pos.len() as u32).collect();
-        let (tree, cost) = Binary::build(&mut perm, pos, opt);
+        let (tree, perm, cost) = Binary::build(pos, opt);
         Self { perm, tree, cost }
     }
 

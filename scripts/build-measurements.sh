@@ -23,7 +23,7 @@ if [ ! -s "$las" ]; then
   "$bin" export --scene "terrain:$n:1" --out "$las" --cache "$dir/export-cache" >/dev/null
   rm -rf "$dir/export-cache"
 fi
-bytes=$(stat -c %s "$las")
+bytes=$(stat -L -c %s "$las")
 # time's %e is seconds, %M KiB.
 timed() { /usr/bin/time -f '%e %M' -o "$1" "${@:2}"; }
 row() { # name, wall, rss KiB, extra

@@ -25,6 +25,8 @@
 //!   copies are the Morton keys and the node array.
 
 use glam::Vec3;
+use std::sync::atomic::{AtomicU32, Ordering};
+
 use rayon::prelude::*;
 use scenes::PointCloud;
 
@@ -123,7 +125,8 @@ pub(super) struct Builder<'a> {
     s: Samples<'a>,
     keys: Vec<(u64, u32)>,
     pub nodes: Vec<Node>,
-    leaf_of: Vec<u32>,
+    /// Each sample's leaf (filled only when asked for: the build in units does not need it).
+    leaf_of: Option<Vec<u32>>,
     color_threshold: f32,
 }
 
@@ -136,19 +139,28 @@ pub fn build_tree(cloud: &PointCloud, radii: &[f32], color_threshold: f32) -> Po
         normals: cloud.normals(),
         colors: cloud.colors(),
     };
-    let mut bld = Builder::new(s, MortonGrid::new(cloud.bounds()), color_threshold);
+    let mut bld = Builder::new(s, MortonGrid::new(cloud.bounds()), color_threshold, true);
     let n = cloud.len();
     let (_, height) = bld.subtree(0, n, BITS);
     PointTree {
         nodes: bld.nodes,
         levels: height,
-        leaf_of: bld.leaf_of,
+        leaf_of: bld.leaf_of.unwrap_or_default(),
     }
 }
 
+/// Cells of at least this many samples build their children's subtrees in parallel.
+const PAR_SAMPLES: usize = 1 << 14;
+
 impl<'a> Builder<'a> {
-    /// A builder over `s`, sorted by Morton code in `grid` (ties by index).
-    pub(super) fn new(s: Samples<'a>, grid: MortonGrid, color_threshold: f32) -> Self {
+    /// A builder over `s`, sorted by Morton code in `grid` (ties by index); `leaf_of`: keep
+    /// each sample's leaf.
+    pub(super) fn new(
+        s: Samples<'a>,
+        grid: MortonGrid,
+        color_threshold: f32,
+        leaf_of: bool,
+    ) -> Self {
         let mut keys: Vec<(u64, u32)> = s
             .pos
             .par_iter()
@@ -161,54 +173,155 @@ impl<'a> Builder<'a> {
             s,
             keys,
             nodes: Vec::with_capacity(n + n / 2),
-            leaf_of: vec![0; n],
+            leaf_of: leaf_of.then(|| vec![0; n]),
             color_threshold,
         }
     }
+
+    /// Builds the cell holding `keys[lo..hi]` whose codes agree above `level·3` bits,
+    /// appending its nodes to `nodes` (post-order); returns (node index, height).
+    pub(super) fn subtree(&mut self, lo: usize, hi: usize, level: u32) -> (u32, u32) {
+        let leaf_of: Option<Vec<AtomicU32>> = self
+            .leaf_of
+            .as_ref()
+            .map(|l| l.iter().map(|&v| AtomicU32::new(v)).collect());
+        let ctx = Ctx {
+            s: self.s,
+            keys: &self.keys,
+            color_threshold: self.color_threshold,
+            leaf_of: leaf_of.as_deref(),
+        };
+        let base = self.nodes.len();
+        let count = ctx.count(lo, hi, level);
+        self.nodes.resize(base + count, PLACEHOLDER);
+        let r = ctx.subtree(&mut self.nodes[base..], base as u32, lo, hi, level);
+        if let (Some(l), Some(a)) = (&mut self.leaf_of, leaf_of) {
+            *l = a.into_iter().map(AtomicU32::into_inner).collect();
+        }
+        r
+    }
 }
 
-impl Builder<'_> {
-    /// Builds the cell holding `keys[lo..hi]` whose codes agree above `level·3` bits;
-    /// returns (node index, height).
-    pub(super) fn subtree(&mut self, lo: usize, hi: usize, level: u32) -> (u32, u32) {
+/// A node slot not yet built.
+const PLACEHOLDER: Node = Node {
+    p: Vec3::ZERO,
+    n: Vec3::Z,
+    r: 0.0,
+    e_p: 0.0,
+    e_t: 0.0,
+    e_g: 0.0,
+    phi_q: 0,
+    parent: NO_PARENT,
+    color: [0; 3],
+    leaf: false,
+};
+
+/// What a subtree build reads.
+#[derive(Clone, Copy)]
+struct Ctx<'a> {
+    s: Samples<'a>,
+    keys: &'a [(u64, u32)],
+    color_threshold: f32,
+    leaf_of: Option<&'a [AtomicU32]>,
+}
+
+impl Ctx<'_> {
+    /// The ranges of `keys[lo..hi]`'s occupied child cells at `level` (> 0).
+    fn child_ranges(&self, lo: usize, hi: usize, level: u32) -> Vec<(usize, usize)> {
+        let shift = 3 * (level - 1);
+        let oct = |k: &(u64, u32)| (k.0 >> shift) & 7;
+        let mut ranges = Vec::with_capacity(8);
+        let mut s = lo;
+        while s < hi {
+            let o = oct(&self.keys[s]);
+            let e = s + self.keys[s..hi].partition_point(|k| oct(k) == o);
+            ranges.push((s, e));
+            s = e;
+        }
+        ranges
+    }
+
+    /// Nodes of the subtree [`Self::subtree`] builds for the same cell (its structure
+    /// follows from the keys alone).
+    fn count(&self, lo: usize, hi: usize, level: u32) -> usize {
         if hi - lo == 1 {
-            return (self.leaf(lo), 1);
+            return 1;
+        }
+        if level == 0 {
+            return hi - lo + 1;
+        }
+        let ranges = self.child_ranges(lo, hi, level);
+        if ranges.len() == 1 {
+            return self.count(lo, hi, level - 1);
+        }
+        1 + ranges
+            .iter()
+            .map(|&(s, e)| self.count(s, e, level - 1))
+            .sum::<usize>()
+    }
+
+    /// Builds the cell's subtree into `out`, exactly [`Self::count`] slots whose first is
+    /// node `base`, in post-order (the cell's node last); returns (node index, height). A
+    /// cell of at least [`PAR_SAMPLES`] samples builds its children in parallel, each into
+    /// its own part of `out`: the nodes, their numbering and every value are those of the
+    /// sequential recursion, and nothing is copied.
+    fn subtree(&self, out: &mut [Node], base: u32, lo: usize, hi: usize, level: u32) -> (u32, u32) {
+        if hi - lo == 1 {
+            return (self.leaf(out, base, 0, lo), 1);
         }
         let mut children = Vec::with_capacity(8);
         let mut height = 0;
         if level == 0 {
-            for i in lo..hi {
-                children.push(self.leaf(i));
+            for (j, i) in (lo..hi).enumerate() {
+                children.push(self.leaf(out, base, j, i));
             }
             height = 1;
         } else {
-            let shift = 3 * (level - 1);
-            let oct = |k: &(u64, u32)| (k.0 >> shift) & 7;
-            let mut ranges = Vec::with_capacity(8);
-            let mut s = lo;
-            while s < hi {
-                let o = oct(&self.keys[s]);
-                let e = s + self.keys[s..hi].partition_point(|k| oct(k) == o);
-                ranges.push((s, e));
-                s = e;
-            }
+            let ranges = self.child_ranges(lo, hi, level);
             if ranges.len() == 1 {
-                return self.subtree(lo, hi, level - 1);
+                return self.subtree(out, base, lo, hi, level - 1);
             }
-            for (s, e) in ranges {
-                let (c, h) = self.subtree(s, e, level - 1);
+            let counts: Vec<usize> = ranges
+                .iter()
+                .map(|&(s, e)| self.count(s, e, level - 1))
+                .collect();
+            // The children's slots, in order, then this node's.
+            let mut parts = Vec::with_capacity(ranges.len());
+            let mut rest = &mut out[..];
+            let mut at = base;
+            for (&r, &c) in ranges.iter().zip(&counts) {
+                let (head, tail) = rest.split_at_mut(c);
+                parts.push((head, at, r));
+                at += c as u32;
+                rest = tail;
+            }
+            let built: Vec<(u32, u32)> = if hi - lo >= PAR_SAMPLES {
+                parts
+                    .into_par_iter()
+                    .map(|(o, b, (s, e))| self.subtree(o, b, s, e, level - 1))
+                    .collect()
+            } else {
+                parts
+                    .into_iter()
+                    .map(|(o, b, (s, e))| self.subtree(o, b, s, e, level - 1))
+                    .collect()
+            };
+            for (c, h) in built {
                 children.push(c);
                 height = height.max(h);
             }
         }
-        (self.inner(&children), height + 1)
+        (self.inner(out, base, &children), height + 1)
     }
 
-    fn leaf(&mut self, k: usize) -> u32 {
+    /// Writes the leaf of `keys[k]` into slot `j` of `out` (node `base + j`).
+    fn leaf(&self, out: &mut [Node], base: u32, j: usize, k: usize) -> u32 {
         let i = self.keys[k].1 as usize;
-        let idx = self.nodes.len() as u32;
-        self.leaf_of[i] = idx;
-        self.nodes.push(Node {
+        let idx = base + j as u32;
+        if let Some(l) = self.leaf_of {
+            l[i].store(idx, Ordering::Relaxed);
+        }
+        out[j] = Node {
             p: Vec3::from(self.s.pos[i]),
             n: self
                 .s
@@ -222,23 +335,25 @@ impl Builder<'_> {
             parent: NO_PARENT,
             color: self.s.colors.map_or([0; 3], |c| c[i]),
             leaf: true,
-        });
+        };
         idx
     }
 
-    fn inner(&mut self, children: &[u32]) -> u32 {
-        let idx = self.nodes.len() as u32;
-        let kids: Vec<Node> = children.iter().map(|&c| self.nodes[c as usize]).collect();
-        let node = inner_node(
+    /// Writes the inner node over `children` into the last slot of `out`.
+    fn inner(&self, out: &mut [Node], base: u32, children: &[u32]) -> u32 {
+        let last = out.len() - 1;
+        let idx = base + last as u32;
+        let at = |c: u32| (c - base) as usize;
+        let kids: Vec<Node> = children.iter().map(|&c| out[at(c)]).collect();
+        out[last] = inner_node(
             &kids,
             self.s.normals.is_some(),
             self.s.colors.is_some(),
             self.color_threshold,
         );
         for &c in children {
-            self.nodes[c as usize].parent = idx;
+            out[at(c)].parent = idx;
         }
-        self.nodes.push(node);
         idx
     }
 }

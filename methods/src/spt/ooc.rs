@@ -404,7 +404,7 @@ impl Walk<'_> {
             normals: s.normals.as_deref(),
             colors: s.colors.as_deref(),
         };
-        let mut bld = Builder::new(samples, self.grid, self.p.color_threshold);
+        let mut bld = Builder::new(samples, self.grid, self.p.color_threshold, false);
         let (_, height) = bld.subtree(0, s.pos.len(), BITS - unit.cell.depth);
         let nodes = std::mem::take(&mut bld.nodes);
         drop(bld);

@@ -3,6 +3,8 @@
 
 #![allow(clippy::unwrap_used)]
 
+mod common;
+
 use methods::qsplat::build::{BuildOptions, Combine, Split};
 use methods::qsplat::ooc::{self, UNIT_BYTES_PER_SAMPLE};
 use scenes::generators::Generator;
@@ -49,30 +51,10 @@ fn units_give_the_in_memory_file_byte_for_byte() {
     }
 }
 
-/// A statue with the degenerate cases of the leaf radii: 7 exact copies of 30 samples
-/// (their 6th neighbour is at distance 0: the fallback) and 6 far strays (capped as
-/// isolated).
-fn degenerate_statue() -> PointCloud {
-    let c = Generator::Statue.generate(9_000, 4).unwrap();
-    let mut pos = c.positions().to_vec();
-    let mut nrm = c.normals().unwrap().to_vec();
-    for i in 0..30 {
-        for _ in 0..7 {
-            pos.push(pos[i * 200]);
-            nrm.push(nrm[i * 200]);
-        }
-    }
-    for j in 0..6 {
-        pos.push([40.0 + 9.0 * j as f32, -30.0, 25.0 * j as f32]);
-        nrm.push([0.0, 0.0, 1.0]);
-    }
-    PointCloud::new(c.origin(), pos.into(), Some(nrm.into()), None, None).unwrap()
-}
-
 #[test]
 fn leaf_radii_by_units_are_the_in_memory_ones_with_fallback_cap_and_given_radii() {
     let tmp = tempfile::tempdir().unwrap();
-    let cloud = degenerate_statue();
+    let cloud = common::degenerate_statue(false);
     let radii = methods::leaf::leaf_radii(&cloud);
     assert!(radii.capped >= 6, "{} capped", radii.capped);
     let n = cloud.len() as u64;
@@ -115,40 +97,9 @@ fn build_hooked(
 fn a_short_or_altered_spill_file_is_an_error_naming_it_and_leaves_nothing() {
     let cloud = Generator::Statue.generate(10_000, 5).unwrap();
     let tmp = tempfile::tempdir().unwrap();
-    let named = std::cell::RefCell::new(String::new());
-    type Damage = fn(&std::path::Path);
-    let cases: [(&str, Damage); 3] = [
-        ("holds", |p| {
-            let b = std::fs::read(p).unwrap();
-            std::fs::write(p, &b[..b.len() - 3]).unwrap();
-        }),
-        ("checksum mismatch", |p| {
-            let mut b = std::fs::read(p).unwrap();
-            b[100] ^= 1;
-            std::fs::write(p, &b).unwrap();
-        }),
-        ("No such file", |p| std::fs::remove_file(p).unwrap()),
-    ];
-    for (what, damage) in cases {
-        let out = tmp.path().join(what);
-        let err = build_hooked(&cloud, &out, &|spills| {
-            assert!(spills.len() >= 5, "{} units", spills.len());
-            let victim = &spills[spills.len() / 2].path;
-            *named.borrow_mut() = victim.display().to_string();
-            damage(victim);
-        })
-        .unwrap_err()
-        .to_string();
-        assert!(
-            err.contains(named.borrow().as_str()) && err.contains(what),
-            "{what}: {err}"
-        );
-        let left: Vec<_> = std::fs::read_dir(&out)
-            .unwrap()
-            .map(|e| e.unwrap().file_name())
-            .collect();
-        assert!(left.is_empty(), "{what}: left {left:?}");
-    }
+    common::spill_damage_is_named(tmp.path(), &|dir, hook| {
+        build_hooked(&cloud, dir, hook).map(|_| ())
+    });
     // Undamaged, the same call succeeds and leaves only the tree.
     let out = tmp.path().join("fine");
     let t = build_hooked(&cloud, &out, &|_| {}).unwrap();

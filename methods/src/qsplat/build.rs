@@ -384,15 +384,7 @@ pub fn quantise_normal(n: Vec3, cone: f64, has_normals: bool) -> (u16, u8) {
     (code as u16, quant::cone_class(need))
 }
 
-/// Per-sample inputs of a (sub)tree, indexed `0..n` in input order (the whole cloud in
-/// core; a unit's samples, in input order, out of core).
-#[derive(Clone, Copy)]
-pub(super) struct Samples<'a> {
-    pub pos: &'a [[f32; 3]],
-    pub radii: &'a [f32],
-    pub normals: Option<&'a [[f32; 3]]>,
-    pub colors: Option<&'a [[u8; 3]]>,
-}
+pub(super) use crate::spill::samples::SampleView as Samples;
 
 /// The combined-tree nodes below a list of roots, breadth-first: `ranges[l]` lists level
 /// `l`'s nodes as `(lo, hi, split)`; `child_start[l][i]..child_start[l][i + 1]` indexes the
@@ -711,16 +703,6 @@ pub(super) fn check_size(n: usize) -> Result<(), MethodError> {
     Ok(())
 }
 
-/// The samples of a whole cloud.
-pub(super) fn cloud_samples<'a>(cloud: &'a PointCloud, radii: &'a [f32]) -> Samples<'a> {
-    Samples {
-        pos: cloud.positions(),
-        radii,
-        normals: cloud.normals(),
-        colors: cloud.colors(),
-    }
-}
-
 /// [`build_tree`] with explicit split and combine rules, in memory, keeping the true and
 /// decoded spheres and normals for tests.
 pub fn build_tree_with(
@@ -740,7 +722,7 @@ pub(super) fn build_in_memory(
     debug: bool,
 ) -> Result<Built, MethodError> {
     check_size(cloud.len())?;
-    let s = cloud_samples(cloud, radii);
+    let s = Samples::of_cloud(cloud, radii);
     let part = Partitioned::new(s.pos, opt);
     let forest = part.forest(Roots::Whole);
     let truth = forest.truths(&part.perm, s);

@@ -38,7 +38,7 @@ use glam::Vec3;
 use scenes::{Aabb, PointCloud, Progress};
 
 use super::build::{
-    self, BuildOptions, Combine, Parent, Partitioned, QNode, Roots, Samples, Split, TrueNode,
+    self, BuildOptions, Combine, Parent, Partitioned, QNode, Roots, Split, TrueNode,
 };
 use super::format::{self, FileStats, Levels};
 use crate::MethodError;
@@ -174,7 +174,7 @@ pub fn build_file(
         let s = load(i, &mut capped)?;
         let p = Partitioned::new(&s.pos, opt);
         let forest = p.forest(combined.unit_roots[i]);
-        let truth = forest.truths(&p.perm, samples_of(&s));
+        let truth = forest.truths(&p.perm, s.view());
         roots.push(truth.into_iter().next().unwrap_or_default());
         progress.inc(u.n);
     }
@@ -197,7 +197,7 @@ pub fn build_file(
         let s = load(i, &mut 0)?;
         let p = Partitioned::new(&s.pos, opt);
         let forest = p.forest(combined.unit_roots[i]);
-        let truth = forest.truths(&p.perm, samples_of(&s));
+        let truth = forest.truths(&p.perm, s.view());
         let first_level = combined.unit_level[i];
         let (pd, pm) = quantised.unit_parent[i];
         let q = forest.quantise(&truth, Parent::Node(pd, pm), attrs, first_level, false)?;
@@ -245,15 +245,6 @@ fn node_bytes(n: &QNode, colors: bool) -> [u8; 6] {
         b[4..].copy_from_slice(&n.color.to_le_bytes());
     }
     b
-}
-
-fn samples_of(s: &SampleColumns) -> Samples<'_> {
-    Samples {
-        pos: &s.pos,
-        radii: &s.radii,
-        normals: s.normals.as_deref(),
-        colors: s.colors.as_deref(),
-    }
 }
 
 /// A range of samples at most the capacity, built in memory.
@@ -557,6 +548,24 @@ impl Top {
         }
     }
 
+    /// Appends the children in the combined tree of `node` (none unless it is a top node):
+    /// its binary children, or — when it takes grandchildren — theirs (a single-sample child
+    /// is taken as is), as [`build`]'s `Binary::children` does.
+    fn combined_children(&self, node: CNode, out: &mut Vec<CNode>) {
+        let CNode::Top(t) = node else { return };
+        let t = &self.nodes[t];
+        for k in t.kids {
+            if self.child_samples(k) == 1 || !t.grand {
+                out.push(CNode::of(k));
+            } else {
+                match k {
+                    Child::Top(k) => out.extend(self.nodes[k].kids.map(CNode::of)),
+                    Child::Unit(u) => out.extend([CNode::Half(u, 0), CNode::Half(u, 1)]),
+                }
+            }
+        }
+    }
+
     /// The combined tree above the units, breadth-first.
     fn combined(&self) -> Combined {
         let mut c = Combined {
@@ -569,24 +578,7 @@ impl Top {
             let mut next = Vec::new();
             for &node in &c.levels[level] {
                 match node {
-                    CNode::Top(t) => {
-                        let t = &self.nodes[t];
-                        for k in t.kids {
-                            if self.child_samples(k) == 1 || !t.grand {
-                                next.push(CNode::of(k));
-                            } else {
-                                match k {
-                                    Child::Top(k) => {
-                                        next.extend(self.nodes[k].kids.map(CNode::of));
-                                    }
-                                    Child::Unit(u) => {
-                                        next.push(CNode::Half(u, 0));
-                                        next.push(CNode::Half(u, 1));
-                                    }
-                                }
-                            }
-                        }
-                    }
+                    CNode::Top(_) => self.combined_children(node, &mut next),
                     CNode::Whole(u) => {
                         c.unit_level[u] = level;
                     }
@@ -653,22 +645,6 @@ impl Combined {
         (has_n, has_c): (bool, bool),
         top: &Top,
     ) -> Result<TopQuantised, MethodError> {
-        // Children of each top combined node: (level, index) spans of the next level.
-        let kids = |node: CNode, out: &mut Vec<CNode>| {
-            if let CNode::Top(t) = node {
-                let t = &top.nodes[t];
-                for k in t.kids {
-                    if top.child_samples(k) == 1 || !t.grand {
-                        out.push(CNode::of(k));
-                    } else {
-                        match k {
-                            Child::Top(k) => out.extend(top.nodes[k].kids.map(CNode::of)),
-                            Child::Unit(u) => out.extend([CNode::Half(u, 0), CNode::Half(u, 1)]),
-                        }
-                    }
-                }
-            }
-        };
         let mut truth: std::collections::HashMap<CNode, TrueNode> = Default::default();
         let mut buf = Vec::new();
         for level in self.levels.iter().rev() {
@@ -678,7 +654,7 @@ impl Combined {
                     CNode::Half(u, s) => roots[u][s],
                     CNode::Top(_) => {
                         buf.clear();
-                        kids(node, &mut buf);
+                        top.combined_children(node, &mut buf);
                         let ts: Vec<TrueNode> = buf.iter().map(|k| truth[k]).collect();
                         build::combine(&ts, has_n)
                     }
@@ -708,7 +684,7 @@ impl Combined {
                 let CNode::Top(t) = node else { continue };
                 let (pd, pm) = decoded[&node];
                 buf.clear();
-                kids(node, &mut buf);
+                top.combined_children(node, &mut buf);
                 for &k in &buf {
                     match k {
                         CNode::Top(_) => {

@@ -85,6 +85,32 @@ pub fn grow(b: &mut (Vec3, Vec3), p: [f32; 3]) {
 /// The empty box (growing it by a point gives that point).
 pub const EMPTY_BOX: (Vec3, Vec3) = (Vec3::splat(f32::INFINITY), Vec3::splat(f32::NEG_INFINITY));
 
+/// Per-sample inputs of a tree build, borrowed, indexed `0..n` in input order: a whole
+/// cloud in memory, or a unit's [`SampleColumns`].
+#[derive(Debug, Clone, Copy)]
+pub struct SampleView<'a> {
+    /// Positions.
+    pub pos: &'a [[f32; 3]],
+    /// Leaf radii.
+    pub radii: &'a [f32],
+    /// Normals, when the scene has them.
+    pub normals: Option<&'a [[f32; 3]]>,
+    /// Colours, when the scene has them.
+    pub colors: Option<&'a [[u8; 3]]>,
+}
+
+impl<'a> SampleView<'a> {
+    /// The samples of `cloud` with leaf radii `radii`.
+    pub fn of_cloud(cloud: &'a PointCloud, radii: &'a [f32]) -> Self {
+        Self {
+            pos: cloud.positions(),
+            radii,
+            normals: cloud.normals(),
+            colors: cloud.colors(),
+        }
+    }
+}
+
 /// A unit's samples as columns, in input order.
 #[derive(Debug, Default)]
 pub struct SampleColumns {
@@ -98,6 +124,18 @@ pub struct SampleColumns {
     pub normals: Option<Vec<[f32; 3]>>,
     /// Colours, when the scene has them.
     pub colors: Option<Vec<[u8; 3]>>,
+}
+
+impl SampleColumns {
+    /// The columns as a [`SampleView`].
+    pub fn view(&self) -> SampleView<'_> {
+        SampleView {
+            pos: &self.pos,
+            radii: &self.radii,
+            normals: self.normals.as_deref(),
+            colors: self.colors.as_deref(),
+        }
+    }
 }
 
 /// Loads the `n` sample records of `spill`; the radii from the records, or `radii` when the

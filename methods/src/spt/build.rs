@@ -86,15 +86,7 @@ impl PointTree {
     }
 }
 
-/// The samples a tree is built over, indexed `0..n` in input order (a whole cloud, or a
-/// unit of one).
-#[derive(Clone, Copy)]
-pub(super) struct Samples<'a> {
-    pub pos: &'a [[f32; 3]],
-    pub radii: &'a [f32],
-    pub normals: Option<&'a [[f32; 3]]>,
-    pub colors: Option<&'a [[u8; 3]]>,
-}
+pub(super) use crate::spill::samples::SampleView as Samples;
 
 /// The Morton code of a position: 21 bits per axis in the cube of side `size` at `lo` (the
 /// cloud's bounds).
@@ -133,12 +125,7 @@ pub(super) struct Builder<'a> {
 /// Builds the point tree of `cloud` with leaf radii `radii` (one per sample);
 /// `color_threshold` is the colour rule's threshold in 0..=255 units (ignored without colours).
 pub fn build_tree(cloud: &PointCloud, radii: &[f32], color_threshold: f32) -> PointTree {
-    let s = Samples {
-        pos: cloud.positions(),
-        radii,
-        normals: cloud.normals(),
-        colors: cloud.colors(),
-    };
+    let s = Samples::of_cloud(cloud, radii);
     let mut bld = Builder::new(s, MortonGrid::new(cloud.bounds()), color_threshold, true);
     let n = cloud.len();
     let (_, height) = bld.subtree(0, n, BITS);

@@ -31,7 +31,7 @@ use glam::Vec3;
 use rayon::prelude::*;
 use scenes::{Aabb, PointCloud, Progress};
 
-use super::build::{self, BITS, Builder, MortonGrid, NO_PARENT, Node, Samples};
+use super::build::{self, BITS, Builder, MortonGrid, NO_PARENT, Node};
 use super::list::{ListNode, ListWriter};
 use super::{Listed, SptParams, cluster_of, list_key, lod_entry, non_finite};
 use crate::MethodError;
@@ -398,13 +398,7 @@ impl Walk<'_> {
         self.next_unit += 1;
         let unit = &self.units[u];
         let s = (self.load)(u)?;
-        let samples = Samples {
-            pos: &s.pos,
-            radii: &s.radii,
-            normals: s.normals.as_deref(),
-            colors: s.colors.as_deref(),
-        };
-        let mut bld = Builder::new(samples, self.grid, self.p.color_threshold, false);
+        let mut bld = Builder::new(s.view(), self.grid, self.p.color_threshold, false);
         let (_, height) = bld.subtree(0, s.pos.len(), BITS - unit.cell.depth);
         let nodes = std::mem::take(&mut bld.nodes);
         drop(bld);

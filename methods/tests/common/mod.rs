@@ -39,3 +39,77 @@ pub fn settled_with(m: &mut dyn LodMethod, v: &View, t: Target, fb: &Feedback) -
     }
     panic!("never settled");
 }
+
+/// A statue with the degenerate cases of the leaf radii: 7 exact copies of 30 samples (their
+/// 6th neighbour is at distance 0: the fallback) and 6 far strays (capped as isolated); with
+/// varied colours when `colors` (the statue has none), so that the colour rules take part.
+pub fn degenerate_statue(colors: bool) -> PointCloud {
+    let c = scenes::generators::Generator::Statue
+        .generate(9_000, 4)
+        .unwrap();
+    let mut pos = c.positions().to_vec();
+    let mut nrm = c.normals().unwrap().to_vec();
+    let mut col: Vec<[u8; 3]> = (0..c.len())
+        .map(|i| [(i % 251) as u8, 90, (i % 7) as u8 * 30])
+        .collect();
+    for i in 0..30 {
+        for _ in 0..7 {
+            pos.push(pos[i * 200]);
+            nrm.push(nrm[i * 200]);
+            col.push(col[i * 200]);
+        }
+    }
+    for j in 0..6 {
+        pos.push([40.0 + 9.0 * j as f32, -30.0, 25.0 * j as f32]);
+        nrm.push([0.0, 0.0, 1.0]);
+        col.push([255, 0, 0]);
+    }
+    let col = colors.then(|| col.into());
+    PointCloud::new(c.origin(), pos.into(), Some(nrm.into()), col, None).unwrap()
+}
+
+/// A build in units that calls a hook with its spill files.
+pub type HookedBuild<'a> = &'a dyn Fn(
+    &std::path::Path,
+    &dyn Fn(&[&methods::spill::Spill]),
+) -> Result<(), methods::MethodError>;
+
+/// Damages one spill file of `build` (into `out/<case>`) in each of three ways — cut short,
+/// a flipped bit, removed — and checks that each is an error naming the file and saying
+/// what is wrong, and that nothing is left in the output directory.
+pub fn spill_damage_is_named(out: &std::path::Path, build: HookedBuild<'_>) {
+    let named = std::cell::RefCell::new(String::new());
+    type Damage = fn(&std::path::Path);
+    let cases: [(&str, Damage); 3] = [
+        ("holds", |p| {
+            let b = std::fs::read(p).unwrap();
+            std::fs::write(p, &b[..b.len() - 3]).unwrap();
+        }),
+        ("checksum mismatch", |p| {
+            let mut b = std::fs::read(p).unwrap();
+            b[20] ^= 4;
+            std::fs::write(p, &b).unwrap();
+        }),
+        ("No such file", |p| std::fs::remove_file(p).unwrap()),
+    ];
+    for (what, damage) in cases {
+        let dir = out.join(what);
+        std::fs::create_dir_all(&dir).unwrap();
+        let hook = |spills: &[&methods::spill::Spill]| {
+            assert!(spills.len() >= 5, "{} units", spills.len());
+            let victim = &spills[spills.len() / 2].path;
+            *named.borrow_mut() = victim.display().to_string();
+            damage(victim);
+        };
+        let err = build(&dir, &hook).unwrap_err().to_string();
+        assert!(
+            err.contains(named.borrow().as_str()) && err.contains(what),
+            "{what}: {err}"
+        );
+        let left: Vec<_> = std::fs::read_dir(&dir)
+            .unwrap()
+            .map(|e| e.unwrap().file_name())
+            .collect();
+        assert!(left.is_empty(), "{what}: left {left:?}");
+    }
+}

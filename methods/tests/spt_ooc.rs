@@ -6,7 +6,7 @@
 mod common;
 
 use methods::Params;
-use methods::spill::{Budget, Spill};
+use methods::spill::{Budget, SpillHook};
 use methods::spt::{self, ooc::UNIT_BYTES_PER_SAMPLE};
 use scenes::generators::Generator;
 use scenes::{NoProgress, PointCloud};
@@ -18,7 +18,7 @@ fn build(
     params: &[&str],
     cap: u64,
     out: &std::path::Path,
-    hook: Option<&dyn Fn(&[&Spill])>,
+    hook: Option<SpillHook<'_>>,
 ) -> Result<(Vec<Vec<u8>>, u64), methods::MethodError> {
     std::fs::create_dir_all(out).unwrap();
     let params = Params::parse(&params.iter().map(|s| s.to_string()).collect::<Vec<_>>()).unwrap();

@@ -15,6 +15,7 @@
 //!   see [`FrameControl`]. Off ⇒ the frame is exactly what the target says.
 
 pub mod build;
+mod forest;
 pub mod format;
 pub mod ooc;
 pub mod quant;

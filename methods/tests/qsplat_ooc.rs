@@ -110,3 +110,26 @@ fn a_short_or_altered_spill_file_is_an_error_naming_it_and_leaves_nothing() {
         .collect();
     assert_eq!(left, ["tree.qs"]);
 }
+
+#[test]
+fn files_do_not_depend_on_the_thread_count() {
+    // 40 k samples: ranges above PAR_THRESHOLD (2^15) split in parallel, in memory and in
+    // units of 12 k.
+    let cloud = Generator::Statue.generate(40_000, 6).unwrap();
+    let tmp = tempfile::tempdir().unwrap();
+    let mut files = Vec::new();
+    for threads in [1, 3] {
+        let pool = rayon::ThreadPoolBuilder::new()
+            .num_threads(threads)
+            .build()
+            .unwrap();
+        for cap in [40_000u64, 12_000] {
+            let out = tmp.path().join(format!("{threads}-{cap}"));
+            files.push(
+                pool.install(|| build(&cloud, BuildOptions::default(), cap, &out))
+                    .0,
+            );
+        }
+    }
+    assert!(files.iter().all(|f| *f == files[0]));
+}

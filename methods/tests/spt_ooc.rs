@@ -78,3 +78,27 @@ fn a_short_or_altered_spill_file_is_an_error_naming_it_and_leaves_nothing() {
         build(&cloud, &[], 1500, dir, Some(hook)).map(|_| ())
     });
 }
+
+#[test]
+fn files_do_not_depend_on_the_thread_count() {
+    // 40 k samples: cells above PAR_SAMPLES (2^14) build their subtrees in parallel, in
+    // memory and in units of 12 k.
+    let cloud = Generator::Statue.generate(40_000, 6).unwrap();
+    let tmp = tempfile::tempdir().unwrap();
+    let mut files = Vec::new();
+    for threads in [1, 3] {
+        let pool = rayon::ThreadPoolBuilder::new()
+            .num_threads(threads)
+            .build()
+            .unwrap();
+        for cap in [40_000u64, 12_000] {
+            let out = tmp.path().join(format!("{threads}-{cap}"));
+            let (f, units) = pool
+                .install(|| build(&cloud, &[], cap, &out, None))
+                .unwrap();
+            assert_eq!(units > 1, cap < 40_000);
+            files.push(f);
+        }
+    }
+    assert!(files.iter().all(|f| *f == files[0]));
+}

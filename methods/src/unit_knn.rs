@@ -25,6 +25,7 @@ use scenes::{Aabb, Progress};
 
 use crate::MethodError;
 use crate::leaf::{LEAF_K, isolation_cap, quantile_stride};
+use crate::spill::samples::{f32_at, f32s, u32_at};
 use crate::spill::{Spill, SpillDir, SpillWriter};
 
 /// Bytes per block of the query and answer spill files (one writer per unit is open at a
@@ -125,15 +126,24 @@ impl BoxTree {
     }
 
     /// Units other than `home` whose box may hold a point within squared distance `r2` of
-    /// `p` (generous by a relative 1e-5 for the `f32` rounding of `r2`).
-    fn near(&self, p: [f32; 3], r2: f32, home: usize, out: &mut Vec<usize>) {
+    /// `p` (generous by a relative 1e-5 for the `f32` rounding of `r2`), into `out`;
+    /// `stack` is scratch space (called once per sample).
+    fn near(
+        &self,
+        p: [f32; 3],
+        r2: f32,
+        home: usize,
+        out: &mut Vec<usize>,
+        stack: &mut Vec<usize>,
+    ) {
         out.clear();
         if self.nodes.is_empty() {
             return;
         }
         let p = Vec3::from(p).as_dvec3();
         let reach = r2 as f64 * (1.0 + 1e-5);
-        let mut stack = vec![0usize];
+        stack.clear();
+        stack.push(0);
         while let Some(i) = stack.pop() {
             let ((lo, hi), kid) = self.nodes[i];
             let gap = (lo - p).max(p - hi).max(DVec3::ZERO);
@@ -146,17 +156,7 @@ impl BoxTree {
                 BoxKid::Unit(_) => {}
             }
         }
-        out.sort_unstable();
     }
-}
-
-fn f32s(b: &[u8]) -> impl Iterator<Item = f32> + '_ {
-    b.chunks_exact(4)
-        .map(|v| f32::from_le_bytes([v[0], v[1], v[2], v[3]]))
-}
-
-fn u32_at(b: &[u8], at: usize) -> u32 {
-    u32::from_le_bytes([b[at], b[at + 1], b[at + 2], b[at + 3]])
 }
 
 /// Lazily opened writers, one per unit.
@@ -214,7 +214,7 @@ pub fn unit_radii(
     let mut own: Vec<Spill> = Vec::with_capacity(units.len());
     // (unit, position in unit) of the samples the quantile is estimated from.
     let mut strided: Vec<(u32, u32)> = Vec::new();
-    let mut near = Vec::new();
+    let (mut near, mut stack) = (Vec::new(), Vec::new());
     for (u, unit) in units.iter().enumerate() {
         let (idx, pos) = load(u)?;
         if idx.len() as u64 != unit.n {
@@ -233,7 +233,7 @@ pub fn unit_radii(
             if (idx[i] as usize).is_multiple_of(stride) {
                 strided.push((u as u32, i as u32));
             }
-            boxes.near(*p, l[k - 1], u, &mut near);
+            boxes.near(*p, l[k - 1], u, &mut near, &mut stack);
             if near.is_empty() {
                 continue;
             }
@@ -279,8 +279,7 @@ pub fn unit_radii(
                         ));
                     }
                     homes.push((home, u32_at(r, 4)));
-                    let c: Vec<f32> = f32s(&r[8..20]).collect();
-                    qpos.push([c[0], c[1], c[2]]);
+                    qpos.push([f32_at(r, 8), f32_at(r, 12), f32_at(r, 16)]);
                 }
                 let lists = index.query_lists(&qpos, k);
                 for (&(home, i), l) in homes.iter().zip(lists.chunks_exact(k)) {
@@ -338,7 +337,9 @@ pub fn unit_radii(
                 }
                 Ok(())
             })?;
-            a.clone().remove();
+        }
+        if let Some(a) = answers {
+            a.remove();
         }
         for (&i, l) in locals.iter().zip(lists.chunks_exact(k)) {
             r[i as usize] = l[k - 1].sqrt();

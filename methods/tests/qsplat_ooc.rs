@@ -104,11 +104,7 @@ fn a_short_or_altered_spill_file_is_an_error_naming_it_and_leaves_nothing() {
     let out = tmp.path().join("fine");
     let t = build_hooked(&cloud, &out, &|_| {}).unwrap();
     assert_eq!(t.leaves, 10_000);
-    let left: Vec<_> = std::fs::read_dir(&out)
-        .unwrap()
-        .map(|e| e.unwrap().file_name())
-        .collect();
-    assert_eq!(left, ["tree.qs"]);
+    assert_eq!(common::entries(&out), ["tree.qs"]);
 }
 
 #[test]
@@ -119,15 +115,13 @@ fn files_do_not_depend_on_the_thread_count() {
     let tmp = tempfile::tempdir().unwrap();
     let mut files = Vec::new();
     for threads in [1, 3] {
-        let pool = rayon::ThreadPoolBuilder::new()
-            .num_threads(threads)
-            .build()
-            .unwrap();
         for cap in [40_000u64, 12_000] {
             let out = tmp.path().join(format!("{threads}-{cap}"));
             files.push(
-                pool.install(|| build(&cloud, BuildOptions::default(), cap, &out))
-                    .0,
+                common::with_threads(threads, || {
+                    build(&cloud, BuildOptions::default(), cap, &out)
+                })
+                .0,
             );
         }
     }

@@ -33,6 +33,11 @@ fn build(
             hook,
         },
     )?;
+    // Only the build's files are left (the spill directory is gone).
+    assert_eq!(
+        common::entries(out),
+        ["index.json", "lod.bin", "method.json", "nodes.sbc"]
+    );
     let files = FILES
         .iter()
         .map(|f| std::fs::read(out.join(f)).unwrap())
@@ -87,15 +92,10 @@ fn files_do_not_depend_on_the_thread_count() {
     let tmp = tempfile::tempdir().unwrap();
     let mut files = Vec::new();
     for threads in [1, 3] {
-        let pool = rayon::ThreadPoolBuilder::new()
-            .num_threads(threads)
-            .build()
-            .unwrap();
         for cap in [40_000u64, 12_000] {
             let out = tmp.path().join(format!("{threads}-{cap}"));
-            let (f, units) = pool
-                .install(|| build(&cloud, &[], cap, &out, None))
-                .unwrap();
+            let (f, units) =
+                common::with_threads(threads, || build(&cloud, &[], cap, &out, None)).unwrap();
             assert_eq!(units > 1, cap < 40_000);
             files.push(f);
         }

@@ -135,51 +135,26 @@ impl KnnIndex {
         let Some(t) = &self.tree else {
             return Vec::new();
         };
-        let n = t.items.len();
-        let mut lists = vec![f32::INFINITY; n * k];
-        let by_tree = t.search_leaves(k, k, |h, o| o[..h.d.len()].copy_from_slice(&h.d));
-        for (item, l) in t.items.iter().zip(by_tree.chunks_exact(k)) {
-            lists[item.index * k..item.index * k + k].copy_from_slice(l);
-        }
-        lists
+        let by_tree = t.search_leaves(t, true, k, k, |h, o| o[..h.d.len()].copy_from_slice(&h.d));
+        t.to_input_order(&by_tree, k)
     }
 
     /// For every query point, in order, the `k` smallest squared distances to the indexed
     /// points (none excluded), ascending, `+∞` where there are fewer.
     pub fn query_lists(&self, queries: &[[f32; 3]], k: usize) -> Vec<f32> {
-        let mut lists = vec![f32::INFINITY; queries.len() * k];
         let Some(t) = &self.tree else {
-            return lists;
+            return vec![f32::INFINITY; queries.len() * k];
         };
+        if queries.is_empty() {
+            return Vec::new();
+        }
         // Batches of nearby queries: the leaves of a kd-tree over the queries themselves
         // (a batch's search is pruned by the box around its queries).
         let qt = KdTree::build(queries);
-        let mut ranges = Vec::with_capacity(qt.nodes.len() + 1);
-        leaf_ranges(0, queries.len(), qt.nodes.len(), 0, &mut ranges);
-        let n = t.items.len();
-        let by_batch: Vec<Vec<f32>> = ranges
-            .par_iter()
-            .map_init(Vec::<Knn>::new, |heaps, r| {
-                let qs = &qt.items[r.clone()];
-                heaps.resize_with(qs.len(), || Knn::new(k));
-                heaps.iter_mut().for_each(Knn::clear);
-                // No query is an indexed point: `first` lies past every tree position.
-                let mut batch = Batch::new(qs, usize::MAX / 2, heaps);
-                let mut cell = [[f32::NEG_INFINITY, f32::INFINITY]; 3];
-                t.search_batch(0, 0, n, &mut cell, &mut batch);
-                let mut out = vec![f32::INFINITY; qs.len() * k];
-                for (o, h) in out.chunks_exact_mut(k).zip(batch.heaps.iter()) {
-                    o[..h.d.len()].copy_from_slice(&h.d);
-                }
-                out
-            })
-            .collect();
-        for (r, out) in ranges.iter().zip(by_batch) {
-            for (q, l) in qt.items[r.clone()].iter().zip(out.chunks_exact(k)) {
-                lists[q.index * k..q.index * k + k].copy_from_slice(l);
-            }
-        }
-        lists
+        let by_tree = t.search_leaves(&qt, false, k, k, |h, o| {
+            o[..h.d.len()].copy_from_slice(&h.d)
+        });
+        qt.to_input_order(&by_tree, k)
     }
 }
 
@@ -228,29 +203,39 @@ impl KdTree {
 
     /// k-NN distance of every point, in input order.
     fn knn_distances(&self, k: usize) -> Vec<f32> {
-        let in_tree_order = self.search_leaves(k, 1, |h, o| o[0] = h.worst().sqrt());
-        let mut out = vec![0.0f32; self.items.len()];
-        for (item, d) in self.items.iter().zip(in_tree_order) {
-            out[item.index] = d;
+        let in_tree_order = self.search_leaves(self, true, k, 1, |h, o| o[0] = h.worst().sqrt());
+        self.to_input_order(&in_tree_order, 1)
+    }
+
+    /// `width` values per point in tree order, rearranged to input order.
+    fn to_input_order(&self, by_tree: &[f32], width: usize) -> Vec<f32> {
+        let mut out = vec![0.0f32; self.items.len() * width];
+        for (item, v) in self.items.iter().zip(by_tree.chunks_exact(width)) {
+            out[item.index * width..item.index * width + width].copy_from_slice(v);
         }
         out
     }
 
-    /// Searches every point's `k` nearest and writes `width` values per point, in tree
-    /// order, with `emit(heap, out)` (`out` starts as `+∞`).
+    /// Searches the `k` nearest of every point of `queries` (a tree over the query points:
+    /// `self` when the indexed points query themselves, each excluded by its tree position,
+    /// `own`) and writes `width` values per query, in `queries`' tree order, with
+    /// `emit(heap, out)` (`out` starts as `+∞`).
     fn search_leaves(
         &self,
+        queries: &KdTree,
+        own: bool,
         k: usize,
         width: usize,
         emit: impl Fn(&Knn, &mut [f32]) + Sync,
     ) -> Vec<f32> {
         let n = self.items.len();
-        let leaves = self.nodes.len() + 1;
+        let q = queries.items.len();
+        let leaves = queries.nodes.len() + 1;
         // Each leaf's queries run together (one traversal for its ≤ LEAF_MAX points), the
         // leaves in parallel; results land at the queries' tree positions.
-        let mut in_tree_order = vec![f32::INFINITY; n * width];
+        let mut in_tree_order = vec![f32::INFINITY; q * width];
         let mut ranges = Vec::with_capacity(leaves);
-        leaf_ranges(0, n, self.nodes.len(), 0, &mut ranges);
+        leaf_ranges(0, q, queries.nodes.len(), 0, &mut ranges);
         let mut outs: Vec<&mut [f32]> = Vec::with_capacity(leaves);
         let mut rest = in_tree_order.as_mut_slice();
         for r in &ranges {
@@ -263,7 +248,10 @@ impl KdTree {
             |heaps, (r, out)| {
                 heaps.resize_with(r.len(), || Knn::new(k));
                 heaps.iter_mut().for_each(Knn::clear);
-                let mut batch = Batch::new(&self.items[r.clone()], r.start, heaps);
+                // A query of another set is no indexed point: its `first` lies past every
+                // tree position.
+                let first = if own { r.start } else { usize::MAX / 2 };
+                let mut batch = Batch::new(&queries.items[r.clone()], first, heaps);
                 let mut cell = [[f32::NEG_INFINITY, f32::INFINITY]; 3];
                 self.search_batch(0, 0, n, &mut cell, &mut batch);
                 for (o, h) in out.chunks_exact_mut(width).zip(batch.heaps.iter()) {

@@ -179,14 +179,7 @@ fn partition(
         return (0, (0, 0));
     }
     let (lo, hi) = bounds;
-    let s = hi - lo;
-    let axis = if s.x >= s.y && s.x >= s.z {
-        0
-    } else if s.y >= s.z {
-        1
-    } else {
-        2
-    };
+    let axis = scenes::Aabb { min: lo, max: hi }.longest_axis();
     let empty = (Vec3::splat(f32::INFINITY), Vec3::splat(f32::NEG_INFINITY));
     let (mut lb, mut rb) = (empty, empty);
     let mut mid = 0;

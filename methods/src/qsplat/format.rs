@@ -155,6 +155,23 @@ impl Levels for QTree {
     }
 }
 
+/// Appends `n`'s stored bytes: its packed word, then its colour when the file has colours.
+pub fn encode_node(n: &QNode, colors: bool, out: &mut Vec<u8>) {
+    out.extend_from_slice(&pack(n).to_le_bytes());
+    if colors {
+        out.extend_from_slice(&n.color.to_le_bytes());
+    }
+}
+
+/// The node [`encode_node`] wrote at the start of `b` (which must hold its bytes).
+pub fn decode_node(b: &[u8], colors: bool) -> QNode {
+    let mut n = unpack(u32::from_le_bytes([b[0], b[1], b[2], b[3]]));
+    if colors {
+        n.color = u16::from_le_bytes([b[4], b[5]]);
+    }
+    n
+}
+
 /// Writes `tree` to `path` (through a temporary file and a rename).
 pub fn write(path: &Path, tree: &QTree) -> Result<FileStats, MethodError> {
     write_levels(path, tree, tree.root, tree.normals, tree.colors)
@@ -285,10 +302,7 @@ fn write_body(
                     }
                 }
                 left_in_group -= 1;
-                buf.extend_from_slice(&pack(n).to_le_bytes());
-                if colors {
-                    buf.extend_from_slice(&n.color.to_le_bytes());
-                }
+                encode_node(n, colors, &mut buf);
                 if n.children > 0 {
                     next.push(n.children | (((!n.all_leaves) as u8) << 3));
                     cursor += child_group_bytes(n, nb);

@@ -45,7 +45,7 @@ use crate::MethodError;
 use crate::sortkey::f32_total_order;
 pub use crate::spill::Budget;
 use crate::spill::samples::{
-    self, EMPTY_BOX, SampleColumns, SampleLayout as Layout, f32_at, grow, pos_of, u32_at,
+    self, EMPTY_BOX, SampleColumns, SampleLayout as Layout, f32_at, grow, index_of, pos_of,
 };
 use crate::spill::{Spill, SpillDir};
 use crate::unit_knn::{UnitBox, unit_radii};
@@ -155,7 +155,9 @@ pub fn build_file(
     top.decide(opt.combine);
     let combined = top.combined();
     let mut capped = 0;
-    let load = |u: usize, capped: &mut u64| {
+    // Unit `u` loaded, partitioned and laid out as its forest, with its true properties
+    // (steps 3 and 4 each rebuild it); `capped` counts its capped radii.
+    let unit_forest = |u: usize, capped: &mut u64| -> Result<_, MethodError> {
         let r = match &radii {
             Some(r) => {
                 let (r, c) = r.load(u)?;
@@ -164,17 +166,18 @@ pub fn build_file(
             }
             None => None,
         };
-        top.units[u].load(layout, r)
+        let s = top.units[u].load(layout, r)?;
+        let p = Partitioned::new(&s.pos, opt);
+        let forest = p.forest(combined.unit_roots[u]);
+        let truth = forest.truths(&p.perm, s.view());
+        Ok((forest, truth))
     };
 
     progress.start("qsplat: unit truths", n as u64);
     let mut roots: Vec<Vec<TrueNode>> = Vec::with_capacity(top.units.len());
     for (i, u) in top.units.iter().enumerate() {
         // The radii's cap count is taken once, here.
-        let s = load(i, &mut capped)?;
-        let p = Partitioned::new(&s.pos, opt);
-        let forest = p.forest(combined.unit_roots[i]);
-        let truth = forest.truths(&p.perm, s.view());
+        let (_, truth) = unit_forest(i, &mut capped)?;
         roots.push(truth.into_iter().next().unwrap_or_default());
         progress.inc(u.n);
     }
@@ -183,6 +186,7 @@ pub fn build_file(
     let quantised = combined.quantise(&roots, attrs, &top)?;
 
     progress.start("qsplat: unit nodes", n as u64);
+    let nb = format::node_bytes(layout.colors);
     let mut nodes = quantised.nodes.len() as u64;
     let mut segments: Vec<Segment> = quantised
         .nodes
@@ -194,20 +198,19 @@ pub fn build_file(
         })
         .collect();
     for (i, u) in top.units.iter().enumerate() {
-        let s = load(i, &mut 0)?;
-        let p = Partitioned::new(&s.pos, opt);
-        let forest = p.forest(combined.unit_roots[i]);
-        let truth = forest.truths(&p.perm, s.view());
+        let (forest, truth) = unit_forest(i, &mut 0)?;
         let first_level = combined.unit_level[i];
         let (pd, pm) = quantised.unit_parent[i];
         let q = forest.quantise(&truth, Parent::Node(pd, pm), attrs, first_level, false)?;
         nodes += q.levels.iter().map(|l| l.len() as u64).sum::<u64>();
         let mut files = Vec::with_capacity(q.levels.len());
+        let mut rec = Vec::with_capacity(nb);
         for level in &q.levels {
-            let nb = format::node_bytes(layout.colors);
             let mut w = spill.writer("nodes", nb)?;
             for node in level {
-                w.push(&node_bytes(node, layout.colors)[..nb])?;
+                rec.clear();
+                format::encode_node(node, layout.colors, &mut rec);
+                w.push(&rec)?;
             }
             files.push(w.finish()?);
         }
@@ -235,16 +238,6 @@ pub fn build_file(
         units: top.units.len() as u64,
         radii_capped: capped,
     })
-}
-
-/// A node's stored bytes (the first 4, or 6 with colours, are meaningful).
-fn node_bytes(n: &QNode, colors: bool) -> [u8; 6] {
-    let mut b = [0u8; 6];
-    b[..4].copy_from_slice(&format::pack(n).to_le_bytes());
-    if colors {
-        b[4..].copy_from_slice(&n.color.to_le_bytes());
-    }
-    b
 }
 
 /// A range of samples at most the capacity, built in memory.
@@ -341,7 +334,7 @@ fn scan(
 
 /// The key of the in-memory median selection: coordinate in total order, then index.
 fn median_key(r: &[u8], axis: usize) -> u64 {
-    ((f32_total_order(f32_at(r, 4 + 4 * axis)) as u64) << 32) | u32_at(r, 0) as u64
+    ((f32_total_order(f32_at(r, 4 + 4 * axis)) as u64) << 32) | index_of(r) as u64
 }
 
 /// The key of rank `rank` among the keys of `src`'s records: a radix selection, 16 bits per
@@ -387,20 +380,14 @@ fn partition_top(
         nodes: Vec::new(),
         units: Vec::new(),
     };
-    let mut root_box = EMPTY_BOX;
-    let n = cloud.len();
-    for start in (0..n).step_by(1 << 16) {
-        let end = (start + (1 << 16)).min(n);
-        for &p in &cloud.positions()[start..end] {
-            grow(&mut root_box, p);
-        }
-        cloud.release_pages(start..end);
-    }
+    // The cloud's bounds are its positions' (min/max, so the same values the in-memory
+    // partition folds).
+    let bounds = cloud.bounds();
     let mut stack = vec![Pending {
         src: None,
         lo: 0,
         n: cloud.len() as u64,
-        bbox: root_box,
+        bbox: (bounds.min, bounds.max),
         parent: None,
     }];
     while let Some(r) = stack.pop() {
@@ -420,14 +407,7 @@ fn partition_top(
             Child::Unit(top.units.len() - 1)
         } else {
             let (lo, hi) = r.bbox;
-            let s = hi - lo;
-            let axis = if s.x >= s.y && s.x >= s.z {
-                0
-            } else if s.y >= s.z {
-                1
-            } else {
-                2
-            };
+            let axis = Aabb { min: lo, max: hi }.longest_axis();
             let mut halves = None;
             if split == Split::Midpoint {
                 let cut = (lo[axis] as f64 + hi[axis] as f64) * 0.5;
@@ -480,13 +460,7 @@ fn partition_top(
             top.nodes[p].kids[side] = child;
         }
     }
-    Ok((
-        top,
-        Aabb {
-            min: root_box.0,
-            max: root_box.1,
-        },
-    ))
+    Ok((top, bounds))
 }
 
 type Half = (u64, Spill, (Vec3, Vec3));
@@ -758,13 +732,11 @@ impl Levels for Assembled {
                     let file = &files[l - s.first_level];
                     file.read(|block| {
                         nodes.clear();
-                        nodes.extend(block.chunks_exact(file.record).map(|b| {
-                            let mut n = format::unpack(u32_at(b, 0));
-                            if self.colors {
-                                n.color = u16::from_le_bytes([b[4], b[5]]);
-                            }
-                            n
-                        }));
+                        nodes.extend(
+                            block
+                                .chunks_exact(file.record)
+                                .map(|b| format::decode_node(b, self.colors)),
+                        );
                         f(&nodes)
                     })?;
                 }

@@ -3,7 +3,7 @@
 //!
 //! Contract:
 //! - [`SpillWriter::push`] appends one fixed-size record; a block is written when it holds
-//!   [`SpillWriter::block_bytes`] bytes, its [`crate::store::checksum`] kept in the returned
+//!   the writer's block size (whole records), its [`crate::store::checksum`] kept in the returned
 //!   [`Spill`]. Nothing about the contents is stored in the file itself.
 //! - [`Spill::read`] checks the file's length first, then each block's checksum, and hands
 //!   whole blocks (whole records) to the caller. A missing, short, long or altered file is
@@ -116,45 +116,15 @@ impl Spill {
         &self,
         mut f: impl FnMut(&[u8]) -> Result<(), MethodError>,
     ) -> Result<(), MethodError> {
-        let corrupt = |msg: String| MethodError::corrupt(&self.path, msg);
-        let mut file = File::open(&self.path).map_err(|e| MethodError::io(&self.path, e))?;
-        let len = file
-            .metadata()
-            .map_err(|e| MethodError::io(&self.path, e))?
-            .len();
-        if len != self.bytes() {
-            return Err(corrupt(format!(
-                "temporary file holds {len} bytes, {} were written",
-                self.bytes()
-            )));
-        }
-        let mut buf = Vec::new();
-        for (i, &(n, sum)) in self.blocks.iter().enumerate() {
-            buf.resize(n as usize, 0);
-            file.read_exact(&mut buf)
-                .map_err(|e| corrupt(format!("temporary file, block {i}: {e}")))?;
-            if checksum(&buf) != sum {
-                return Err(corrupt(format!(
-                    "temporary file, block {i}: checksum mismatch (the file changed after it \
-                     was written)"
-                )));
-            }
-            f(&buf)?;
+        let mut r = self.reader()?;
+        while let Some(block) = r.next_block()? {
+            f(block)?;
         }
         Ok(())
     }
 
-    /// Reads every record into one vector of bytes.
-    pub fn read_all(&self) -> Result<Vec<u8>, MethodError> {
-        let mut out = Vec::with_capacity(self.bytes() as usize);
-        self.read(|b| {
-            out.extend_from_slice(b);
-            Ok(())
-        })?;
-        Ok(out)
-    }
-
-    /// A reader handing out one record at a time (for merging several files).
+    /// A reader handing out one block or one record at a time (for merging several files);
+    /// the file's length is checked here.
     pub fn reader(&self) -> Result<SpillReader<'_>, MethodError> {
         let file = File::open(&self.path).map_err(|e| MethodError::io(&self.path, e))?;
         let len = file
@@ -195,26 +165,42 @@ pub struct SpillReader<'a> {
 }
 
 impl SpillReader<'_> {
+    /// Reads and checks the next block into the buffer; false at the end.
+    fn fill(&mut self) -> Result<bool, MethodError> {
+        let Some(&(n, sum)) = self.spill.blocks.get(self.block) else {
+            return Ok(false);
+        };
+        let corrupt = |msg: String| MethodError::corrupt(&self.spill.path, msg);
+        self.buf.resize(n as usize, 0);
+        self.file
+            .read_exact(&mut self.buf)
+            .map_err(|e| corrupt(format!("temporary file, block {}: {e}", self.block)))?;
+        if checksum(&self.buf) != sum {
+            return Err(corrupt(format!(
+                "temporary file, block {}: checksum mismatch (the file changed after it was \
+                 written)",
+                self.block
+            )));
+        }
+        self.block += 1;
+        self.at = 0;
+        Ok(true)
+    }
+
+    /// The rest of the current block, or the next whole block; `None` at the end.
+    pub fn next_block(&mut self) -> Result<Option<&[u8]>, MethodError> {
+        if self.at == self.buf.len() && !self.fill()? {
+            return Ok(None);
+        }
+        let b = &self.buf[self.at..];
+        self.at = self.buf.len();
+        Ok(Some(b))
+    }
+
     /// The next record, or `None` at the end.
     pub fn next_record(&mut self) -> Result<Option<&[u8]>, MethodError> {
-        if self.at == self.buf.len() {
-            let Some(&(n, sum)) = self.spill.blocks.get(self.block) else {
-                return Ok(None);
-            };
-            let corrupt = |msg: String| MethodError::corrupt(&self.spill.path, msg);
-            self.buf.resize(n as usize, 0);
-            self.file
-                .read_exact(&mut self.buf)
-                .map_err(|e| corrupt(format!("temporary file, block {}: {e}", self.block)))?;
-            if checksum(&self.buf) != sum {
-                return Err(corrupt(format!(
-                    "temporary file, block {}: checksum mismatch (the file changed after it \
-                     was written)",
-                    self.block
-                )));
-            }
-            self.block += 1;
-            self.at = 0;
+        if self.at == self.buf.len() && !self.fill()? {
+            return Ok(None);
         }
         let r = &self.buf[self.at..self.at + self.spill.record];
         self.at += self.spill.record;
@@ -246,11 +232,6 @@ impl SpillWriter {
             buf: Vec::with_capacity(block_bytes),
             block_bytes,
         })
-    }
-
-    /// Bytes per block.
-    pub fn block_bytes(&self) -> usize {
-        self.block_bytes
     }
 
     /// Appends one record (exactly [`Spill::record`] bytes).

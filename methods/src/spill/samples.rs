@@ -65,6 +65,12 @@ pub fn u32_at(r: &[u8], at: usize) -> u32 {
     u32::from_le_bytes([r[at], r[at + 1], r[at + 2], r[at + 3]])
 }
 
+/// The little-endian `f32`s of `b`, in order.
+pub fn f32s(b: &[u8]) -> impl Iterator<Item = f32> + '_ {
+    b.chunks_exact(4)
+        .map(|v| f32::from_le_bytes([v[0], v[1], v[2], v[3]]))
+}
+
 /// A record's input index.
 pub fn index_of(r: &[u8]) -> u32 {
     u32_at(r, 0)

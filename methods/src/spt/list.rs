@@ -36,6 +36,20 @@ pub struct ListNode {
     pub cluster: u32,
 }
 
+impl ListNode {
+    /// Tree node `nd` as the list stores it, with its `lod` entry and normal cluster.
+    pub fn of(nd: &super::build::Node, lod: [f32; 4], cluster: u32) -> Self {
+        Self {
+            p: nd.p,
+            n: nd.n,
+            color: nd.color,
+            r: nd.r,
+            lod,
+            cluster,
+        }
+    }
+}
+
 const BLOCK: usize = 1 << 16;
 
 /// Writes the list's files in list order.

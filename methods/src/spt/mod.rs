@@ -275,14 +275,7 @@ fn list_in_memory(
         for &k in block {
             let i = k as u32 as usize;
             let nd = &nodes[i];
-            w.push(&list::ListNode {
-                p: nd.p,
-                n: nd.n,
-                color: nd.color,
-                r: nd.r,
-                lod: lod[i],
-                cluster: cluster(i),
-            })?;
+            w.push(&list::ListNode::of(nd, lod[i], cluster(i)))?;
         }
         progress.inc(block.len() as u64);
     }

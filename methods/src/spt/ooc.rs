@@ -29,7 +29,7 @@ use std::time::Instant;
 
 use glam::Vec3;
 use rayon::prelude::*;
-use scenes::{Aabb, PointCloud, Progress};
+use scenes::{PointCloud, Progress};
 
 use super::build::{self, BITS, Builder, MortonGrid, NO_PARENT, Node};
 use super::list::{ListNode, ListWriter};
@@ -406,15 +406,18 @@ impl Walk<'_> {
         let base = self.next_id;
         let (p, has_n) = (self.p, self.has_normals);
         let root = nodes.len() - 1;
-        let mut keyed: Vec<(u128, u32)> = nodes[..root]
+        // Each non-root node's `lod` entry (its parent is in the unit), then the list keys.
+        let lods: Vec<[f32; 4]> = nodes[..root]
             .par_iter()
+            .map(|nd| lod_entry(nd, Some(&nodes[nd.parent as usize])))
+            .collect();
+        let mut keyed: Vec<(u128, u32)> = lods
+            .par_iter()
+            .zip(&nodes[..root])
             .enumerate()
-            .map(|(i, nd)| {
-                let lod = lod_entry(nd, Some(&nodes[nd.parent as usize]));
-                (
-                    list_key(cluster_of(p, has_n, nd.n), &lod, (base + i as u64) as u32),
-                    i as u32,
-                )
+            .map(|(i, (lod, nd))| {
+                let id = (base + i as u64) as u32;
+                (list_key(cluster_of(p, has_n, nd.n), lod, id), i as u32)
             })
             .collect();
         keyed.par_sort_unstable();
@@ -422,20 +425,11 @@ impl Walk<'_> {
         let mut w = self.dir.writer_with_block("run", RECORD, 1 << 16)?;
         let mut rec = Vec::with_capacity(RECORD);
         for &(key, i) in &keyed {
-            let nd = &nodes[i as usize];
-            let lod = lod_entry(nd, Some(&nodes[nd.parent as usize]));
+            let (nd, lod) = (&nodes[i as usize], lods[i as usize]);
             if !lod.iter().all(|v| v.is_finite()) {
                 return Err(non_finite(base + i as u64, &lod, nd));
             }
-            let ln = ListNode {
-                p: nd.p,
-                n: nd.n,
-                color: nd.color,
-                r: nd.r,
-                lod,
-                cluster: (key >> 96) as u32,
-            };
-            encode_record(key, &ln, &mut rec);
+            encode_record(key, &ListNode::of(nd, lod, (key >> 96) as u32), &mut rec);
             w.push(&rec)?;
         }
         self.runs.push(w.finish()?);
@@ -480,16 +474,7 @@ pub(crate) fn list_in_units(
             })
             .collect();
         let load = |u: usize| samples::positions(&units[u].spill, layout);
-        let bounds = units.iter().fold(EMPTY_BOX, |mut b, u| {
-            grow(&mut b, u.bbox.0.to_array());
-            grow(&mut b, u.bbox.1.to_array());
-            b
-        });
-        let bounds = Aabb {
-            min: bounds.0,
-            max: bounds.1,
-        };
-        let r = unit_radii(&boxes, &load, n, bounds, &dir, progress)?;
+        let r = unit_radii(&boxes, &load, n, cloud.bounds(), &dir, progress)?;
         progress.finish();
         Some(r)
     };
@@ -548,14 +533,7 @@ pub(crate) fn list_in_units(
         let cluster = cluster_of(p, layout.normals, nd.n);
         top.push((
             list_key(cluster, &lod, *id as u32),
-            ListNode {
-                p: nd.p,
-                n: nd.n,
-                color: nd.color,
-                r: nd.r,
-                lod,
-                cluster,
-            },
+            ListNode::of(nd, lod, cluster),
         ));
     }
     top.sort_unstable_by_key(|t| t.0);

@@ -113,3 +113,22 @@ pub fn spill_damage_is_named(out: &std::path::Path, build: HookedBuild<'_>) {
         assert!(left.is_empty(), "{what}: left {left:?}");
     }
 }
+
+/// Runs `f` on a rayon pool of `threads` threads.
+pub fn with_threads<R: Send>(threads: usize, f: impl FnOnce() -> R + Send) -> R {
+    rayon::ThreadPoolBuilder::new()
+        .num_threads(threads)
+        .build()
+        .unwrap()
+        .install(f)
+}
+
+/// The names of the entries of `dir`, sorted.
+pub fn entries(dir: &std::path::Path) -> Vec<String> {
+    let mut e: Vec<String> = std::fs::read_dir(dir)
+        .unwrap()
+        .map(|e| e.unwrap().file_name().to_string_lossy().into_owned())
+        .collect();
+    e.sort();
+    e
+}

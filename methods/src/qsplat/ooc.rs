@@ -9,7 +9,7 @@
 //!    samples are read from the cloud's columns in input order, every larger range from its
 //!    spill file, into two child spill files (stable, so each file keeps input order). A
 //!    median is found by a radix selection over the 64-bit keys (coordinate in
-//!    [`f32_total_order`], then sample index): four passes of 16 bits, the same order as the
+//!    total order, then sample index; [`split::select_keys`]), the same order as the
 //!    in-memory `select_nth_unstable_by`. A range of at most the capacity is a unit.
 //! 2. **Costs.** Each unit is partitioned in memory; its root's split costs go into the
 //!    top tree's dynamic programme ([`Combine`]), which decides the top nodes' combining. A
@@ -42,12 +42,9 @@ use super::build::{
 };
 use super::format::{self, FileStats, Levels};
 use crate::MethodError;
-use crate::sortkey::f32_total_order;
 pub use crate::spill::Budget;
-use crate::spill::samples::{
-    self, EMPTY_BOX, SampleColumns, SampleLayout as Layout, f32_at, grow, index_of, pos_of,
-};
-use crate::spill::{Spill, SpillDir};
+use crate::spill::samples::{self, SampleColumns, SampleLayout as Layout, f32_at};
+use crate::spill::{Spill, SpillDir, split};
 use crate::unit_knn::{UnitBox, unit_radii};
 
 /// Working bytes per sample of a unit built in memory: the samples (≤ 31), the permutation
@@ -297,76 +294,6 @@ struct Pending {
     parent: Option<(usize, usize)>,
 }
 
-/// Calls `f` with every record of `src` (the cloud itself for `None`), in order.
-fn scan(
-    src: Option<&Spill>,
-    cloud: &PointCloud,
-    layout: Layout,
-    mut f: impl FnMut(&[u8]) -> Result<(), MethodError>,
-) -> Result<(), MethodError> {
-    let rb = layout.bytes();
-    match src {
-        Some(s) => s.read(|block| {
-            for r in block.chunks_exact(rb) {
-                f(r)?;
-            }
-            Ok(())
-        }),
-        None => {
-            const BLOCK: usize = 1 << 16;
-            let mut buf = Vec::with_capacity(BLOCK * rb);
-            let n = cloud.len();
-            for start in (0..n).step_by(BLOCK) {
-                let end = (start + BLOCK).min(n);
-                buf.clear();
-                for i in start..end {
-                    layout.encode(cloud, i, &mut buf);
-                }
-                for r in buf.chunks_exact(rb) {
-                    f(r)?;
-                }
-                cloud.release_pages(start..end);
-            }
-            Ok(())
-        }
-    }
-}
-
-/// The key of the in-memory median selection: coordinate in total order, then index.
-fn median_key(r: &[u8], axis: usize) -> u64 {
-    ((f32_total_order(f32_at(r, 4 + 4 * axis)) as u64) << 32) | index_of(r) as u64
-}
-
-/// The key of rank `rank` among the keys of `src`'s records: a radix selection, 16 bits per
-/// pass from the top.
-fn select_key(
-    src: Option<&Spill>,
-    cloud: &PointCloud,
-    layout: Layout,
-    axis: usize,
-    mut rank: u64,
-) -> Result<u64, MethodError> {
-    let mut prefix = 0u64;
-    for pass in 0..4u32 {
-        let shift = 48 - 16 * pass;
-        let mut hist = vec![0u64; 1 << 16];
-        scan(src, cloud, layout, |r| {
-            let k = median_key(r, axis);
-            if pass == 0 || k >> (shift + 16) == prefix >> (shift + 16) {
-                hist[((k >> shift) & 0xFFFF) as usize] += 1;
-            }
-            Ok(())
-        })?;
-        let mut digit = 0usize;
-        while rank >= hist[digit] {
-            rank -= hist[digit];
-            digit += 1;
-        }
-        prefix |= (digit as u64) << shift;
-    }
-    Ok(prefix)
-}
-
 /// Step 1: splits ranges larger than `cap` as the in-memory build would, into spill files.
 fn partition_top(
     cloud: &PointCloud,
@@ -411,7 +338,7 @@ fn partition_top(
             let mut halves = None;
             if split == Split::Midpoint {
                 let cut = (lo[axis] as f64 + hi[axis] as f64) * 0.5;
-                let h = split_by(&r, cloud, layout, spill, |rec| {
+                let h = halves_by(&r, cloud, layout, spill, |rec| {
                     (f32_at(rec, 4 + 4 * axis) as f64) < cut
                 })?;
                 if h.0.0 == 0 || h.0.0 == r.n {
@@ -424,9 +351,14 @@ fn partition_top(
             let ((nl, left, lbox), (nr, right, rbox)) = match halves {
                 Some(h) => h,
                 None => {
-                    let pivot = select_key(r.src.as_ref(), cloud, layout, axis, r.n / 2)?;
-                    split_by(&r, cloud, layout, spill, |rec| {
-                        median_key(rec, axis) < pivot
+                    let pivot = split::select_keys(&[r.n / 2], |f| {
+                        split::scan(r.src.as_ref(), cloud, layout, |rec| {
+                            f(split::rank_key(rec, axis));
+                            Ok(())
+                        })
+                    })?[0];
+                    halves_by(&r, cloud, layout, spill, |rec| {
+                        split::rank_key(rec, axis) < pivot
                     })?
                 }
             };
@@ -463,29 +395,26 @@ fn partition_top(
     Ok((top, bounds))
 }
 
-type Half = (u64, Spill, (Vec3, Vec3));
+type Half = split::Part;
 
-/// Streams `r`'s records into a left file (`left(record)`) and a right file, with counts
-/// and bounding boxes.
-fn split_by(
+/// Streams `r`'s records into a left file (`left(record)`) and a right file.
+fn halves_by(
     r: &Pending,
     cloud: &PointCloud,
     layout: Layout,
     spill: &SpillDir,
     left: impl Fn(&[u8]) -> bool,
 ) -> Result<(Half, Half), MethodError> {
-    let rb = layout.bytes();
-    let mut w = [spill.writer("samples", rb)?, spill.writer("samples", rb)?];
-    let mut n = [0u64; 2];
-    let mut b = [EMPTY_BOX; 2];
-    scan(r.src.as_ref(), cloud, layout, |rec| {
-        let side = (!left(rec)) as usize;
-        n[side] += 1;
-        grow(&mut b[side], pos_of(rec));
-        w[side].push(rec)
-    })?;
-    let [wl, wr] = w;
-    Ok(((n[0], wl.finish()?, b[0]), (n[1], wr.finish()?, b[1])))
+    let mut parts = split::route(r.src.as_ref(), cloud, layout, spill, 2, |rec| {
+        usize::from(!left(rec))
+    })?
+    .into_iter();
+    match (parts.next(), parts.next()) {
+        (Some(l), Some(r)) => Ok((l, r)),
+        _ => Err(MethodError::Limit(
+            "qsplat: a split gave fewer than two parts".into(),
+        )),
+    }
 }
 
 impl Top {

@@ -14,6 +14,7 @@
 //!   it when the `SpillDir` is dropped, on success and on error alike.
 
 pub mod samples;
+pub mod split;
 
 use std::fs::File;
 use std::io::{Read, Write};

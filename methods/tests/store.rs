@@ -391,6 +391,29 @@ fn position_decoder() -> Decoder {
 }
 
 #[test]
+fn an_unfinished_repository_leaves_no_file() {
+    let dir = tempfile::tempdir().unwrap();
+    let path = dir.path().join("repo.bin");
+    let mut w = RepoWriter::create(&path).unwrap();
+    w.append(bytemuck::cast_slice(&positions(0))).unwrap();
+    assert_eq!(
+        std::fs::read_dir(dir.path()).unwrap().count(),
+        1,
+        "the temporary file"
+    );
+    drop(w); // a build that failed
+    assert_eq!(std::fs::read_dir(dir.path()).unwrap().count(), 0);
+    let mut w = RepoWriter::create(&path).unwrap();
+    w.append(bytemuck::cast_slice(&positions(0))).unwrap();
+    w.finish().unwrap();
+    let left: Vec<_> = std::fs::read_dir(dir.path())
+        .unwrap()
+        .map(|e| e.unwrap().file_name())
+        .collect();
+    assert_eq!(left, ["repo.bin"]);
+}
+
+#[test]
 fn corrupt_chunk_in_a_repository_is_an_error_naming_it() {
     let dir = tempfile::tempdir().unwrap();
     let path = dir.path().join("repo.bin");

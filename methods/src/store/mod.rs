@@ -123,12 +123,33 @@ pub fn decompress(stored: &[u8], raw_len: usize, what: &str) -> Result<Vec<u8>, 
 
 /// Appends chunks to a new repository file. Written to `<path>.tmp` and renamed by
 /// [`RepoWriter::finish`], so an interrupted build never leaves a repository that looks
-/// complete.
+/// complete; a writer dropped unfinished (a build that failed) removes the temporary file.
 pub struct RepoWriter {
     out: BufWriter<File>,
     path: PathBuf,
-    tmp: PathBuf,
+    tmp: TempFile,
     offset: u64,
+}
+
+/// A temporary file removed on drop unless [`TempFile::keep`] was called.
+struct TempFile(Option<PathBuf>);
+
+impl TempFile {
+    fn path(&self) -> &Path {
+        self.0.as_deref().unwrap_or(Path::new(""))
+    }
+    /// The file is kept (it was renamed into place).
+    fn keep(&mut self) {
+        self.0 = None;
+    }
+}
+
+impl Drop for TempFile {
+    fn drop(&mut self) {
+        if let Some(p) = &self.0 {
+            let _ = std::fs::remove_file(p);
+        }
+    }
 }
 
 impl RepoWriter {
@@ -142,7 +163,7 @@ impl RepoWriter {
         Ok(Self {
             out,
             path: path.to_owned(),
-            tmp,
+            tmp: TempFile(Some(tmp)),
             offset: REPO_MAGIC.len() as u64,
         })
     }
@@ -172,7 +193,7 @@ impl RepoWriter {
         };
         self.out
             .write_all(stored)
-            .map_err(|e| MethodError::io(&self.tmp, e))?;
+            .map_err(|e| MethodError::io(self.tmp.path(), e))?;
         self.offset += stored.len() as u64;
         Ok(r)
     }
@@ -181,14 +202,16 @@ impl RepoWriter {
         self.offset
     }
     /// Flushes, syncs and renames into place; returns the file size.
-    pub fn finish(self) -> Result<u64, MethodError> {
+    pub fn finish(mut self) -> Result<u64, MethodError> {
         let file = self
             .out
             .into_inner()
-            .map_err(|e| MethodError::io(&self.tmp, e.into_error()))?;
-        file.sync_all().map_err(|e| MethodError::io(&self.tmp, e))?;
+            .map_err(|e| MethodError::io(self.tmp.path(), e.into_error()))?;
+        file.sync_all()
+            .map_err(|e| MethodError::io(self.tmp.path(), e))?;
         drop(file);
-        std::fs::rename(&self.tmp, &self.path).map_err(|e| MethodError::io(&self.path, e))?;
+        std::fs::rename(self.tmp.path(), &self.path).map_err(|e| MethodError::io(&self.path, e))?;
+        self.tmp.keep();
         Ok(self.offset)
     }
 }

@@ -67,3 +67,8 @@ fn qsplat_in_16_mb_writes_the_in_memory_tree_within_its_budget() {
 fn spt_in_16_mb_writes_the_in_memory_list_within_its_budget() {
     same_files_within_16_mb("spt", &["nodes.sbc", "lod.bin", "index.json"]);
 }
+
+#[test]
+fn mwkd_in_16_mb_writes_the_in_memory_repository_within_its_budget() {
+    same_files_within_16_mb("mwkd", &["repo.bin", "index.bin"]);
+}

@@ -172,14 +172,14 @@ fn store(c: &mut Criterion) {
 /// and the per-frame front selection on a 1 M-point build (budget `LODSelection` and the
 /// `--eps` front; throughput = nodes in the index).
 fn mwkd(c: &mut Criterion) {
-    use methods::mwkd::{build::leaf_splats, codec, reps, select, tree::Tree};
+    use methods::mwkd::{build::Columns, build::leaf_splats, codec, reps, select, tree::Tree};
     let mut g = c.benchmark_group("mwkd");
     g.sample_size(10);
     let cloud = Generator::Statue.generate(8192, 3).unwrap();
     let tree = Tree::split(cloud.positions(), 4, 2048).unwrap();
     let leaves: Vec<reps::Splats> = tree
         .leaves()
-        .map(|i| leaf_splats(&cloud, &tree, i))
+        .map(|i| leaf_splats(Columns::of(&cloud), &tree, i))
         .collect();
     let cfg = reps::RepConfig::default();
     g.throughput(Throughput::Elements(8192));

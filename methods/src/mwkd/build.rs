@@ -10,13 +10,15 @@
 //!
 //! **Parallel and deterministic.** The tree is cut into *tasks*: the highest nodes with at
 //! most `task_points` samples under them (found depth first). Tasks run `threads` at a time,
-//! each in post-order with its own output buffer; buffers are written in task order, then
-//! the nodes above the tasks in post-order on the calling thread. The repository is thus
-//! byte-identical for any thread count (test `mwkd_build_is_deterministic_for_any_thread_count`).
+//! each in post-order with its own output buffer; the nodes are handed on in the tree's
+//! post-order whatever the cut (a task's buffer once it is its turn, a node above the tasks
+//! once its children are). The repository is thus byte-identical for any thread count and
+//! any `task_points` (tests `build_is_deterministic_for_any_thread_count`,
+//! `the_in_memory_files_do_not_depend_on_mem_mb`).
 //!
-//! **The split is in core**: [`Tree::split`] permutes a 4-byte index per sample over the
-//! (memory-mapped) positions, e.g. 400 MB for 100 M samples, and reads positions at random.
-//! A streaming split (quantile histograms, temporary files as in LPC) is not written.
+//! **Split.** [`Tree::split`] permutes a 4-byte index per sample over the (memory-mapped)
+//! positions; a cloud larger than one unit of `mem_mb` is split by streaming instead and
+//! built unit by unit ([`super::ooc`]), into the same files.
 //!
 //! **Leaf radii**: the scene's radii if it has them, else the distance to the 8th nearest
 //! neighbour ([`scenes::spacing`], as `full`) computed within the leaf ([`leaf_radii`]): a
@@ -32,7 +34,7 @@ use super::MwkdParams;
 use super::codec;
 use super::index::IndexNode;
 use super::reps::{RepConfig, Splats, representatives};
-use super::tree::{Tree, child_targets};
+use super::tree::{Node, Tree, child_targets};
 use crate::MethodError;
 use crate::cull::Cone;
 use crate::store::{self, RepoWriter};
@@ -40,17 +42,48 @@ use crate::store::{self, RepoWriter};
 /// Leaves with fewer samples than this take their k-NN radii from their parent's samples.
 pub const LEAF_KNN_MIN: usize = 64;
 
+/// The samples a tree's [`Tree::order`] indexes: a cloud's columns, or a unit's
+/// ([`super::ooc`]).
+#[derive(Debug, Clone, Copy)]
+pub struct Columns<'a> {
+    /// Positions.
+    pub pos: &'a [[f32; 3]],
+    /// The scene's radii, when it has them.
+    pub radii: Option<&'a [f32]>,
+    /// Normals, when the scene has them.
+    pub normals: Option<&'a [[f32; 3]]>,
+    /// Colours, when the scene has them.
+    pub colors: Option<&'a [[u8; 3]]>,
+}
+
+impl<'a> Columns<'a> {
+    /// The columns of `cloud`.
+    pub fn of(cloud: &'a PointCloud) -> Self {
+        Self {
+            pos: cloud.positions(),
+            radii: cloud.radii(),
+            normals: cloud.normals(),
+            colors: cloud.colors(),
+        }
+    }
+
+    /// No splats, with the optional columns these samples have.
+    pub fn empty(&self) -> Splats {
+        Splats::empty(self.normals.is_some(), self.colors.is_some())
+    }
+}
+
 /// What a leaf holds: its samples, with the scene's radii or the within-leaf k-NN spacing
 /// ([`leaf_radii`]; a leaf of fewer than [`LEAF_KNN_MIN`] samples — an octree octant that
 /// clips a corner of the surface — measures among its parent's samples, of which its own are
 /// a contiguous run: alone, one sample has no neighbour and three have only each other).
-pub fn leaf_splats(cloud: &PointCloud, tree: &Tree, i: usize) -> Splats {
+pub fn leaf_splats(cols: Columns<'_>, tree: &Tree, i: usize) -> Splats {
     let node = &tree.nodes[i];
     let idx = &tree.order[node.range()];
-    let pos = cloud.positions();
+    let pos = cols.pos;
     let gather = |idx: &[u32]| -> Vec<[f32; 3]> { idx.iter().map(|&j| pos[j as usize]).collect() };
     let positions = gather(idx);
-    let radii = match (cloud.radii(), tree.parent(i)) {
+    let radii = match (cols.radii, tree.parent(i)) {
         (Some(r), _) => idx.iter().map(|&j| r[j as usize]).collect(),
         (None, Some(p)) if idx.len() < LEAF_KNN_MIN => {
             let parent = &tree.nodes[p];
@@ -62,11 +95,11 @@ pub fn leaf_splats(cloud: &PointCloud, tree: &Tree, i: usize) -> Splats {
     };
     Splats {
         positions: positions.into_iter().map(Vec3::from).collect(),
-        normals: cloud
-            .normals()
+        normals: cols
+            .normals
             .map(|n| idx.iter().map(|&j| Vec3::from(n[j as usize])).collect()),
-        colors: cloud
-            .colors()
+        colors: cols
+            .colors
             .map(|c| idx.iter().map(|&j| c[j as usize].map(f32::from)).collect()),
         radii,
         weights: vec![1; idx.len()],
@@ -100,10 +133,20 @@ pub fn leaf_radii(positions: &[[f32; 3]]) -> Vec<f32> {
     r
 }
 
+/// What an inner node holds: the `t_k` representatives of what each child `k` holds
+/// ([`child_targets`] for as many children as `held` has), concatenated in child order.
+pub fn inner_held(held: &[Splats], vbo: u64, reps: &RepConfig, mut out: Splats) -> Splats {
+    let targets = child_targets(held.len() as u64, vbo);
+    for (h, &t) in held.iter().zip(&targets) {
+        out.append(&representatives(h, t as usize, reps).reps);
+    }
+    out
+}
+
 /// The tree and what the build needs to read for it.
 pub struct Input<'a> {
-    /// The samples.
-    pub cloud: &'a PointCloud,
+    /// The samples the tree's order indexes.
+    pub cols: Columns<'a>,
     /// Their split.
     pub tree: &'a Tree,
     /// Representative selection settings.
@@ -111,17 +154,9 @@ pub struct Input<'a> {
 }
 
 impl Input<'_> {
-    fn empty(&self) -> Splats {
-        Splats::empty(
-            self.cloud.normals().is_some(),
-            self.cloud.colors().is_some(),
-        )
-    }
-
-    /// What child number `k` of `i`, holding `held`, passes up: its `t_k` representatives.
-    fn pass_up(&self, i: usize, k: usize, held: &Splats) -> Splats {
-        let targets = child_targets(self.tree.children(i).len() as u64, self.tree.vbo);
-        representatives(held, targets[k] as usize, &self.reps).reps
+    /// What inner node `i` holds, from what its children hold.
+    fn inner(&self, held: &[Splats]) -> Splats {
+        inner_held(held, self.tree.vbo, &self.reps, self.cols.empty())
     }
 
     /// Post-order over the subtree of `i`: every node below `i` goes through `emit`, and what
@@ -133,50 +168,66 @@ impl Input<'_> {
         emit: &mut dyn FnMut(usize, &Splats) -> Result<(), MethodError>,
     ) -> Result<Splats, MethodError> {
         if self.tree.is_leaf(i) {
-            return Ok(leaf_splats(self.cloud, self.tree, i));
+            return Ok(leaf_splats(self.cols, self.tree, i));
         }
-        let mut held = self.empty();
-        for (k, c) in self.tree.children(i).enumerate() {
+        let mut held = Vec::with_capacity(self.tree.children(i).len());
+        for c in self.tree.children(i) {
             let h = self.subtree(c, emit)?;
             emit(c, &h)?;
-            held.append(&self.pass_up(i, k, &h));
+            held.push(h);
         }
-        Ok(held)
+        Ok(self.inner(&held))
     }
 }
 
 /// What a task returns: what its root holds, and every node's mapped output in post-order.
 type TaskOutput<T> = (Splats, Vec<(usize, T)>);
 
+/// One step of the post-order: a task (a subtree run as a whole) or a node above the tasks.
+enum Step {
+    Task(usize),
+    Node(usize),
+}
+
 /// Runs the bottom-up build: every node's held splats go through `map` (on worker threads)
-/// and the results through `sink` (on the calling thread, in a deterministic order that
-/// puts every node after its children). `task_points` bounds the samples under one task
-/// (see the module docs).
+/// and the results through `sink` (on the calling thread) in **post-order** (children in
+/// order, then the node), whatever `task_points` and the thread count are; returns what the
+/// root holds. `task_points` bounds the samples under one task (see the module docs); each
+/// node counts one on `progress`.
 pub fn bottom_up<T: Send>(
     input: &Input<'_>,
     task_points: usize,
     map: &(dyn Fn(usize, &Splats) -> Result<T, MethodError> + Sync),
     sink: &mut dyn FnMut(usize, T) -> Result<(), MethodError>,
     progress: &dyn Progress,
-) -> Result<(), MethodError> {
+) -> Result<Splats, MethodError> {
     let tree = input.tree;
-    // Task roots, depth first; `top` = the nodes above them, in post-order.
-    let mut tasks = Vec::new();
-    let mut top = Vec::new();
+    // The post-order with each task as one step: tasks are the highest nodes with at most
+    // `task_points` samples.
+    let mut steps = Vec::new();
     let mut stack = vec![(0usize, false)];
     while let Some((i, expanded)) = stack.pop() {
         if expanded {
-            top.push(i);
+            steps.push(Step::Node(i));
         } else if tree.is_leaf(i) || tree.nodes[i].len <= task_points.max(1) {
-            tasks.push(i);
+            steps.push(Step::Task(i));
         } else {
             stack.push((i, true));
             stack.extend(tree.children(i).rev().map(|c| (c, false)));
         }
     }
-    progress.start("mwkd: nodes", tree.nodes.len() as u64);
+    let tasks: Vec<usize> = steps
+        .iter()
+        .filter_map(|s| match s {
+            Step::Task(t) => Some(*t),
+            Step::Node(_) => None,
+        })
+        .collect();
     let threads = rayon::current_num_threads().max(1);
-    let mut task_held: std::collections::HashMap<usize, Splats> = Default::default();
+    let mut held_of: std::collections::HashMap<usize, Splats> = Default::default();
+    let mut done: std::collections::HashMap<usize, Vec<(usize, T)>> = Default::default();
+    let mut next = 0;
+    // One empty batch when there is no task (never: the root is a task or has some below).
     for batch in tasks.chunks(threads) {
         let results: Vec<Result<TaskOutput<T>, MethodError>> = batch
             .par_iter()
@@ -193,29 +244,41 @@ pub fn bottom_up<T: Send>(
             .collect();
         for (&t, r) in batch.iter().zip(results) {
             let (held, out) = r?;
-            progress.inc(out.len() as u64);
-            for (i, v) in out {
-                sink(i, v)?;
+            done.insert(t, out);
+            held_of.insert(t, held);
+        }
+        // Every step now ready, in post-order: a task once run, a node above the tasks once
+        // its children are (they come before it).
+        while let Some(step) = steps.get(next) {
+            match *step {
+                Step::Task(t) => {
+                    let Some(out) = done.remove(&t) else { break };
+                    progress.inc(out.len() as u64);
+                    for (i, v) in out {
+                        sink(i, v)?;
+                    }
+                }
+                Step::Node(i) => {
+                    let held = tree
+                        .children(i)
+                        .map(|c| {
+                            held_of.remove(&c).ok_or_else(|| {
+                                MethodError::Limit(format!("mwkd build: node {c} missing"))
+                            })
+                        })
+                        .collect::<Result<Vec<_>, _>>()?;
+                    let held = input.inner(&held);
+                    sink(i, map(i, &held)?)?;
+                    progress.inc(1);
+                    held_of.insert(i, held);
+                }
             }
-            task_held.insert(t, held);
+            next += 1;
         }
     }
-    // The nodes above the tasks, children first: each gathers from its children's held data.
-    let mut held_of = task_held;
-    for &i in &top {
-        let mut held = input.empty();
-        for (k, c) in tree.children(i).enumerate() {
-            let h = held_of
-                .remove(&c)
-                .ok_or_else(|| MethodError::Limit(format!("mwkd build: node {c} missing")))?;
-            held.append(&input.pass_up(i, k, &h));
-        }
-        sink(i, map(i, &held)?)?;
-        progress.inc(1);
-        held_of.insert(i, held);
-    }
-    progress.finish();
-    Ok(())
+    held_of
+        .remove(&0)
+        .ok_or_else(|| MethodError::Limit("mwkd build: the root was not built".into()))
 }
 
 /// One node, encoded and compressed (the output of the disk build's `map`).
@@ -272,6 +335,73 @@ pub struct Written {
     pub repo_bytes: u64,
 }
 
+/// Writes nodes into a repository file as they are finished, and their index entries.
+pub struct RepoSink {
+    writer: RepoWriter,
+    index: Vec<IndexNode>,
+    cones: Vec<Cone>,
+    raw_bytes: u64,
+}
+
+impl RepoSink {
+    /// Creates `repo` for a tree of `nodes` nodes.
+    pub fn create(repo: &std::path::Path, nodes: usize) -> Result<Self, MethodError> {
+        Ok(Self {
+            writer: RepoWriter::create(repo)?,
+            index: vec![IndexNode::default(); nodes],
+            cones: vec![Cone::ALL; nodes],
+            raw_bytes: 0,
+        })
+    }
+
+    /// Appends node `i` of the tree, `n`, encoded as `e`.
+    pub fn put(&mut self, i: usize, n: &Node, e: Encoded) -> Result<(), MethodError> {
+        let chunk = self.writer.append_compressed(&e.stored, e.raw_len)?;
+        self.raw_bytes += e.raw_len as u64;
+        self.index[i] = IndexNode {
+            min: e.header.min,
+            max: e.header.max,
+            radius_min: e.header.radius_min,
+            radius_max: e.header.radius_max,
+            radius_mean: e.radius_mean,
+            cone_axis: [0.0; 3],
+            cone_half_angle: 0.0,
+            id: i as u32,
+            level: n.level,
+            points: e.header.count,
+            first_child: if n.child_count == 0 { 0 } else { n.first_child },
+            child_count: n.child_count,
+            subtree_points: n.len as u64,
+            chunk,
+        };
+        self.cones[i] = e.cone;
+        Ok(())
+    }
+
+    /// Closes the repository and completes the index with the subtrees' normal cones
+    /// (`nodes`: the tree, every node put).
+    pub fn finish(mut self, nodes: &[Node]) -> Result<Written, MethodError> {
+        // Subtree cones: children have larger indices than their parent.
+        for i in (0..self.index.len()).rev() {
+            let n = &nodes[i];
+            let kids = n.first_child as usize..(n.first_child + n.child_count) as usize;
+            if !kids.is_empty() {
+                let c =
+                    Cone::union(std::iter::once(self.cones[i]).chain(kids.map(|c| self.cones[c])));
+                self.cones[i] = c;
+            }
+            self.index[i].cone_axis = self.cones[i].axis.to_array();
+            self.index[i].cone_half_angle = self.cones[i].half_angle;
+        }
+        let repo_bytes = self.writer.finish()?;
+        Ok(Written {
+            index: self.index,
+            raw_bytes: self.raw_bytes,
+            repo_bytes,
+        })
+    }
+}
+
 /// Builds the tree `tree` of `cloud` into `repo` (a repository file) and returns the index
 /// array (not yet written).
 pub fn write_repository(
@@ -281,55 +411,17 @@ pub fn write_repository(
     progress: &dyn Progress,
 ) -> Result<Written, MethodError> {
     let tree = input.tree;
-    let mut writer = RepoWriter::create(repo)?;
-    let mut index = vec![IndexNode::default(); tree.nodes.len()];
-    let mut cones = vec![Cone::ALL; tree.nodes.len()];
-    let mut raw_bytes = 0u64;
+    let mut out = RepoSink::create(repo, tree.nodes.len())?;
+    progress.start("mwkd: nodes", tree.nodes.len() as u64);
     bottom_up(
         input,
         task_points,
         &encode_node,
-        &mut |i, e: Encoded| {
-            let chunk = writer.append_compressed(&e.stored, e.raw_len)?;
-            raw_bytes += e.raw_len as u64;
-            let n = &tree.nodes[i];
-            index[i] = IndexNode {
-                min: e.header.min,
-                max: e.header.max,
-                radius_min: e.header.radius_min,
-                radius_max: e.header.radius_max,
-                radius_mean: e.radius_mean,
-                cone_axis: [0.0; 3],
-                cone_half_angle: 0.0,
-                id: i as u32,
-                level: n.level,
-                points: e.header.count,
-                first_child: if n.child_count == 0 { 0 } else { n.first_child },
-                child_count: n.child_count,
-                subtree_points: n.len as u64,
-                chunk,
-            };
-            cones[i] = e.cone;
-            Ok(())
-        },
+        &mut |i, e: Encoded| out.put(i, &tree.nodes[i], e),
         progress,
     )?;
-    // Subtree cones: children have larger indices than their parent.
-    for i in (0..index.len()).rev() {
-        let kids = tree.children(i);
-        if !kids.is_empty() {
-            let c = Cone::union(std::iter::once(cones[i]).chain(kids.map(|c| cones[c])));
-            cones[i] = c;
-        }
-        index[i].cone_axis = cones[i].axis.to_array();
-        index[i].cone_half_angle = cones[i].half_angle;
-    }
-    let repo_bytes = writer.finish()?;
-    Ok(Written {
-        index,
-        raw_bytes,
-        repo_bytes,
-    })
+    progress.finish();
+    out.finish(&tree.nodes)
 }
 
 /// The tree with every inner node's representatives (in memory; the disk build is
@@ -351,7 +443,7 @@ impl Lod {
         let tree = Tree::split(cloud.positions(), params.fanout, params.vbo)?;
         let mut inner: Vec<Splats> = vec![Splats::default(); tree.nodes.len()];
         let input = Input {
-            cloud,
+            cols: Columns::of(cloud),
             tree: &tree,
             reps: params.rep_config(),
         };
@@ -389,7 +481,7 @@ mod tests {
         let lone = (0..tree.nodes.len())
             .find(|&i| tree.is_leaf(i) && tree.nodes[i].len == 1)
             .unwrap();
-        let r = leaf_splats(&cloud, &tree, lone).radii[0];
+        let r = leaf_splats(Columns::of(&cloud), &tree, lone).radii[0];
         // Its 8th neighbour among the parent's samples, not the 1.0 fallback of a lone sample.
         assert!(r > 0.01 && r < 0.35, "{r}");
     }

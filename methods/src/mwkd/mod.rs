@@ -6,7 +6,8 @@
 //! II), representatives bottom-up ([`reps`]), every node encoded by [`codec`] into one LZO
 //! chunk with a checksum in `repo.bin`, and the index array `index.bin` ([`index`]). For the
 //! paper's Table IV ablation, `tree=kd` (binary) or `tree=octree` build the same
-//! representatives and files over another split.
+//! representatives and files over another split. A cloud larger than `mem_mb` allows is
+//! built in units ([`ooc`]), into the same files.
 //!
 //! Frame ([`Mwkd`]): the front from [`select`] (the paper's `LODSelection` on a budget, or
 //! projected pixel size for `--eps`), then the frame-to-frame transitions of the paper's
@@ -20,6 +21,7 @@
 pub mod build;
 pub mod codec;
 pub mod index;
+pub mod ooc;
 pub mod reps;
 pub mod select;
 pub mod tree;
@@ -43,8 +45,8 @@ pub const NAME: &str = "mwkd";
 pub const FORMAT_VERSION: u32 = 1;
 /// The index array.
 pub const INDEX_FILE: &str = "index.bin";
-/// Bytes the build assumes per sample of a task in flight (16: encoded output and
-/// working copies) times the tasks assumed in flight (4): `task_points = mem_mb·2²⁰ / 64`.
+/// Samples of one parallel task of the in-memory build: `mem_mb·2²⁰ / 64` (and at most
+/// `n/16`); the output does not depend on it.
 const TASK_BYTES_PER_SAMPLE: u64 = 64;
 /// Deepest level of an ablation octree (deeper nodes stay leaves: piles of duplicates).
 pub const OCTREE_MAX_DEPTH: u32 = 24;
@@ -123,11 +125,10 @@ pub struct MwkdParams {
     pub queue: QueueOrder,
     /// Hierarchy: `mwkd` (default), `kd` or `octree` (the paper's Table IV).
     pub tree: TreeKind,
-    /// Working memory of the build's parallel tasks, MiB: a task covers at most
-    /// `mem_mb · 2²⁰ / 64` samples (about 16 bytes each while its encoded output waits to be
-    /// written, for up to 4 tasks in flight; the cut does not depend on the thread count, so
-    /// neither does the output); the in-core split's 4 bytes per sample come on top (see
-    /// [`build`](mod@build)).
+    /// Working memory of the build, MiB (≥ 16): a cloud of more than
+    /// `mem_mb·2²⁰ / `[`ooc::UNIT_BYTES_PER_SAMPLE`] samples is split by streaming and built
+    /// in units of at most that many ([`ooc`]; not `tree=octree`); the files do not depend on
+    /// it.
     pub mem_mb: u64,
     /// `c₀` of `ε_l = c₀(l_max − l + 1)/(c₁d + c₂d²)` (> 0).
     pub c0: f32,
@@ -320,23 +321,50 @@ pub fn build(
 ) -> Result<BuildStats, MethodError> {
     let t0 = std::time::Instant::now();
     let p = MwkdParams::from_params(params)?;
-    progress.start("mwkd: split", cloud.len() as u64);
-    let tree = p.split(cloud.positions())?;
-    progress.finish();
-    let t_split = t0.elapsed().as_secs_f64();
-    // Independent of the thread count, so the output is too (see `build`'s module docs).
-    let task_points =
-        ((p.mem_mb << 20) / TASK_BYTES_PER_SAMPLE).min((cloud.len() as u64 / 16).max(1)) as usize;
-    let input = build::Input {
-        cloud,
-        tree: &tree,
-        reps: p.rep_config(),
+    let n = cloud.len() as u64;
+    let mem_bytes = p.mem_mb << 20;
+    let depth = tree::leaf_depth(n, u64::from(p.effective_fanout()), p.vbo)?;
+    let repo = dir.join(codec::REPO_FILE);
+    // In units when the cloud exceeds one (the balanced trees; see `ooc`), else in memory.
+    let in_units = p.tree != TreeKind::Octree && depth > 0 && n > ooc::unit_capacity(mem_bytes);
+    let (written, nodes, depth, units, t_split, task_points) = if in_units {
+        let shape = ooc::Shape {
+            fanout: p.effective_fanout(),
+            vbo: p.vbo,
+            reps: p.rep_config(),
+        };
+        let budget = crate::spill::Budget {
+            mem_bytes,
+            dir,
+            hook: None,
+        };
+        let b = ooc::write_repository(cloud, shape, &repo, budget, progress)?;
+        (b.written, b.nodes, b.depth, b.units, b.split_seconds, None)
+    } else {
+        progress.start("mwkd: split", n);
+        let tree = p.split(cloud.positions())?;
+        progress.finish();
+        let t_split = t0.elapsed().as_secs_f64();
+        // Parallel granularity only: the output does not depend on it.
+        let task_points = ((mem_bytes / TASK_BYTES_PER_SAMPLE).min((n / 16).max(1))) as usize;
+        let input = build::Input {
+            cols: build::Columns::of(cloud),
+            tree: &tree,
+            reps: p.rep_config(),
+        };
+        let written = build::write_repository(&input, &repo, task_points, progress)?;
+        (
+            written,
+            tree.nodes,
+            tree.depth,
+            1,
+            t_split,
+            Some(task_points),
+        )
     };
-    let written =
-        build::write_repository(&input, &dir.join(codec::REPO_FILE), task_points, progress)?;
     let index_path = dir.join(INDEX_FILE);
     let index_bytes = index::write(&index_path, &written.index)?;
-    let levels = tree.depth + 1;
+    let levels = depth + 1;
     let samples_stored: u64 = written.index.iter().map(|n| u64::from(n.points)).sum();
     let info = Info {
         tree: p.tree,
@@ -358,7 +386,7 @@ pub fn build(
     put("grid", p.grid.into());
     put(
         "leaves",
-        (tree.nodes.iter().filter(|n| n.child_count == 0).count() as u64).into(),
+        (nodes.iter().filter(|n| n.child_count == 0).count() as u64).into(),
     );
     put("samples_stored", samples_stored.into());
     put("raw_bytes", written.raw_bytes.into());
@@ -369,7 +397,10 @@ pub fn build(
         (written.repo_bytes as f64 / written.raw_bytes.max(1) as f64).into(),
     );
     put("split_seconds", t_split.into());
-    put("task_points", (task_points as u64).into());
+    put("units", units.into());
+    if let Some(t) = task_points {
+        put("task_points", (t as u64).into());
+    }
     let stats = BuildStats {
         points_in: cloud.len() as u64,
         nodes: written.index.len() as u64,

@@ -13,7 +13,10 @@
 //! into `N` children by nth-element selection; child `i` gets `⌊c/N⌋ + [i < c mod N]`
 //! samples, so at every level the counts are `⌊n/N^l⌋` or `⌈n/N^l⌉` — every leaf within
 //! ±1 of every other. Nodes are kept in an array, level by level: node `i`'s children are
-//! `N·i + 1 … N·i + N`, level `l` starts at `(N^l − 1)/(N − 1)`.
+//! `N·i + 1 … N·i + N`, level `l` starts at `(N^l − 1)/(N − 1)`. The selection orders by
+//! coordinate, ties by input index, so a node's sample *set* depends only on its ancestors'
+//! sets; a leaf's samples are then put in input order, so that a subtree split on its own
+//! (the build in units, [`super::ooc`]) gives the very same leaves.
 //!
 //! **Inner nodes** hold representatives: child `i` passes `t_i = ⌊s/N⌋ + [i < s mod N]`
 //! (so `Σ t_i = s`), or all it holds if that is fewer. [`Plan`] predicts exactly how many
@@ -373,15 +376,28 @@ fn bounds_of(idx: &[u32], pos: &[[f32; 3]]) -> Aabb {
 
 impl Tree {
     /// Splits `positions` into the tree of [`Plan::new`]`(n, fanout, vbo)` (level by level,
-    /// nodes of a level in parallel; deterministic).
+    /// nodes of a level in parallel; deterministic). Each leaf's samples are in input order.
     pub fn split(positions: &[[f32; 3]], fanout: u32, vbo: u64) -> Result<Tree, MethodError> {
+        let depth = leaf_depth(positions.len() as u64, u64::from(fanout), vbo)?;
+        Self::split_to_depth(positions, fanout, vbo, depth)
+    }
+
+    /// [`Tree::split`] with its leaves at `depth`: the subtree a node of a larger tree has
+    /// below it (the build in units splits each unit so; the rule of [`leaf_depth`] applied
+    /// to a node's own count can differ by one level from its depth in the whole tree).
+    pub fn split_to_depth(
+        positions: &[[f32; 3]],
+        fanout: u32,
+        vbo: u64,
+        depth: u32,
+    ) -> Result<Tree, MethodError> {
         let n = positions.len();
         if n > u32::MAX as usize {
             return Err(MethodError::Limit(format!(
                 "mwkd: {n} points exceed the in-core split's 2³² limit"
             )));
         }
-        let depth = leaf_depth(n as u64, u64::from(fanout), vbo)?;
+        check_args(n as u64, u64::from(fanout), vbo)?;
         let nf = fanout as usize;
         let total_nodes = (0..=depth).try_fold(0usize, |acc, l| {
             nf.checked_pow(l).and_then(|p| acc.checked_add(p))
@@ -442,6 +458,16 @@ impl Tree {
             }
             level_start = level_end;
         }
+        // Leaves in input order: the selection leaves them in an order that depends on the
+        // whole split's history; this order is the same for a unit split on its own.
+        let mut slices = Vec::with_capacity(nodes.len() - level_start);
+        let mut rest: &mut [u32] = &mut order;
+        for node in &nodes[level_start..] {
+            let (head, tail) = rest.split_at_mut(node.len);
+            slices.push(head);
+            rest = tail;
+        }
+        slices.into_par_iter().for_each(|s| s.sort_unstable());
         Ok(Tree {
             fanout: nf,
             vbo,
@@ -451,11 +477,16 @@ impl Tree {
         })
     }
 
+    /// Index of the first node of level `l` in a fully balanced tree of fan-out `fanout`:
+    /// `(N^l − 1)/(N − 1)`.
+    pub fn level_start(fanout: usize, l: u32) -> usize {
+        (fanout.pow(l) - 1) / (fanout - 1)
+    }
+
     /// Node indices of level `l`: `(N^l − 1)/(N − 1) ..` `(N^(l+1) − 1)/(N − 1)` (fully
     /// balanced trees from [`Tree::split`] only).
     pub fn level_range(&self, l: u32) -> Range<usize> {
-        let first = |l: u32| (self.fanout.pow(l) - 1) / (self.fanout - 1);
-        first(l)..first(l + 1)
+        Self::level_start(self.fanout, l)..Self::level_start(self.fanout, l + 1)
     }
 
     /// The leaves' indices (fully balanced trees from [`Tree::split`] only; see

@@ -29,6 +29,8 @@
 pub mod build;
 pub mod cloud;
 pub mod index;
+mod partition;
+pub mod spacing;
 pub mod traverse;
 
 use std::path::Path;

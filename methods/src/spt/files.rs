@@ -4,7 +4,7 @@
 
 use std::path::Path;
 
-use super::quant::{self, Grid, RadiusScale};
+use super::quant::{self, Grid, LodScale, RadiusScale};
 use super::*;
 
 /// A normal cluster: a range of the node list.
@@ -66,7 +66,7 @@ pub(super) const LOD_MAGIC: &[u8; 8] = b"SPTLOD02";
 /// Bytes before the first record of `nodes.bin`.
 pub(super) const NODES_HEADER: usize = 64;
 /// Bytes before the first record of `lod.bin`.
-pub(super) const LOD_HEADER: usize = 32;
+pub(super) const LOD_HEADER: usize = 40;
 /// Where both files keep the FNV-1a 64 of every byte after the first 24.
 pub(super) const CHECKSUM_AT: usize = 16;
 const FLAG_NORMALS: u32 = 1;
@@ -102,13 +102,14 @@ fn start(magic: &[u8; 8], count: u64, out: &mut Vec<u8>) {
 }
 
 /// Reads a whole file, checks its magic, header (`record` parses it and gives the record
-/// size), count, length and checksum; returns the records.
+/// size, `None` for records of varying size), count, length and checksum; returns the
+/// records.
 fn read_checked(
     path: &Path,
     magic: &[u8; 8],
     header: usize,
     count: u64,
-    record: impl Fn(&[u8]) -> Result<usize, String>,
+    record: impl Fn(&[u8]) -> Result<Option<usize>, String>,
 ) -> Result<Vec<u8>, MethodError> {
     let mut bytes = std::fs::read(path).map_err(|e| MethodError::io(path, e))?;
     let bad = |m: String| MethodError::corrupt(path, m);
@@ -120,12 +121,16 @@ fn read_checked(
     }
     let rec = record(&bytes[..header]).map_err(bad)?;
     let n = le_u64(&bytes, 8);
-    let want = (rec as u64)
-        .checked_mul(n)
-        .and_then(|b| b.checked_add(header as u64));
+    let want = match rec {
+        Some(rec) => (rec as u64)
+            .checked_mul(n)
+            .and_then(|b| b.checked_add(header as u64)),
+        None => Some(bytes.len() as u64),
+    };
     if n != count || want != Some(bytes.len() as u64) {
         return Err(bad(format!(
-            "{n} records of {rec} bytes in {} bytes, index.json says {count} nodes",
+            "{n} records of {} bytes in {} bytes, index.json says {count} nodes",
+            rec.map_or("varying".into(), |r| r.to_string()),
             bytes.len()
         )));
     }
@@ -166,8 +171,8 @@ impl NodeLayout {
         for v in self.grid.lo {
             h.extend_from_slice(&v.to_le_bytes());
         }
-        for e in self.grid.exp {
-            h.extend_from_slice(&e.to_le_bytes());
+        for v in self.grid.step {
+            h.extend_from_slice(&v.to_le_bytes());
         }
         h.extend_from_slice(&self.grid.bytes);
         h.push(0);
@@ -185,7 +190,7 @@ impl NodeLayout {
         let layout = NodeLayout {
             grid: Grid {
                 lo: [f(32), f(36), f(40)],
-                exp: std::array::from_fn(|a| le_u32(h, 44 + 4 * a) as i32),
+                step: [f(44), f(48), f(52)],
                 bytes: [h[56], h[57], h[58]],
             },
             radius: RadiusScale {
@@ -279,7 +284,7 @@ impl NodeFile {
         let records = read_checked(path, NODES_MAGIC, NODES_HEADER, count, |h| {
             let l = NodeLayout::parse(h)?;
             layout.set(Some(l));
-            Ok(l.record_bytes())
+            Ok(Some(l.record_bytes()))
         })?;
         let layout = layout
             .get()
@@ -374,34 +379,78 @@ impl NodeFile {
     }
 }
 
-/// What a `lod.bin` record holds: `e`, `e_par`, `δ` (16-bit codes) and, in split mode, the
-/// `φ`/`γ` word (24 bits).
+/// `lod.bin`'s records: one per node in list order, of varying size.
+///
+/// | bytes | what |
+/// |------:|------|
+/// | 1 | tag: bits 0–1 how `e_par` is stored (0: equal to the previous node's, 1: a LEB128 varint `d` > 0, the `f32` bit pattern of the previous node's `e_par` less `d`, 2: raw `f32`), bit 2: `e` is a raw `f32` (else 0); bits 3–7 zero |
+/// | 0, 1–5 or 4 | `e_par` as the tag says |
+/// | 0 or 4 | `e` |
+/// | 2 | `δ`: a code of the header's [`LodScale`] |
+/// | 3 | the `φ`/`γ` word, in split mode only |
+///
+/// `e` and `e_par` are exact: leaves (`e` = 0) and the siblings after the first (the list
+/// is sorted by `e_par`, so siblings are neighbours) store no bytes for them.
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub struct LodLayout {
     /// The `φ`/`γ` word is stored (split mode); else `lod.w` decodes as [`Q_ABSENT`].
     pub phi_gamma: bool,
+    /// The `δ` codes' scale.
+    pub scale: LodScale,
 }
 
-impl LodLayout {
-    /// Bytes of a record.
-    pub fn record_bytes(&self) -> usize {
-        6 + 3 * self.phi_gamma as usize
-    }
+const TAG_PAR_SAME: u8 = 0;
+const TAG_PAR_BELOW: u8 = 1;
+const TAG_PAR_RAW: u8 = 2;
+const TAG_E_RAW: u8 = 4;
 
+impl LodLayout {
     /// The header of a file of `count` records (checksum zero).
     pub(super) fn header(&self, count: u64) -> Vec<u8> {
         let mut h = Vec::with_capacity(LOD_HEADER);
         start(LOD_MAGIC, count, &mut h);
         h.extend_from_slice(&(FLAG_PHI_GAMMA * self.phi_gamma as u32).to_le_bytes());
-        h.extend_from_slice(&(self.record_bytes() as u32).to_le_bytes());
+        h.extend_from_slice(&self.scale.0.to_le_bytes());
+        h.resize(LOD_HEADER, 0);
         h
     }
 
-    /// Appends a record: the codes of `e`, `e_par`, `δ` and the `φ`/`γ` word.
-    pub(super) fn put(&self, codes: [u16; 3], q: u32, out: &mut Vec<u8>) {
-        for c in codes {
-            out.extend_from_slice(&c.to_le_bytes());
+    /// Appends the record of a node with `e`, `e_par` (`prev`: the previous node's, `None`
+    /// for the first), the `δ` code and the `φ`/`γ` word.
+    pub(super) fn put(
+        &self,
+        e: f32,
+        e_par: f32,
+        prev: Option<f32>,
+        delta: u16,
+        q: u32,
+        out: &mut Vec<u8>,
+    ) {
+        let at = out.len();
+        out.push(0);
+        let (par, prev_bits) = (e_par.to_bits(), prev.map(f32::to_bits));
+        let mut tag = match prev_bits {
+            Some(b) if b == par => TAG_PAR_SAME,
+            Some(b) if b > par && (b - par) < 1 << 21 => {
+                let mut d = b - par;
+                while d >= 0x80 {
+                    out.push(d as u8 | 0x80);
+                    d >>= 7;
+                }
+                out.push(d as u8);
+                TAG_PAR_BELOW
+            }
+            _ => {
+                out.extend_from_slice(&e_par.to_le_bytes());
+                TAG_PAR_RAW
+            }
+        };
+        if e.to_bits() != 0 {
+            tag |= TAG_E_RAW;
+            out.extend_from_slice(&e.to_le_bytes());
         }
+        out[at] = tag;
+        out.extend_from_slice(&delta.to_le_bytes());
         if self.phi_gamma {
             out.extend_from_slice(&q.to_le_bytes()[..3]);
         }
@@ -409,7 +458,7 @@ impl LodLayout {
 }
 
 /// Reads and checks `lod.bin`: `count` records, the `φ`/`γ` word present iff `split`, every
-/// code valid; the entries decoded.
+/// value finite and ≥ 0, every code valid; the entries decoded.
 pub(super) fn read_lod(path: &Path, count: u64, split: bool) -> Result<Vec<[f32; 4]>, MethodError> {
     let layout = std::cell::Cell::new(None);
     let records = read_checked(path, LOD_MAGIC, LOD_HEADER, count, |h| {
@@ -419,7 +468,12 @@ pub(super) fn read_lod(path: &Path, count: u64, split: bool) -> Result<Vec<[f32;
         }
         let l = LodLayout {
             phi_gamma: flags & FLAG_PHI_GAMMA != 0,
+            scale: LodScale(f32::from_le_bytes([h[28], h[29], h[30], h[31]])),
         };
+        l.scale.check()?;
+        if h[32..LOD_HEADER].iter().any(|&b| b != 0) {
+            return Err("reserved header bytes are not zero".into());
+        }
         if l.phi_gamma != split {
             return Err(format!(
                 "φ/γ word {}, but method.json's mode needs it {}",
@@ -427,43 +481,91 @@ pub(super) fn read_lod(path: &Path, count: u64, split: bool) -> Result<Vec<[f32;
                 if split { "stored" } else { "absent" }
             ));
         }
-        let rec = le_u32(h, 28) as usize;
-        if rec != l.record_bytes() {
-            return Err(format!(
-                "records of {rec} bytes, the layout needs {}",
-                l.record_bytes()
-            ));
-        }
         layout.set(Some(l));
-        Ok(rec)
+        Ok(None)
     })?;
     let layout = layout
         .get()
         .ok_or_else(|| MethodError::corrupt(path, "no layout"))?;
-    let rec = layout.record_bytes();
-    let mut lod = Vec::with_capacity(records.len() / rec);
-    for (i, r) in records.chunks_exact(rec).enumerate() {
-        let c = |k: usize| le_u16(r, 2 * k);
-        let scalar = |c: u16| (c < quant::FIRST_NON_FINITE).then(|| quant::value(c));
-        let (Some(e), Some(e_par), Some(delta)) =
-            (scalar(c(0)), quant::error_value(c(1)), scalar(c(2)))
-        else {
-            return Err(MethodError::corrupt(
-                path,
-                format!(
-                    "node {i}: lod codes {:#x} {:#x} {:#x} are not finite",
-                    c(0),
-                    c(1),
-                    c(2)
-                ),
-            ));
+    let bad = |i: usize, m: String| MethodError::corrupt(path, format!("node {i}: {m}"));
+    let mut lod = Vec::with_capacity(count.min(records.len() as u64) as usize);
+    let mut at = 0usize;
+    let mut prev: Option<u32> = None;
+    for i in 0..count as usize {
+        let short = || {
+            bad(
+                i,
+                format!("the records end early ({} bytes)", records.len()),
+            )
         };
+        let take = |at: &mut usize, n: usize| {
+            let s = records.get(*at..*at + n).ok_or_else(short)?;
+            *at += n;
+            Ok::<&[u8], MethodError>(s)
+        };
+        let raw = |at: &mut usize| take(at, 4).map(|b| le_u32(b, 0));
+        let tag = take(&mut at, 1)?[0];
+        if tag & !(3 | TAG_E_RAW) != 0
+            || tag & 3 == 3
+            || (tag & 3 == TAG_PAR_SAME && prev.is_none())
+        {
+            return Err(bad(i, format!("bad tag {tag:#x}")));
+        }
+        let par = match tag & 3 {
+            TAG_PAR_SAME => prev.unwrap_or(0),
+            TAG_PAR_BELOW => {
+                let (mut d, mut shift) = (0u32, 0);
+                loop {
+                    if shift == 21 {
+                        return Err(bad(i, "e_par varint longer than 3 bytes".into()));
+                    }
+                    let b = take(&mut at, 1)?[0];
+                    d |= u32::from(b & 0x7f) << shift;
+                    shift += 7;
+                    if b & 0x80 == 0 {
+                        break;
+                    }
+                }
+                match prev.and_then(|p| p.checked_sub(d)) {
+                    Some(v) if d > 0 => v,
+                    _ => {
+                        return Err(bad(
+                            i,
+                            format!("e_par difference {d} is not below the previous"),
+                        ));
+                    }
+                }
+            }
+            _ => raw(&mut at)?,
+        };
+        let e = if tag & TAG_E_RAW != 0 {
+            raw(&mut at)?
+        } else {
+            0
+        };
+        let delta = le_u16(take(&mut at, 2)?, 0);
         let q = if layout.phi_gamma {
-            le_u24(r, 6) as f32
+            le_u24(take(&mut at, 3)?, 0) as f32
         } else {
             Q_ABSENT
         };
+        let (e, e_par) = (f32::from_bits(e), f32::from_bits(par));
+        let Some(delta) = layout.scale.value(delta) else {
+            return Err(bad(i, format!("δ code {delta:#x} is not finite")));
+        };
+        for (what, v) in [("e", e), ("e_par", e_par)] {
+            if !(v.is_finite() && v >= 0.0) {
+                return Err(bad(i, format!("{what} {v} is not finite ≥ 0")));
+            }
+        }
+        prev = Some(par);
         lod.push([e, e_par, delta, q]);
+    }
+    if at != records.len() {
+        return Err(MethodError::corrupt(
+            path,
+            format!("{} bytes after the last node's record", records.len() - at),
+        ));
     }
     Ok(lod)
 }

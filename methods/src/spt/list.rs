@@ -3,10 +3,10 @@
 //! so their files agree byte for byte).
 //!
 //! The writer quantises ([`super::quant`]): positions on the build's grid, normals to 24-bit
-//! octahedral codes, radii rounded up on the build's scale, and `δ` raised by twice the grid's error bound before
-//! it is rounded up (the `lod` entries it is given already hold `e` and `e_par` on the
-//! 16-bit grid: they are the list's sort key). Everything downstream (chunk spheres, cluster
-//! cones and spheres) is computed from the decoded values, as `open` and the GPU see them.
+//! octahedral codes, radii rounded up on the build's scale, and `δ` raised by twice the
+//! grid's error bound before it is rounded up; `e` and `e_par` are stored exactly.
+//! Everything downstream (chunk spheres, cluster cones and spheres) is computed from the
+//! decoded values, as `open` and the GPU see them.
 //!
 //! A cluster's axis is the normalised sum of its members' normals in list order (summed as
 //! they arrive); a chunk's sphere is computed from its ≤ [`CHUNK_NODES`] members, buffered. A
@@ -23,7 +23,7 @@ use scenes::hash::Fnv64;
 use super::files::{
     CHECKSUM_AT, ChunkInfo, ClusterInfo, Index, LodLayout, NODES_HEADER, NodeLayout,
 };
-use super::quant::{self, Extent};
+use super::quant::{self, Extent, LodScale};
 use super::{CHUNK_NODES, LOD_FILE, NODES_FILE, sphere_of};
 use crate::MethodError;
 
@@ -38,7 +38,7 @@ pub struct ListNode {
     pub color: [u8; 3],
     /// Disk radius.
     pub r: f32,
-    /// The `lod` entry ([`super::lod_entry`]: `e`, `e_par` on the 16-bit grid).
+    /// The `lod` entry ([`super::lod_entry`]).
     pub lod: [f32; 4],
     /// Normal cluster.
     pub cluster: u32,
@@ -128,6 +128,8 @@ pub struct ListWriter {
     lod_layout: LodLayout,
     /// What `δ` is raised by: twice the grid's error bound.
     delta_slack: f64,
+    /// The previous node's `e_par` (`lod.bin` codes an equal or smaller one briefly).
+    prev_e_par: Option<f32>,
     nodes: Out,
     lod: Out,
     written: u64,
@@ -144,11 +146,13 @@ pub struct ListWriter {
 
 impl ListWriter {
     /// Creates the files for `count` nodes with the scene's attributes `attrs`, the position
-    /// grid and radius scale of the nodes' `extent`, the `φ`/`γ` word stored iff `split`.
+    /// grid and radius scale of the nodes' `extent`, the `δ` codes' `lod_scale`, the `φ`/`γ`
+    /// word stored iff `split`.
     pub fn create(
         dir: &Path,
         attrs: Attributes,
         extent: &Extent,
+        lod_scale: LodScale,
         count: u64,
         normal_clusters: bool,
         split: bool,
@@ -160,7 +164,10 @@ impl ListWriter {
             normals: attrs.normals,
             colors: attrs.colors,
         };
-        let lod_layout = LodLayout { phi_gamma: split };
+        let lod_layout = LodLayout {
+            phi_gamma: split,
+            scale: lod_scale,
+        };
         let nodes = Out::create(dir.join(NODES_FILE), &nodes_layout.header(count))?;
         let lod = Out::create(dir.join(LOD_FILE), &lod_layout.header(count))?;
         Ok(Self {
@@ -168,6 +175,7 @@ impl ListWriter {
             nodes_layout,
             lod_layout,
             delta_slack: 2.0 * grid.error_bound(),
+            prev_e_par: None,
             nodes,
             lod,
             written: 0,
@@ -204,7 +212,7 @@ impl ListWriter {
         let id = self.written;
         let unstorable = |what: &str, v: f32| {
             MethodError::Limit(format!(
-                "spt: node {id} (list position) has {what} {v}, which the 16-bit codes cannot hold"
+                "spt: node {id} (list position) has {what} {v}, which lod.bin and nodes.bin cannot hold"
             ))
         };
         // The node record.
@@ -223,17 +231,31 @@ impl ListWriter {
             .ok_or_else(|| unstorable("radius", nd.r))?;
         l.put(pos, normal, nd.color, radius, &mut self.nodes.buf);
         self.nodes.record()?;
-        // The lod record.
-        let e = quant::error_code(nd.lod[0]).ok_or_else(|| unstorable("e", nd.lod[0]))?;
-        let e_par = quant::error_code(nd.lod[1]).ok_or_else(|| unstorable("e_par", nd.lod[1]))?;
-        let delta = if nd.lod[2] > 0.0 {
-            quant::code_up_f64(f64::from(nd.lod[2]) + self.delta_slack)
-                .ok_or_else(|| unstorable("δ", nd.lod[2]))?
+        // The lod record: e and e_par exact, δ raised and rounded up.
+        let [e, e_par, delta, q] = nd.lod;
+        if !(e >= 0.0 && e_par >= 0.0 && e.is_finite() && e_par.is_finite()) {
+            return Err(unstorable(
+                "e / e_par",
+                if e.is_finite() { e_par } else { e },
+            ));
+        }
+        let delta = if delta > 0.0 {
+            self.lod_layout
+                .scale
+                .code_up_f64(f64::from(delta) + self.delta_slack)
+                .ok_or_else(|| unstorable("δ", delta))?
         } else {
             0
         };
-        self.lod_layout
-            .put([e, e_par, delta], nd.lod[3] as u32, &mut self.lod.buf);
+        self.lod_layout.put(
+            e,
+            e_par,
+            self.prev_e_par,
+            delta,
+            q as u32,
+            &mut self.lod.buf,
+        );
+        self.prev_e_par = Some(e_par);
         self.lod.record()?;
         // What the index needs, from the decoded values.
         self.chunk.push((p, l.radius.value(radius)));

@@ -91,7 +91,7 @@ pub fn gpu_bytes_per_node(attrs: Attributes) -> u64 {
 
 /// The `lod` entry of every node of a tree, in tree order ([`select`] documents the layout):
 /// `[e_g, parent e_g (ROOT_PARENT_ERROR at the root), δ = |p − p_parent|·(1 + 1e-5), packed φ,
-/// φ_par, γ]`, the three scalars rounded up to the 16-bit grid ([`quant::up`]).
+/// φ_par, γ]`.
 pub fn lod_entries(nodes: &[build::Node]) -> Vec<[f32; 4]> {
     nodes
         .iter()
@@ -103,14 +103,13 @@ pub fn lod_entries(nodes: &[build::Node]) -> Vec<[f32; 4]> {
 }
 
 /// The `lod` entry of `nd` whose parent is `parent` (`None` at the root), for the exact
-/// centres: `e` and `e_par` are final (both [`quant::up`] of an `e_g`, so a child's `e_par`
-/// is its parent's `e`), `δ` is rounded up from the exact distance (the writer raises it
-/// for the rounding of the centres), `γ` bounds the angle between both the exact and the
-/// stored normals.
+/// centres: `e` and `e_par` are stored exactly; `δ` is the writer's to raise for the
+/// rounding of the centres and round up ([`list::ListWriter`]); `γ` bounds the angles
+/// between both the exact and the stored normals.
 pub fn lod_entry(nd: &build::Node, parent: Option<&build::Node>) -> [f32; 4] {
     match parent {
         None => select::pack_lod(
-            quant::up(nd.e_g),
+            nd.e_g,
             ROOT_PARENT_ERROR,
             0.0,
             nd.phi_q,
@@ -118,13 +117,13 @@ pub fn lod_entry(nd: &build::Node, parent: Option<&build::Node>) -> [f32; 4] {
             select::GAMMA_UNBOUNDED,
         ),
         Some(par) => {
-            let delta = quant::up(nd.p.distance(par.p) * (1.0 + 1e-5) + f32::MIN_POSITIVE);
+            let delta = nd.p.distance(par.p) * (1.0 + 1e-5) + f32::MIN_POSITIVE;
             let angle = |a: Vec3, b: Vec3| a.dot(b).clamp(-1.0, 1.0).acos();
             let stored = |n: Vec3| quant::decode_normal(quant::normal_code(n));
             let gamma = angle(nd.n, par.n).max(angle(stored(nd.n), stored(par.n))) + 1e-3;
             select::pack_lod(
-                quant::up(nd.e_g),
-                quant::up(par.e_g),
+                nd.e_g,
+                par.e_g,
                 delta,
                 nd.phi_q,
                 par.phi_q,
@@ -261,6 +260,7 @@ fn list_in_memory(
     let tree_seconds = t0.elapsed().as_secs_f64();
     let nodes = &tree.nodes;
     let has_normals = cloud.normals().is_some();
+    let lod_scale = quant::LodScale::of(cloud.bounds());
     let lod = lod_entries(nodes);
     if let Some(i) = lod.iter().position(|l| !l.iter().all(|v| v.is_finite())) {
         return Err(non_finite(i as u64, &lod[i], &nodes[i]));
@@ -278,6 +278,7 @@ fn list_in_memory(
         dir,
         cloud.attributes(),
         &quant::Extent::of(nodes),
+        lod_scale,
         keys.len() as u64,
         p.normal_clusters,
         p.mode == SptMode::Split,

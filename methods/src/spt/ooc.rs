@@ -33,7 +33,7 @@ use scenes::{PointCloud, Progress};
 
 use super::build::{self, BITS, Builder, MortonGrid, NO_PARENT, Node};
 use super::list::{ListNode, ListWriter};
-use super::quant::Extent;
+use super::quant::{Extent, LodScale};
 use super::{Listed, SptMode, SptParams, cluster_of, list_key, lod_entry, non_finite};
 use crate::MethodError;
 use crate::spill::samples::{self, EMPTY_BOX, SampleLayout, f32_at, grow, pos_of};
@@ -557,6 +557,7 @@ pub(crate) fn list_in_units(
         budget.dir,
         cloud.attributes(),
         &extent,
+        LodScale::of(cloud.bounds()),
         total,
         p.normal_clusters,
         p.mode == SptMode::Split,

@@ -2,44 +2,43 @@
 //! `lod` values, and which way each is rounded so that the selection keeps its guarantees.
 //!
 //! Contract (the reasons are in the README, "Files on disk"):
-//! - **`lod` scalars** (`e`, `e_par`, `δ`; all ≥ 0) are 16-bit codes: the 16 bits of an
-//!   `f32` below its sign (8 exponent and 8 mantissa bits), **rounded up** ([`code_up`]), so a
-//!   code's value ([`value`]) is an exact `f32`, the code order is the value order, and the
-//!   relative step is at most 2⁻⁸. Code 0 is 0; codes from `0xFF00` are not finite and
-//!   invalid, except [`ROOT_CODE`], the root's `e_par` ([`ROOT_PARENT_ERROR`]).
+//! - **`e` and `e_par` are not rounded**: `lod.bin` codes them losslessly ([`super::files`]:
+//!   a leaf's `e` = 0 in no bytes, an `e_par` equal to the previous node's in no bytes, a
+//!   smaller one as the difference of the `f32` bit patterns). The selection reads the very
+//!   values format 1 stored; rounding them (tried first: 16-bit codes, rounded up) moved
+//!   whole sibling groups across a threshold whenever noise of the build's arithmetic put a
+//!   parent's error on a code boundary, so a model's selection changed with its scale.
+//! - **`δ`** is a 16-bit code relative to the build's [`LodScale`] `S` (the side of the
+//!   cloud's bounding cube): the code of `x` is the 16 bits below the sign of the `f32`
+//!   `x / S` (8 exponent and 8 mantissa bits, [`code_up`]), its value `S·`[`value`]`(code)`
+//!   rounded to `f32`; the smallest code whose value is ≥ `x` (**rounded up**). The code
+//!   order is the value order, the relative step at most 2⁻⁸, and a model scaled by any
+//!   factor gets the same codes (up to the `f32` rounding of its coordinates). Code 0 is 0;
+//!   codes from `0xFF00` are invalid.
 //! - **Radii** are 16-bit codes on a per-build scale ([`RadiusScale`]): 5 exponent bits (32
 //!   octaves below the build's largest radius) and 11 mantissa bits (relative step ≤ 2⁻¹¹),
-//!   **rounded up**; a radius more than 2³¹ times below the largest takes the smallest
-//!   code. Finer than the `lod` codes because a radius is drawn: rounding up by 2⁻⁸ grew
-//!   the statue's and isosurface's silhouettes by measurable pixels.
+//!   **rounded up**; a radius more than 2³¹ times below the largest takes the smallest code.
 //! - **Positions** are integers on a per-build grid ([`Grid`]): per axis an origin (the box
-//!   of the node centres), a power-of-two step and 2, 3 or 4 bytes, the fewest that both
-//!   cover the box and make the step at most 1/8 of the 1 % quantile of the leaf radii
-//!   (its binary exponent, from [`Extent`]). Rounded to the nearest: a decoded centre lies
-//!   within [`Grid::error_bound`] of the node's.
-//! - **Normals** are octahedral, 2 × 12 bits ([`normal_code`]; ≤ 1.1e-3 rad from the
-//!   node's normal, tested); the GPU gets them as the
-//!   2 × 16-bit code [`gpu_normal`] maps them to, so the normal the CPU mirror decodes is the
-//!   normal the shader decodes.
+//!   of the node centres), a step (the box's extent over the largest integer, so that the
+//!   grid scales with the model) and 2, 3 or 4 bytes, the fewest that make the step at most
+//!   1/8 of the 1 % quantile of the leaf radii (its binary exponent, from [`Extent`]).
+//!   Rounded to the nearest: a decoded centre lies within [`Grid::error_bound`] of the
+//!   node's.
+//! - **Normals** are octahedral, 2 × 12 bits ([`normal_code`]; ≤ 1.1e-3 rad from the node's
+//!   normal, tested); the GPU gets them as the 2 × 16-bit code [`gpu_normal`] maps them to,
+//!   so the normal the CPU mirror decodes is the normal the shader decodes.
 //!
-//! The exact values never reach the files; what is rounded where:
-//! - `e` and `e_par` are rounded up in the `lod` entry itself ([`super::lod_entry`]), before
-//!   the list key, by one function of the node's `e_g`: a child's `e_par` is its parent's `e`,
-//!   bit for bit, so the chain argument (README, "Overlap defined precisely") holds as
-//!   before, monotone errors stay monotone (the rounding is monotone), and a drawn node's
-//!   true error is at most the stored one.
-//! - `δ` is rounded up in the `lod` entry for the exact centres, and raised again by the
-//!   writer by twice [`Grid::error_bound`] (the centres' own rounding), so it bounds the
-//!   distance between the **decoded** centres the test sees.
-//! - Radii are rounded up (a splat never shrinks); positions and normals to the nearest.
+//! What the selection's guarantees need (README, "Overlap defined precisely"): `e`, `e_par`
+//! exact as before (a child's `e_par` is its parent's `e`, errors monotone, the list sorted
+//! by them); `δ` bounding the distance between the **decoded** centres: the writer raises
+//! the exact `δ` by twice [`Grid::error_bound`] before rounding it up; `γ` bounding the
+//! angle between the normals the test reads ([`super::lod_entry`]). Radii are rounded up (a
+//! splat never shrinks); positions and normals to the nearest.
 
 use glam::Vec3;
 
 use super::build::Node;
-use super::select::ROOT_PARENT_ERROR;
 
-/// The code of [`ROOT_PARENT_ERROR`] (only valid as an `e_par`).
-pub const ROOT_CODE: u16 = 0xFFFF;
 /// The first code whose bit pattern is not a finite `f32`.
 pub const FIRST_NON_FINITE: u16 = 0xFF00;
 /// Bits per component of an octahedral normal code.
@@ -66,37 +65,72 @@ pub fn value(code: u16) -> f32 {
     f32::from_bits(u32::from(code) << 15)
 }
 
-/// `x` rounded up to the 16-bit grid; `+∞` where no code holds it (the build then reports a
-/// non-finite `lod` entry).
-#[inline]
-pub fn up(x: f32) -> f32 {
-    code_up(x).map_or(f32::INFINITY, value)
-}
-
-/// `x` (computed in `f64`) rounded up to the 16-bit grid; `None` where no code holds it.
-pub fn code_up_f64(x: f64) -> Option<u16> {
-    let mut f = x as f32;
+/// `x` rounded up to an `f32`.
+fn f32_up(x: f64) -> f32 {
+    let f = x as f32;
     if f.is_finite() && f64::from(f) < x {
-        f = f.next_up();
+        f.next_up()
+    } else {
+        f
     }
-    code_up(f)
 }
 
-/// The code of an `e` or `e_par` value of a `lod` entry ([`ROOT_CODE`] for the root's
-/// `e_par`); `None` for a value off the grid or not finite.
-pub fn error_code(v: f32) -> Option<u16> {
-    if v == ROOT_PARENT_ERROR {
-        return Some(ROOT_CODE);
-    }
-    code_up(v).filter(|&c| value(c) == v)
-}
+/// The scale `S` of the `δ` codes: code `c` is `S·value(c)`.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct LodScale(pub f32);
 
-/// The value of an `e` / `e_par` code; `None` for an invalid code.
-pub fn error_value(code: u16) -> Option<f32> {
-    match code {
-        ROOT_CODE => Some(ROOT_PARENT_ERROR),
-        c if c < FIRST_NON_FINITE => Some(value(c)),
-        _ => None,
+impl LodScale {
+    /// The side of the bounding cube of `bounds` (1 for a cloud of one point).
+    pub fn of(bounds: scenes::Aabb) -> Self {
+        let s = bounds.size().max_element();
+        Self(if s.is_normal() { s } else { 1.0 })
+    }
+
+    /// Why the scale is unusable (a corrupt header), if it is.
+    pub fn check(&self) -> Result<(), String> {
+        if self.0.is_normal() && self.0 > 0.0 {
+            Ok(())
+        } else {
+            Err(format!("lod scale {} is not a positive normal f32", self.0))
+        }
+    }
+
+    /// The value of a code below `FIRST_NON_FINITE`; `None` for another code or one whose
+    /// value is not finite.
+    pub fn value(&self, code: u16) -> Option<f32> {
+        if code >= FIRST_NON_FINITE {
+            return None;
+        }
+        // An f32 times an f32 is exact in f64: one rounding, monotone in the code.
+        let v = (f64::from(value(code)) * f64::from(self.0)) as f32;
+        v.is_finite().then_some(v)
+    }
+
+    /// The smallest code whose value is ≥ `x` (`x` ≥ 0, finite); `None` where none is.
+    pub fn code_up(&self, x: f32) -> Option<u16> {
+        if x == 0.0 {
+            return Some(0);
+        }
+        if !(x > 0.0 && x.is_finite()) {
+            return None;
+        }
+        let mut c = code_up(f32_up(f64::from(x) / f64::from(self.0)))?;
+        // The ratio and the value are each rounded once: settle on the smallest code.
+        while c > 0 && self.value(c - 1).is_some_and(|v| v >= x) {
+            c -= 1;
+        }
+        loop {
+            match self.value(c) {
+                Some(v) if v >= x => return Some(c),
+                Some(_) if c + 1 < FIRST_NON_FINITE => c += 1,
+                _ => return None,
+            }
+        }
+    }
+
+    /// [`Self::code_up`] of `x` computed in `f64` (rounded up to `f32` first).
+    pub fn code_up_f64(&self, x: f64) -> Option<u16> {
+        self.code_up(f32_up(x))
     }
 }
 
@@ -234,7 +268,7 @@ impl Extent {
         } else {
             (Vec3::ZERO, Vec3::ZERO)
         };
-        Grid::choose(lo, hi, self.small_radius_exponent() - 3)
+        Grid::choose(lo, hi, 2f32.powi(self.small_radius_exponent() - 3))
     }
 }
 
@@ -298,59 +332,50 @@ impl RadiusScale {
     }
 }
 
-/// Positions on a per-build grid: per axis `lo + i·2^exp`, `i` an unsigned integer of
-/// `bytes` bytes (little-endian in the records).
+/// Positions on a per-build grid: per axis `lo + i·step`, `i` an unsigned integer of `bytes`
+/// bytes (little-endian in the records). The step is the box's extent over the largest
+/// integer (rounded up to `f32`), not a power of two: a model scaled by any factor gets the
+/// same integers (up to the `f32` rounding of its coordinates), so its selection does not
+/// move with the scale.
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub struct Grid {
     /// Origin (the box of the node centres).
     pub lo: [f32; 3],
-    /// Binary exponent of the step, per axis.
-    pub exp: [i32; 3],
+    /// Step, per axis.
+    pub step: [f32; 3],
     /// Bytes per coordinate, 2..=4, per axis.
     pub bytes: [u8; 3],
 }
 
 impl Grid {
-    /// The grid over the box `[lo, hi]`: per axis the fewest bytes (2, 3 or 4) whose finest
-    /// power-of-two step covering the box is at most `2^max_exp` (4 bytes when none is).
-    pub fn choose(lo: Vec3, hi: Vec3, max_exp: i32) -> Grid {
+    /// The grid over the box `[lo, hi]`: per axis the fewest bytes (2, 3 or 4) whose step
+    /// covering the box is at most `max_step` (4 bytes when none is).
+    pub fn choose(lo: Vec3, hi: Vec3, max_step: f32) -> Grid {
         let mut g = Grid {
             lo: lo.to_array(),
-            exp: [0; 3],
+            step: [0.0; 3],
             bytes: [4; 3],
         };
         for a in 0..3 {
             let ext = f64::from(hi[a]) - f64::from(lo[a]);
             let covering = |bytes: u8| {
                 let max = ((1u64 << (8 * bytes)) - 1) as f64;
-                let mut e = if ext > 0.0 {
-                    (ext / max).log2().ceil() as i32
-                } else {
-                    -126
-                };
-                // log2 in floating point: settle the exact smallest e with 2^e·max ≥ ext.
-                while e > -126 && 2f64.powi(e - 1) * max >= ext {
-                    e -= 1;
-                }
-                while 2f64.powi(e) * max < ext {
-                    e += 1;
-                }
-                e.max(-126)
+                f32_up(ext / max).max(f32::MIN_POSITIVE)
             };
-            let (bytes, e) = [2u8, 3, 4]
+            let (bytes, step) = [2u8, 3, 4]
                 .into_iter()
                 .map(|b| (b, covering(b)))
-                .find(|&(_, e)| e <= max_exp)
+                .find(|&(_, step)| step <= max_step)
                 .unwrap_or((4, covering(4)));
             g.bytes[a] = bytes;
-            g.exp[a] = e;
+            g.step[a] = step;
         }
         g
     }
 
     /// The step of axis `a`.
     pub fn step(&self, a: usize) -> f64 {
-        2f64.powi(self.exp[a])
+        f64::from(self.step[a])
     }
 
     /// Bytes of a position.
@@ -399,10 +424,10 @@ impl Grid {
             if !(2..=4).contains(&self.bytes[a]) {
                 return Err(format!("axis {a}: {} bytes per coordinate", self.bytes[a]));
             }
-            if !(-126..=127).contains(&self.exp[a]) || !self.lo[a].is_finite() {
+            if !self.step[a].is_normal() || self.step[a] < 0.0 || !self.lo[a].is_finite() {
                 return Err(format!(
-                    "axis {a}: origin {} and step 2^{} out of range",
-                    self.lo[a], self.exp[a]
+                    "axis {a}: origin {} and step {} out of range",
+                    self.lo[a], self.step[a]
                 ));
             }
             let far = f64::from(self.lo[a]) + f64::from(self.max_code(a)) * self.step(a);
@@ -461,9 +486,46 @@ mod tests {
         }
         assert_eq!(code_up(-1.0), None);
         assert_eq!(code_up(-0.0), Some(0));
-        assert_eq!(error_code(ROOT_PARENT_ERROR), Some(ROOT_CODE));
-        assert_eq!(error_code(1.001), None, "off the grid");
-        assert_eq!(error_value(FIRST_NON_FINITE), None);
+    }
+
+    #[test]
+    fn lod_codes_round_up_and_ignore_the_scale() {
+        let mut rng = scenes::rng::Pcg32::new(8);
+        for s in [1.0f32, 1e-9 * 1.7, 0.37, 2.5e3, 1e9 * 1.3] {
+            let q = LodScale(s);
+            assert!(q.check().is_ok());
+            // Non-decreasing; strictly increasing where the values are normal (below, a
+            // tiny scale's smallest codes underflow together).
+            let mut prev = -1.0;
+            for c in 0..FIRST_NON_FINITE {
+                let Some(v) = q.value(c) else { break };
+                assert!(
+                    v > prev || (v == prev && !v.is_normal()),
+                    "scale {s} code {c}"
+                );
+                prev = v;
+            }
+            for _ in 0..20_000 {
+                let x = s * 4.0 * rng.f32().powi(6);
+                let c = q.code_up(x).unwrap();
+                let v = q.value(c).unwrap();
+                assert!(
+                    v >= x && (c == 0 || q.value(c - 1).unwrap() < x),
+                    "{s}: {x}"
+                );
+                if x.is_normal() {
+                    assert!(v <= x * (1.0 + 1.0 / 255.0), "{s}: {x} -> {v}");
+                }
+                // The same relative value at another scale gets the same code, unless it
+                // lies within the f32 rounding of a code's boundary.
+                let other = LodScale(s * 3.1);
+                let y = (f64::from(x) * 3.1) as f32;
+                let d = other.code_up(y).unwrap();
+                assert!(d.abs_diff(c) <= 1, "{s}: {x} code {c}, scaled {d}");
+            }
+            assert_eq!(q.value(FIRST_NON_FINITE), None);
+        }
+        assert!(LodScale(0.0).check().is_err() && LodScale(f32::NAN).check().is_err());
     }
 
     #[test]
@@ -521,10 +583,10 @@ mod tests {
     fn grid_covers_the_box_within_its_bound() {
         let lo = Vec3::new(-3.0, 0.5, 1000.0);
         let hi = Vec3::new(2.0, 0.5, 1001.0);
-        let g = Grid::choose(lo, hi, -12);
+        let g = Grid::choose(lo, hi, 2f32.powi(-12));
         assert_eq!(g.bytes, [2, 2, 2]);
         assert!(g.check().is_ok());
-        let fine = Grid::choose(lo, hi, -20);
+        let fine = Grid::choose(lo, hi, 2f32.powi(-20));
         assert_eq!(fine.bytes[0], 3, "{fine:?}");
         let mut rng = scenes::rng::Pcg32::new(2);
         for grid in [g, fine] {

@@ -90,7 +90,7 @@ fn stored_values_bound_the_exact_ones() {
                     r >= nd.r && r <= nd.r * (1.0 + 1.0 / 2048.0),
                     "{name} node {k}"
                 );
-                assert!(stored[i][0] >= nd.e_g && stored[i][0] <= nd.e_g * (1.0 + 1.0 / 256.0));
+                assert_eq!(stored[i][0], nd.e_g, "{name} node {k}: e is stored exactly");
                 assert_eq!(stored[i][..2], lod[k][..2], "{name} node {k}");
                 if has_normals {
                     assert!(angle(m.gpu_normal(i), nd.n) < 1.2e-3, "{name} node {k}");
@@ -187,6 +187,27 @@ fn chains_of_the_stored_list_have_no_holes() {
     }
 }
 
+/// Where the last record of a unified-mode `lod.bin` starts (the README's layout: a tag,
+/// `e_par` in 0, 1–3 or 4 bytes, `e` in 0 or 4, `δ` in 2).
+fn last_lod_record(b: &[u8]) -> usize {
+    let count = u64::from_le_bytes(b[8..16].try_into().unwrap());
+    let mut at = 40;
+    let mut last = at;
+    for _ in 0..count {
+        last = at;
+        let tag = b[at];
+        at += 1;
+        at += match tag & 3 {
+            0 => 0,
+            1 => b[at..].iter().position(|&x| x & 0x80 == 0).unwrap() + 1,
+            _ => 4,
+        };
+        at += 4 * (tag as usize >> 2 & 1) + 2;
+    }
+    assert_eq!(at, b.len(), "the layout walks the whole file");
+    last
+}
+
 /// Recomputes the checksum both files keep at byte 16 over the bytes from 24.
 fn reseal(b: &mut [u8]) {
     let sum = scenes::hash::fnv1a64(&b[24..]);
@@ -204,7 +225,7 @@ fn damaged_files_are_errors_naming_them() {
         Err(e) => e.to_string(),
     };
     type Damage = fn(&mut Vec<u8>);
-    let cases: [(&str, &str, Damage); 16] = [
+    let cases: [(&str, &str, Damage); 20] = [
         ("nodes.bin", "checksum", |b| *b.last_mut().unwrap() ^= 0x40),
         ("nodes.bin", "bytes", |b| b.truncate(b.len() - 5)),
         ("nodes.bin", "short header", |b| b.truncate(40)),
@@ -242,9 +263,27 @@ fn damaged_files_are_errors_naming_them() {
             reseal(b)
         }),
         ("lod.bin", "checksum", |b| b[40] ^= 1),
-        ("lod.bin", "bytes", |b| b.truncate(b.len() - 1)),
+        ("lod.bin", "end early", |b| {
+            b.truncate(b.len() - 1);
+            reseal(b)
+        }),
+        ("lod.bin", "checksum", |b| b.truncate(b.len() - 1)),
         ("lod.bin", "not finite", |b| {
-            b[32..34].copy_from_slice(&0xff00u16.to_le_bytes());
+            // The first record (the root): tag, then e_par raw.
+            assert_eq!(b[40] & 3, 2);
+            b[41..45].copy_from_slice(&f32::NAN.to_le_bytes());
+            reseal(b)
+        }),
+        ("lod.bin", "bad tag", |b| {
+            b[40] |= 0x80;
+            reseal(b)
+        }),
+        ("lod.bin", "after the last", |b| {
+            b.push(0);
+            reseal(b)
+        }),
+        ("lod.bin", "lod scale", |b| {
+            b[28..32].copy_from_slice(&0f32.to_le_bytes());
             reseal(b)
         }),
         ("lod.bin", "mode", |b| {
@@ -252,15 +291,16 @@ fn damaged_files_are_errors_naming_them() {
             reseal(b)
         }),
         ("lod.bin", "sorted", |b| {
-            // The first two nodes' e_par swapped for a smaller and a larger one.
-            let n = b.len();
-            let last = n - 6 + 2;
-            let big = u16::from_le_bytes([b[34], b[35]]);
-            let small = u16::from_le_bytes([b[last], b[last + 1]]);
-            if big != small {
-                b[34..36].copy_from_slice(&small.to_le_bytes());
-                b[last..last + 2].copy_from_slice(&big.to_le_bytes());
-            }
+            // The last node's e_par raised above the one before it (stored raw).
+            let last = last_lod_record(b);
+            let tag = b[last];
+            let skip = match tag & 3 {
+                0 => 0,
+                1 => b[last + 1..].iter().position(|&x| x & 0x80 == 0).unwrap() + 1,
+                _ => 4,
+            };
+            b[last] = (tag & !3) | 2;
+            b.splice(last + 1..last + 1 + skip, 1e30f32.to_le_bytes());
             reseal(b)
         }),
     ];

@@ -318,7 +318,8 @@ impl ListWriter {
                 let b = &mut block[..m * rec];
                 f.read_exact(b).map_err(io)?;
                 for r_ in b.chunks_exact(rec) {
-                    if l.normals {
+                    // The half-angle only matters with normal clusters (else π).
+                    if l.normals && self.normal_clusters {
                         let n = quant::decode_normal(l.normal_code(r_));
                         angle = angle.max(axis.dot(n).clamp(-1.0, 1.0).acos());
                     }

@@ -8,8 +8,9 @@
 //! - `nodes.bin`: one record per node in list order: the centre on the build's position
 //!   grid, a 24-bit octahedral normal and an sRGB colour where the scene has them, the radius
 //!   `d/2` as a 16-bit code on the build's scale, rounded up;
-//! - `lod.bin`: the per-node `lod` entries ([`select`] documents the four floats): `e`,
-//!   `e_par`, `δ` as 16-bit codes (rounded up), and the `φ`/`γ` word only in split mode;
+//! - `lod.bin`: the per-node `lod` entries ([`select`] documents the four floats): `e` and
+//!   `e_par` exact (coded losslessly), `δ` as a 16-bit code (rounded up), and the `φ`/`γ` word
+//!   only in split mode;
 //! - `index.json`: clusters (list range, normal cone, bounding sphere) and chunks (≤
 //!   [`CHUNK_NODES`] consecutive nodes of one cluster, with max `e_par` and a bounding sphere).
 //!
@@ -94,7 +95,7 @@ pub fn gpu_bytes_per_node(attrs: Attributes) -> u64 {
 /// φ_par, γ]`.
 pub fn lod_entries(nodes: &[build::Node]) -> Vec<[f32; 4]> {
     nodes
-        .iter()
+        .par_iter()
         .map(|nd| {
             let parent = (nd.parent != NO_PARENT).then(|| &nodes[nd.parent as usize]);
             lod_entry(nd, parent)

@@ -14,9 +14,9 @@
 //! Split errors follow from `e_g` and `φ`: `e_p = e_g·cos φ`, `e_t = e_g·sin φ`, so
 //! `e_p·sin α + e_t·cos α = e_g·sin(α + φ)`.
 //!
-//! In the files ([`super::quant`]) indices 0–2 are 16-bit codes rounded up (a child's `e_par`
-//! is its parent's `e` exactly), and index 3 is stored only in split mode: the unified test
-//! reads no part of it, and a unified list decodes it as [`super::files::Q_ABSENT`].
+//! In the files ([`super::quant`]) indices 0 and 1 are exact, 2 is a 16-bit code rounded up,
+//! and 3 is stored only in split mode: the unified test reads no part of it, and a unified
+//! list decodes it as [`super::files::Q_ABSENT`].
 //!
 //! # The test ([`interval_pass`])
 //!

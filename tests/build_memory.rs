@@ -65,7 +65,7 @@ fn qsplat_in_16_mb_writes_the_in_memory_tree_within_its_budget() {
 
 #[test]
 fn spt_in_16_mb_writes_the_in_memory_list_within_its_budget() {
-    same_files_within_16_mb("spt", &["nodes.sbc", "lod.bin", "index.json"]);
+    same_files_within_16_mb("spt", &["nodes.bin", "lod.bin", "index.json"]);
 }
 
 #[test]

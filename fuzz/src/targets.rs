@@ -539,7 +539,7 @@ fn reseal(name: &str, b: &mut [u8]) {
             .write(&b[80..])
             .finish();
         mutate::put_le(b, 72, 8, sum);
-    } else if name == "lod.bin" && b.len() >= 24 {
+    } else if (name == "lod.bin" || name == "nodes.bin") && b.len() >= 24 {
         let sum = fnv(&b[24..]);
         mutate::put_le(b, 16, 8, sum);
     } else if name.ends_with(".e57") {

@@ -124,7 +124,7 @@ fn main() {
     }
     let m = Spt::open(&dir, Manifest::read(&dir).unwrap()).unwrap();
     let lod = m.lod();
-    let pos: Vec<Vec3> = m.positions().iter().map(|&p| Vec3::from(p)).collect();
+    let pos: Vec<Vec3> = (0..lod.len()).map(|i| m.position(i)).collect();
     let normals: Vec<Vec3> = (0..lod.len()).map(|i| m.gpu_normal(i)).collect();
     let index = m.index();
     let inner = lod.iter().filter(|l| l[0] > 0.0).count();

@@ -290,11 +290,12 @@ fn chain_counts(
 /// | | ε = 1 px: measured max → bound | ε = 4 px |
 /// |-|------:|------:|
 /// | unified, overlap 1 | 0.51 % → 0.64 % | 1.44 % → 1.80 % |
-/// | split, overlap 1 (angular slack) | 11.06 % → 13.8 % | 16.34 % → 20.4 % |
+/// | split, overlap 1 (angular slack) | 11.06 % → 13.8 % | 16.39 % → 20.5 % |
 ///
 /// The margin is below what doubling the band adds, and the test checks it: with `o = 2` the
 /// largest shares are 0.83 % / 2.96 % (unified) and 17.61 % / 23.99 % (split), all over the
-/// bounds.
+/// bounds. (Split mode's figures are format 2's: `γ` also bounds the stored normals' angle;
+/// format 1 gave 16.34 % at ε = 4 px.)
 #[test]
 fn chains_have_no_holes_and_little_overlap() {
     let cloud = statue(50_000);
@@ -303,7 +304,7 @@ fn chains_have_no_holes_and_little_overlap() {
     let lod = spt::lod_entries(&tree.nodes);
     let n = cloud.len() as f64;
     // Largest share of chains with ≥ 2 nodes drawn (unified, split), at ε = 1 and 4 px.
-    const BOUNDS: [(f64, f64); 2] = [(0.0064, 0.138), (0.0180, 0.204)];
+    const BOUNDS: [(f64, f64); 2] = [(0.0064, 0.138), (0.0180, 0.205)];
     let mut doubled = [(0f64, 0f64); 2];
     for (vi, view) in views(&cloud).iter().enumerate() {
         for eps in [1.0f32, 4.0] {
@@ -477,7 +478,7 @@ fn builds_are_deterministic_and_chunks_carry_the_scene_attributes() {
     let tmp = tempfile::tempdir().unwrap();
     let a = build_open(&cloud, &["normal_clusters=true"], &tmp.path().join("a")).unwrap();
     let b = build_open(&cloud, &["normal_clusters=true"], &tmp.path().join("b")).unwrap();
-    for f in ["nodes.sbc", "lod.bin", "index.json"] {
+    for f in ["nodes.bin", "lod.bin", "index.json"] {
         let x = std::fs::read(tmp.path().join("a").join(f)).unwrap();
         let y = std::fs::read(tmp.path().join("b").join(f)).unwrap();
         assert!(x == y, "{f} differs between two builds");
@@ -554,7 +555,7 @@ fn normal_clusters_skip_about_half_of_a_closed_statue() {
                 .points() as f64
         };
         let fewer = 1.0 - sent_at(&mut m, 1.0) / sent_at(&mut plain, 1.0);
-        let facing = |i: usize| m.gpu_normal(i).dot(eye - Vec3::from(m.positions()[i])) > 1e-3;
+        let facing = |i: usize| m.gpu_normal(i).dot(eye - m.position(i)) > 1e-3;
         let back = (0..m.lod().len()).filter(|&i| !facing(i)).count() as f64 / total;
         println!(
             "view {vi}: clusters skipped {}, {:.1} % of the nodes skipped at eps 0, {:.1} % \
@@ -584,7 +585,7 @@ fn normal_clusters_skip_about_half_of_a_closed_statue() {
                 _ => 0..0,
             })
             .collect();
-        for i in 0..m.positions().len() {
+        for i in 0..m.lod().len() {
             if facing(i) {
                 assert!(sent.contains(&(i as u32)), "front-facing node {i} skipped");
             }

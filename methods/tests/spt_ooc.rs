@@ -11,7 +11,7 @@ use methods::spt::{self, ooc::UNIT_BYTES_PER_SAMPLE};
 use scenes::generators::Generator;
 use scenes::{NoProgress, PointCloud};
 
-const FILES: [&str; 3] = ["nodes.sbc", "lod.bin", "index.json"];
+const FILES: [&str; 3] = ["nodes.bin", "lod.bin", "index.json"];
 
 fn build(
     cloud: &PointCloud,
@@ -36,7 +36,7 @@ fn build(
     // Only the build's files are left (the spill directory is gone).
     assert_eq!(
         common::entries(out),
-        ["index.json", "lod.bin", "method.json", "nodes.sbc"]
+        ["index.json", "lod.bin", "method.json", "nodes.bin"]
     );
     let files = FILES
         .iter()

@@ -1,25 +1,33 @@
-//! Writing the sorted node list: `nodes.sbc`, `lod.bin` and `index.json` from the nodes in
+//! Writing the sorted node list: `nodes.bin`, `lod.bin` and `index.json` from the nodes in
 //! list order, streamed (the in-memory build and the build in units feed the same writer,
 //! so their files agree byte for byte).
+//!
+//! The writer quantises ([`super::quant`]): positions on the build's grid, normals to 24-bit
+//! octahedral codes, radii rounded up on the build's scale, and `δ` raised by twice the
+//! grid's error bound before it is rounded up; `e` and `e_par` are stored exactly.
+//! Everything downstream (chunk spheres, cluster cones and spheres) is computed from the
+//! decoded values, as `open` and the GPU see them.
 //!
 //! A cluster's axis is the normalised sum of its members' normals in list order (summed as
 //! they arrive); a chunk's sphere is computed from its ≤ [`CHUNK_NODES`] members, buffered. A
 //! cluster's half-angle and bounding sphere need its axis and box first: they are computed in
-//! a second pass over the written (memory-mapped) node file.
+//! a second pass over the written node file.
 
-use std::io::{Seek, SeekFrom, Write};
-use std::path::Path;
+use std::io::{Read, Seek, SeekFrom, Write};
+use std::path::{Path, PathBuf};
 
-use glam::{DVec3, Vec3};
-use scenes::colfile::ColumnWriter;
+use glam::Vec3;
+use scenes::Attributes;
 use scenes::hash::Fnv64;
-use scenes::{Attributes, PointCloud};
 
-use super::files::{ChunkInfo, ClusterInfo, Index};
-use super::{CHUNK_NODES, LOD_FILE, LOD_MAGIC, NODES_FILE, sphere_of};
+use super::files::{
+    CHECKSUM_AT, ChunkInfo, ClusterInfo, Index, LodLayout, NODES_HEADER, NodeLayout,
+};
+use super::quant::{self, Extent, LodScale};
+use super::{CHUNK_NODES, LOD_FILE, NODES_FILE, sphere_of};
 use crate::MethodError;
 
-/// One node as the list stores it.
+/// One node as the list stores it (exact values; the writer quantises).
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub struct ListNode {
     /// Centre.
@@ -30,7 +38,7 @@ pub struct ListNode {
     pub color: [u8; 3],
     /// Disk radius.
     pub r: f32,
-    /// The `lod` entry.
+    /// The `lod` entry ([`super::lod_entry`]).
     pub lod: [f32; 4],
     /// Normal cluster.
     pub cluster: u32,
@@ -52,60 +60,129 @@ impl ListNode {
 
 const BLOCK: usize = 1 << 16;
 
+/// One of the two files, written to `<name>.tmp` and renamed when finished (removed if the
+/// writer is dropped unfinished).
+struct Out {
+    file: std::io::BufWriter<std::fs::File>,
+    tmp: PathBuf,
+    path: PathBuf,
+    sum: Fnv64,
+    buf: Vec<u8>,
+    done: bool,
+}
+
+impl Out {
+    fn create(path: PathBuf, header: &[u8]) -> Result<Self, MethodError> {
+        let tmp = path.with_extension("bin.tmp");
+        let file = std::fs::File::create(&tmp).map_err(|e| MethodError::io(&tmp, e))?;
+        let mut o = Self {
+            file: std::io::BufWriter::with_capacity(1 << 20, file),
+            tmp,
+            path,
+            sum: Fnv64::default(),
+            buf: Vec::new(),
+            done: false,
+        };
+        o.file
+            .write_all(header)
+            .map_err(|e| MethodError::io(&o.tmp, e))?;
+        o.sum.write(&header[24..]);
+        Ok(o)
+    }
+
+    /// Writes `buf` (one record) and clears it.
+    fn record(&mut self) -> Result<(), MethodError> {
+        self.sum.write(&self.buf);
+        self.file
+            .write_all(&self.buf)
+            .map_err(|e| MethodError::io(&self.tmp, e))?;
+        self.buf.clear();
+        Ok(())
+    }
+
+    fn finish(mut self) -> Result<PathBuf, MethodError> {
+        let io = |e| MethodError::io(&self.tmp, e);
+        self.file.flush().map_err(io)?;
+        let f = self.file.get_mut();
+        f.seek(SeekFrom::Start(CHECKSUM_AT as u64)).map_err(io)?;
+        f.write_all(&self.sum.finish().to_le_bytes()).map_err(io)?;
+        f.sync_all().map_err(io)?;
+        std::fs::rename(&self.tmp, &self.path).map_err(|e| MethodError::io(&self.path, e))?;
+        self.done = true;
+        Ok(self.path.clone())
+    }
+}
+
+impl Drop for Out {
+    fn drop(&mut self) {
+        if !self.done {
+            let _ = std::fs::remove_file(&self.tmp);
+        }
+    }
+}
+
 /// Writes the list's files in list order.
 pub struct ListWriter {
-    attrs: Attributes,
     normal_clusters: bool,
-    columns: ColumnWriter,
-    pos: Vec<[f32; 3]>,
-    nrm: Vec<[f32; 3]>,
-    col: Vec<[u8; 3]>,
-    rad: Vec<f32>,
-    lod: std::io::BufWriter<std::fs::File>,
-    lod_tmp: std::path::PathBuf,
-    lod_path: std::path::PathBuf,
-    lod_sum: Fnv64,
+    nodes_layout: NodeLayout,
+    lod_layout: LodLayout,
+    /// What `δ` is raised by: twice the grid's error bound.
+    delta_slack: f64,
+    /// The previous node's `e_par` (`lod.bin` codes an equal or smaller one briefly).
+    prev_e_par: Option<f32>,
+    nodes: Out,
+    lod: Out,
     written: u64,
     clusters: Vec<ClusterInfo>,
     axis_sum: Vec3,
+    /// The box of the current cluster's decoded centres.
+    cluster_box: (Vec3, Vec3),
+    /// Per cluster, its box (for the second pass).
+    boxes: Vec<(Vec3, Vec3)>,
     chunks: Vec<ChunkInfo>,
     chunk: Vec<(Vec3, f32)>,
     chunk_e_par: f32,
 }
 
 impl ListWriter {
-    /// Creates the files for `count` nodes with the scene's attributes `attrs` (radii
-    /// added) and origin.
+    /// Creates the files for `count` nodes with the scene's attributes `attrs`, the position
+    /// grid and radius scale of the nodes' `extent`, the `δ` codes' `lod_scale`, the `φ`/`γ`
+    /// word stored iff `split`.
     pub fn create(
         dir: &Path,
         attrs: Attributes,
-        origin: DVec3,
+        extent: &Extent,
+        lod_scale: LodScale,
         count: u64,
         normal_clusters: bool,
+        split: bool,
     ) -> Result<Self, MethodError> {
-        let columns = ColumnWriter::create(&dir.join(NODES_FILE), attrs, origin, count)?;
-        let lod_path = dir.join(LOD_FILE);
-        let lod_tmp = lod_path.with_extension("bin.tmp");
-        let io = |e| MethodError::io(&lod_tmp, e);
-        let mut lod = std::io::BufWriter::new(std::fs::File::create(&lod_tmp).map_err(io)?);
-        lod.write_all(LOD_MAGIC).map_err(io)?;
-        lod.write_all(&count.to_le_bytes()).map_err(io)?;
-        lod.write_all(&[0u8; 8]).map_err(io)?;
+        let grid = extent.grid();
+        let nodes_layout = NodeLayout {
+            grid,
+            radius: extent.radius_scale(),
+            normals: attrs.normals,
+            colors: attrs.colors,
+        };
+        let lod_layout = LodLayout {
+            phi_gamma: split,
+            scale: lod_scale,
+        };
+        let nodes = Out::create(dir.join(NODES_FILE), &nodes_layout.header(count))?;
+        let lod = Out::create(dir.join(LOD_FILE), &lod_layout.header(count))?;
         Ok(Self {
-            attrs,
             normal_clusters,
-            columns,
-            pos: Vec::with_capacity(BLOCK),
-            nrm: Vec::new(),
-            col: Vec::new(),
-            rad: Vec::with_capacity(BLOCK),
+            nodes_layout,
+            lod_layout,
+            delta_slack: 2.0 * grid.error_bound(),
+            prev_e_par: None,
+            nodes,
             lod,
-            lod_tmp,
-            lod_path,
-            lod_sum: Fnv64::default(),
             written: 0,
             clusters: Vec::new(),
             axis_sum: Vec3::ZERO,
+            cluster_box: (Vec3::INFINITY, Vec3::NEG_INFINITY),
+            boxes: Vec::new(),
             chunks: Vec::new(),
             chunk: Vec::with_capacity(CHUNK_NODES),
             chunk_e_par: 0.0,
@@ -132,42 +209,62 @@ impl ListWriter {
         if self.chunk.is_empty() {
             self.chunk_e_par = nd.lod[1];
         }
-        self.chunk.push((nd.p, nd.r));
-        self.axis_sum += nd.n;
+        let id = self.written;
+        let unstorable = |what: &str, v: f32| {
+            MethodError::Limit(format!(
+                "spt: node {id} (list position) has {what} {v}, which lod.bin and nodes.bin cannot hold"
+            ))
+        };
+        // The node record.
+        let l = self.nodes_layout;
+        let pos = l.grid.encode(nd.p);
+        let p = l.grid.decode(pos);
+        let (normal, n) = if l.normals {
+            let c = quant::normal_code(nd.n);
+            (c, quant::decode_normal(c))
+        } else {
+            (0, nd.n)
+        };
+        let radius = l
+            .radius
+            .code_up(nd.r)
+            .ok_or_else(|| unstorable("radius", nd.r))?;
+        l.put(pos, normal, nd.color, radius, &mut self.nodes.buf);
+        self.nodes.record()?;
+        // The lod record: e and e_par exact, δ raised and rounded up.
+        let [e, e_par, delta, q] = nd.lod;
+        if !(e >= 0.0 && e_par >= 0.0 && e.is_finite() && e_par.is_finite()) {
+            return Err(unstorable(
+                "e / e_par",
+                if e.is_finite() { e_par } else { e },
+            ));
+        }
+        let delta = if delta > 0.0 {
+            self.lod_layout
+                .scale
+                .code_up_f64(f64::from(delta) + self.delta_slack)
+                .ok_or_else(|| unstorable("δ", delta))?
+        } else {
+            0
+        };
+        self.lod_layout.put(
+            e,
+            e_par,
+            self.prev_e_par,
+            delta,
+            q as u32,
+            &mut self.lod.buf,
+        );
+        self.prev_e_par = Some(e_par);
+        self.lod.record()?;
+        // What the index needs, from the decoded values.
+        self.chunk.push((p, l.radius.value(radius)));
+        self.axis_sum += n;
+        self.cluster_box = (self.cluster_box.0.min(p), self.cluster_box.1.max(p));
         if let Some(c) = self.clusters.last_mut() {
             c.count += 1;
         }
-        self.pos.push(nd.p.to_array());
-        if self.attrs.normals {
-            self.nrm.push(nd.n.to_array());
-        }
-        if self.attrs.colors {
-            self.col.push(nd.color);
-        }
-        self.rad.push(nd.r);
-        let bytes: &[u8] = bytemuck::cast_slice(&nd.lod);
-        self.lod_sum.write(bytes);
-        self.lod
-            .write_all(bytes)
-            .map_err(|e| MethodError::io(&self.lod_tmp, e))?;
         self.written += 1;
-        if self.pos.len() == BLOCK {
-            self.flush()?;
-        }
-        Ok(())
-    }
-
-    fn flush(&mut self) -> Result<(), MethodError> {
-        self.columns.push(
-            &self.pos,
-            self.attrs.normals.then_some(self.nrm.as_slice()),
-            self.attrs.colors.then_some(self.col.as_slice()),
-            Some(&self.rad),
-        )?;
-        self.pos.clear();
-        self.nrm.clear();
-        self.col.clear();
-        self.rad.clear();
         Ok(())
     }
 
@@ -192,75 +289,58 @@ impl ListWriter {
         self.close_chunk();
         if let Some(c) = self.clusters.last_mut() {
             c.axis = self.axis_sum.try_normalize().unwrap_or(Vec3::Z).to_array();
+            self.boxes.push(self.cluster_box);
         }
         self.axis_sum = Vec3::ZERO;
+        self.cluster_box = (Vec3::INFINITY, Vec3::NEG_INFINITY);
     }
 
-    /// Finishes the files; returns the index (clusters and chunks) for `index.json` and
-    /// the node file, opened.
-    pub fn finish(mut self, levels: u32) -> Result<(Index, PointCloud), MethodError> {
+    /// Finishes the files; returns the index (clusters and chunks) for `index.json`.
+    pub fn finish(mut self, levels: u32) -> Result<Index, MethodError> {
         self.close_cluster();
-        if !self.pos.is_empty() {
-            self.flush()?;
-        }
-        let nodes = self.columns.finish()?;
-        let io = |e| MethodError::io(&self.lod_tmp, e);
-        let mut f = self
-            .lod
-            .into_inner()
-            .map_err(|e| MethodError::io(&self.lod_tmp, e.into_error()))?;
-        f.seek(SeekFrom::Start(16)).map_err(io)?;
-        f.write_all(&self.lod_sum.finish().to_le_bytes())
-            .map_err(io)?;
-        f.sync_all().map_err(io)?;
-        drop(f);
-        std::fs::rename(&self.lod_tmp, &self.lod_path)
-            .map_err(|e| MethodError::io(&self.lod_path, e))?;
-        // Second pass: each cluster's cone and sphere from the written centres and normals,
-        // in blocks whose pages are released behind (the file may exceed the budget).
-        let pos = nodes.positions();
-        let nrm = nodes.normals();
-        for c in &mut self.clusters {
-            let (start, end) = (c.start as usize, (c.start + c.count) as usize);
+        let nodes = self.nodes.finish()?;
+        self.lod.finish()?;
+        // Second pass: each cluster's cone and sphere from the written centres and normals
+        // (the file, in blocks: it may exceed the budget).
+        let l = self.nodes_layout;
+        let rec = l.record_bytes();
+        let io = |e| MethodError::io(&nodes, e);
+        let mut f = std::fs::File::open(&nodes).map_err(io)?;
+        f.seek(SeekFrom::Start(NODES_HEADER as u64)).map_err(io)?;
+        let mut block = vec![0u8; BLOCK * rec];
+        for (c, &(lo, hi)) in self.clusters.iter_mut().zip(&self.boxes) {
             let axis = Vec3::from(c.axis);
-            let (mut angle, mut lo, mut hi) = (0.0f32, Vec3::INFINITY, Vec3::NEG_INFINITY);
-            for b in (start..end).step_by(BLOCK) {
-                let e = (b + BLOCK).min(end);
-                for i in b..e {
-                    let n = nrm.map_or(Vec3::Z, |v| Vec3::from(v[i]));
-                    angle = angle.max(axis.dot(n).clamp(-1.0, 1.0).acos());
-                    lo = lo.min(Vec3::from(pos[i]));
-                    hi = hi.max(Vec3::from(pos[i]));
+            let centre = (lo + hi) * 0.5;
+            let (mut angle, mut r) = (0.0f32, 0.0f32);
+            let mut left = c.count as usize;
+            while left > 0 {
+                let m = left.min(BLOCK);
+                let b = &mut block[..m * rec];
+                f.read_exact(b).map_err(io)?;
+                for r_ in b.chunks_exact(rec) {
+                    // The half-angle only matters with normal clusters (else π).
+                    if l.normals && self.normal_clusters {
+                        let n = quant::decode_normal(l.normal_code(r_));
+                        angle = angle.max(axis.dot(n).clamp(-1.0, 1.0).acos());
+                    }
+                    r = r.max(l.position(r_).distance(centre) + 0.0);
                 }
-                nodes.release_pages(b..e);
+                left -= m;
             }
             c.half_angle = if self.normal_clusters {
                 angle * (1.0 + 1e-4) + 1e-4
             } else {
                 std::f32::consts::PI
             };
-            // `sphere_of` over the centres, its two passes split: the box above, the radius
-            // here.
-            let centre = (lo + hi) * 0.5;
-            let mut r = 0.0f32;
-            for b in (start..end).step_by(BLOCK) {
-                let e = (b + BLOCK).min(end);
-                for p in &pos[b..e] {
-                    r = r.max(Vec3::from(*p).distance(centre) + 0.0);
-                }
-                nodes.release_pages(b..e);
-            }
+            // `sphere_of` over the centres: the box's centre, the largest distance.
             c.center = centre.to_array();
             c.radius = r * (1.0 + 1e-5);
         }
-        Ok((
-            Index {
-                nodes: self.written,
-                levels,
-                clusters: self.clusters,
-                chunks: self.chunks,
-            },
-            nodes,
-        ))
+        Ok(Index {
+            nodes: self.written,
+            levels,
+            clusters: self.clusters,
+            chunks: self.chunks,
+        })
     }
 }

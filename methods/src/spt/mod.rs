@@ -2,11 +2,15 @@
 //!
 //! Build ([`build`]): a point tree over the samples ([`build`](mod@build) module: octree,
 //! node disks, errors from [`errors`]), flattened into one list sorted by the parent's error
-//! descending (per normal cluster when `normal_clusters=true`), written as
-//! - `nodes.sbc`: a column file (positions, normals and colours where the scene has them,
-//!   radii = `d/2`), in list order;
-//! - `lod.bin`: the per-node `lod` entries ([`select`] documents the four floats): magic
-//!   `SPTLOD01`, `u64` count, `u64` FNV-1a 64 of the entries, then `count × [f32; 4]` LE;
+//! descending (per normal cluster when `normal_clusters=true`), written quantised
+//! ([`quant`] says what is rounded which way and why the selection keeps its guarantees;
+//! [`files`] has the layouts) as
+//! - `nodes.bin`: one record per node in list order: the centre on the build's position
+//!   grid, a 24-bit octahedral normal and an sRGB colour where the scene has them, the radius
+//!   `d/2` as a 16-bit code on the build's scale, rounded up;
+//! - `lod.bin`: the per-node `lod` entries ([`select`] documents the four floats): `e` and
+//!   `e_par` exact (coded losslessly), `δ` as a 16-bit code (rounded up), and the `φ`/`γ` word
+//!   only in split mode;
 //! - `index.json`: clusters (list range, normal cone, bounding sphere) and chunks (≤
 //!   [`CHUNK_NODES`] consecutive nodes of one cluster, with max `e_par` and a bounding sphere).
 //!
@@ -27,14 +31,15 @@
 
 pub mod build;
 pub mod errors;
-mod files;
+pub mod files;
 pub mod list;
 pub mod ooc;
 mod params;
+pub mod quant;
 pub mod select;
 
-use files::read_lod;
 pub use files::{ChunkInfo, ClusterInfo, Index};
+use files::{NodeFile, read_lod};
 pub use params::{SptBound, SptMode, SptParams};
 
 use std::path::Path;
@@ -58,12 +63,14 @@ pub const CHUNK_NODES: usize = 1 << 18;
 /// Parameters read at `open` only (a run of an existing build may change them): the
 /// bounding volume of `r_lo` is computed from the index when the build is opened.
 pub const RUNTIME_PARAMS: &[&str] = &["bound"];
-/// Version of the on-disk layout.
-pub const FORMAT_VERSION: u32 = 1;
-const NODES_FILE: &str = "nodes.sbc";
-const LOD_FILE: &str = "lod.bin";
+/// Version of the on-disk layout (2: quantised `nodes.bin` and `lod.bin`; 1 had a column
+/// file and `f32` entries).
+pub const FORMAT_VERSION: u32 = 2;
+/// The node records.
+pub const NODES_FILE: &str = "nodes.bin";
+/// The `lod` entries.
+pub const LOD_FILE: &str = "lod.bin";
 const INDEX_FILE: &str = "index.json";
-const LOD_MAGIC: &[u8; 8] = b"SPTLOD01";
 
 pub(crate) fn sphere_of(points: impl Iterator<Item = (Vec3, f32)> + Clone) -> ([f32; 3], f32) {
     let (lo, hi) = points.clone().fold(
@@ -84,10 +91,11 @@ pub fn gpu_bytes_per_node(attrs: Attributes) -> u64 {
 }
 
 /// The `lod` entry of every node of a tree, in tree order ([`select`] documents the layout):
-/// `[e_g, parent e_g (ROOT_PARENT_ERROR at the root), δ = |p − p_parent|·(1 + 1e-5), packed φ, φ_par, γ]`.
+/// `[e_g, parent e_g (ROOT_PARENT_ERROR at the root), δ = |p − p_parent|·(1 + 1e-5), packed φ,
+/// φ_par, γ]`.
 pub fn lod_entries(nodes: &[build::Node]) -> Vec<[f32; 4]> {
     nodes
-        .iter()
+        .par_iter()
         .map(|nd| {
             let parent = (nd.parent != NO_PARENT).then(|| &nodes[nd.parent as usize]);
             lod_entry(nd, parent)
@@ -95,7 +103,10 @@ pub fn lod_entries(nodes: &[build::Node]) -> Vec<[f32; 4]> {
         .collect()
 }
 
-/// The `lod` entry of `nd` whose parent is `parent` (`None` at the root).
+/// The `lod` entry of `nd` whose parent is `parent` (`None` at the root), for the exact
+/// centres: `e` and `e_par` are stored exactly; `δ` is the writer's to raise for the
+/// rounding of the centres and round up ([`list::ListWriter`]); `γ` bounds the angles
+/// between both the exact and the stored normals.
 pub fn lod_entry(nd: &build::Node, parent: Option<&build::Node>) -> [f32; 4] {
     match parent {
         None => select::pack_lod(
@@ -108,7 +119,9 @@ pub fn lod_entry(nd: &build::Node, parent: Option<&build::Node>) -> [f32; 4] {
         ),
         Some(par) => {
             let delta = nd.p.distance(par.p) * (1.0 + 1e-5) + f32::MIN_POSITIVE;
-            let gamma = nd.n.dot(par.n).clamp(-1.0, 1.0).acos() + 1e-3;
+            let angle = |a: Vec3, b: Vec3| a.dot(b).clamp(-1.0, 1.0).acos();
+            let stored = |n: Vec3| quant::decode_normal(quant::normal_code(n));
+            let gamma = angle(nd.n, par.n).max(angle(stored(nd.n), stored(par.n))) + 1e-3;
             select::pack_lod(
                 nd.e_g,
                 par.e_g,
@@ -248,6 +261,7 @@ fn list_in_memory(
     let tree_seconds = t0.elapsed().as_secs_f64();
     let nodes = &tree.nodes;
     let has_normals = cloud.normals().is_some();
+    let lod_scale = quant::LodScale::of(cloud.bounds());
     let lod = lod_entries(nodes);
     if let Some(i) = lod.iter().position(|l| !l.iter().all(|v| v.is_finite())) {
         return Err(non_finite(i as u64, &lod[i], &nodes[i]));
@@ -261,14 +275,14 @@ fn list_in_memory(
         .map(|i| list_key(cluster(i), &lod[i], i as u32))
         .collect();
     keys.par_sort_unstable();
-    let mut attrs = cloud.attributes();
-    attrs.radii = true;
     let mut w = list::ListWriter::create(
         dir,
-        attrs,
-        cloud.origin(),
+        cloud.attributes(),
+        &quant::Extent::of(nodes),
+        lod_scale,
         keys.len() as u64,
         p.normal_clusters,
+        p.mode == SptMode::Split,
     )?;
     progress.start("spt: writing", keys.len() as u64);
     for block in keys.chunks(1 << 16) {
@@ -279,7 +293,7 @@ fn list_in_memory(
         }
         progress.inc(block.len() as u64);
     }
-    let (index, _) = w.finish(tree.levels)?;
+    let index = w.finish(tree.levels)?;
     progress.finish();
     Ok(Listed {
         index,
@@ -300,7 +314,7 @@ pub(crate) fn non_finite(id: u64, lod: &[f32; 4], nd: &build::Node) -> MethodErr
 
 /// An opened SPT build.
 pub struct Spt {
-    cloud: PointCloud,
+    nodes: NodeFile,
     attrs: Attributes,
     params: SptParams,
     index: Index,
@@ -358,23 +372,7 @@ impl Spt {
                 params.gpu_limit_mb
             )));
         }
-        let nodes_path = dir.join(NODES_FILE);
-        let cloud = scenes::colfile::open(&nodes_path)?;
-        if cloud.len() as u64 != index.nodes
-            || cloud.radii().is_none()
-            || cloud.attributes() != manifest.attributes
-        {
-            return Err(MethodError::corrupt(
-                &nodes_path,
-                format!(
-                    "{} nodes with attributes {} (index.json says {} nodes, method.json {})",
-                    cloud.len(),
-                    cloud.attributes(),
-                    index.nodes,
-                    manifest.attributes
-                ),
-            ));
-        }
+        let nodes = NodeFile::read(&dir.join(NODES_FILE), index.nodes, manifest.attributes)?;
         let mut next = 0u64;
         for (i, c) in index.clusters.iter().enumerate() {
             if c.start != next || c.count == 0 {
@@ -415,7 +413,11 @@ impl Spt {
                 ),
             ));
         }
-        let lod = read_lod(&dir.join(LOD_FILE), index.nodes)?;
+        let lod = read_lod(
+            &dir.join(LOD_FILE),
+            index.nodes,
+            params.mode == SptMode::Split,
+        )?;
         let e_par: Vec<f32> = lod.iter().map(|l| l[1]).collect();
         let mut d_suffix = vec![0f32; lod.len()];
         for c in &index.clusters {
@@ -435,17 +437,18 @@ impl Spt {
             .clusters
             .iter()
             .map(|c| {
-                cloud.positions()[c.start as usize..(c.start + c.count) as usize]
-                    .iter()
-                    .fold(
-                        (Vec3::splat(f32::INFINITY), Vec3::splat(f32::NEG_INFINITY)),
-                        |(lo, hi), &p| (lo.min(Vec3::from(p)), hi.max(Vec3::from(p))),
-                    )
+                (c.start as usize..(c.start + c.count) as usize).fold(
+                    (Vec3::splat(f32::INFINITY), Vec3::splat(f32::NEG_INFINITY)),
+                    |(lo, hi), i| {
+                        let p = nodes.position(i);
+                        (lo.min(p), hi.max(p))
+                    },
+                )
             })
             .collect();
         Ok(Self {
-            attrs: cloud.attributes(),
-            cloud,
+            attrs: manifest.attributes,
+            nodes,
             params,
             index,
             lod,
@@ -466,16 +469,25 @@ impl Spt {
         &self.lod
     }
 
-    /// Node centres, in list order.
-    pub fn positions(&self) -> &[[f32; 3]] {
-        self.cloud.positions()
+    /// Node `i`'s centre (list order) as decoded from `nodes.bin`: the one the GPU draws.
+    pub fn position(&self, i: usize) -> Vec3 {
+        self.nodes.position(i)
     }
 
-    /// The normal the GPU sees for node `i` (octahedral round trip; `Vec3::Z` without normals).
+    /// Node `i`'s radius as decoded from `nodes.bin`.
+    pub fn radius(&self, i: usize) -> f32 {
+        self.nodes.radius(i)
+    }
+
+    /// The node records (`nodes.bin`, decoded on demand).
+    pub fn nodes(&self) -> &NodeFile {
+        &self.nodes
+    }
+
+    /// The normal the GPU sees for node `i` (the stored octahedral code decoded; `Vec3::Z`
+    /// without normals).
     pub fn gpu_normal(&self, i: usize) -> Vec3 {
-        self.cloud.normals().map_or(Vec3::Z, |n| {
-            crate::octnormal::decode(crate::octnormal::encode(Vec3::from(n[i])))
-        })
+        self.nodes.normal(i)
     }
 
     /// The interval test at tolerance `eps` px for `view` (mode and overlap from the params).
@@ -496,7 +508,7 @@ impl Spt {
 
     fn passes(&self, i: usize, eye: Vec3, test: &IntervalTest) -> bool {
         select::interval_pass(
-            Vec3::from(self.cloud.positions()[i]),
+            self.nodes.position(i),
             self.gpu_normal(i),
             self.lod[i],
             eye,
@@ -709,14 +721,14 @@ impl LodMethod for Spt {
             .and_then(|i| self.index.chunks.get(i))
             .ok_or(MethodError::NoChunk(id))?;
         let range = c.start as usize..(c.start as usize + c.count as usize);
-        let mut batch =
-            SplatBatch::from_cloud_range(&self.cloud, range.clone(), self.cloud.radii());
+        let mut batch = self.nodes.batch(range.clone());
         batch.lod = Some(self.lod[range].to_vec());
         Ok(std::sync::Arc::new(batch))
     }
     fn stats(&self) -> MethodStats {
         MethodStats {
-            resident_bytes: (self.lod.len() * 16 + self.e_par.len() * 8) as u64,
+            resident_bytes: (self.lod.len() * 16 + self.e_par.len() * 8) as u64
+                + self.nodes.bytes(),
             nodes: self.index.nodes,
             levels: self.index.levels,
         }

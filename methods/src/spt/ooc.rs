@@ -33,7 +33,8 @@ use scenes::{PointCloud, Progress};
 
 use super::build::{self, BITS, Builder, MortonGrid, NO_PARENT, Node};
 use super::list::{ListNode, ListWriter};
-use super::{Listed, SptParams, cluster_of, list_key, lod_entry, non_finite};
+use super::quant::{Extent, LodScale};
+use super::{Listed, SptMode, SptParams, cluster_of, list_key, lod_entry, non_finite};
 use crate::MethodError;
 use crate::spill::samples::{self, EMPTY_BOX, SampleLayout, f32_at, grow, pos_of};
 use crate::spill::{Budget, Spill, SpillDir};
@@ -335,6 +336,9 @@ struct Walk<'a> {
     kept: Vec<(u64, Node)>,
     runs: Vec<Spill>,
     inner: u64,
+    /// The extent of the nodes in the runs (the kept ones are added at the end: each node
+    /// once, as the in-memory build adds them).
+    extent: Extent,
     progress: &'a dyn Progress,
 }
 
@@ -406,6 +410,9 @@ impl Walk<'_> {
         let base = self.next_id;
         let (p, has_n) = (self.p, self.has_normals);
         let root = nodes.len() - 1;
+        for nd in &nodes[..root] {
+            self.extent.add(nd);
+        }
         // Each non-root node's `lod` entry (its parent is in the unit), then the list keys.
         let lods: Vec<[f32; 4]> = nodes[..root]
             .par_iter()
@@ -504,6 +511,7 @@ pub(crate) fn list_in_units(
         kept: Vec::new(),
         runs: Vec::new(),
         inner: 0,
+        extent: Extent::default(),
         progress,
     };
     let (_, levels) = walk.cell(Cell::ROOT, n as u64)?;
@@ -518,8 +526,15 @@ pub(crate) fn list_in_units(
     let tree_seconds = t0.elapsed().as_secs_f64();
     let total = walk.next_id;
     let Walk {
-        kept, runs, inner, ..
+        kept,
+        runs,
+        inner,
+        mut extent,
+        ..
     } = walk;
+    for (_, nd) in &kept {
+        extent.add(nd);
+    }
     drop(radii);
     // The kept nodes' own run, in memory.
     let by_id: HashMap<u64, usize> = kept.iter().enumerate().map(|(i, k)| (k.0, i)).collect();
@@ -538,9 +553,15 @@ pub(crate) fn list_in_units(
     }
     top.sort_unstable_by_key(|t| t.0);
     // Step 4: merge.
-    let mut attrs = cloud.attributes();
-    attrs.radii = true;
-    let mut w = ListWriter::create(budget.dir, attrs, cloud.origin(), total, p.normal_clusters)?;
+    let mut w = ListWriter::create(
+        budget.dir,
+        cloud.attributes(),
+        &extent,
+        LodScale::of(cloud.bounds()),
+        total,
+        p.normal_clusters,
+        p.mode == SptMode::Split,
+    )?;
     progress.start("spt: writing", total);
     let mut readers = runs
         .iter()
@@ -585,7 +606,7 @@ pub(crate) fn list_in_units(
             progress.inc(BLOCK as u64);
         }
     }
-    let (index, _) = w.finish(levels)?;
+    let index = w.finish(levels)?;
     progress.finish();
     Ok(Listed {
         index,

@@ -8,11 +8,15 @@
 //! |------:|---------|
 //! | 0 | `e` — the node's geometric error `e_g` (object units; 0 for leaves) |
 //! | 1 | `e_par` — the parent's `e_g`; [`ROOT_PARENT_ERROR`] (= `f32::MAX`) for the root |
-//! | 2 | `δ` — distance from the node's centre to its parent's centre (rounded up; 0 for the root) |
+//! | 2 | `δ` — distance from the node's centre to its parent's centre, both as stored (rounded up; 0 for the root) |
 //! | 3 | `q = (256·q_node + q_par)·256 + q_γ` (an integer < 2²⁴, exact in f32): `q_node, q_par ∈ 0..=255` quantise `φ = atan2(e_t, e_p) ∈ [0, π/2]` of the node and of its parent as `φ = q·(π/2)/255`; `q_γ ∈ 0..=255` bounds the angle `γ` between the node's and the parent's normals: `γ ≤ q_γ·(π/2)/254` (rounded up; 255 = no bound, also the root's) |
 //!
 //! Split errors follow from `e_g` and `φ`: `e_p = e_g·cos φ`, `e_t = e_g·sin φ`, so
 //! `e_p·sin α + e_t·cos α = e_g·sin(α + φ)`.
+//!
+//! In the files ([`super::quant`]) indices 0 and 1 are exact, 2 is a 16-bit code rounded up,
+//! and 3 is stored only in split mode: the unified test reads no part of it, and a unified
+//! list decodes it as [`super::files::Q_ABSENT`].
 //!
 //! # The test ([`interval_pass`])
 //!
@@ -36,8 +40,8 @@
 //! every leaf's chain has a passing node (induction from the leaf, whose `e = 0`). In split
 //! mode the same argument holds because `sin(α + φ)` is 1-Lipschitz in α and the angle α seen
 //! at the parent differs from the node's by at most `γ + τ`, so the widened `g_par` bounds the
-//! parent's own factor (up to the octahedral normal error, covered by rounding γ up after
-//! adding 1e-3 rad).
+//! parent's own factor (`γ` is the larger of the angles between the exact and between the
+//! stored normals, plus 1e-3 rad, rounded up; the test reads the stored ones).
 //!
 //! # Prefix search
 //!

@@ -4,14 +4,23 @@
 
 use glam::{Vec2, Vec3};
 
+/// The octahedral projection of a (not necessarily normalised, non-zero) vector: a point of
+/// the square `[-1, 1]²` (the lower hemisphere folded over the diagonals).
+#[inline]
+pub fn project(n: Vec3) -> Vec2 {
+    let n = n / (n.x.abs() + n.y.abs() + n.z.abs());
+    let p = Vec2::new(n.x, n.y);
+    if n.z < 0.0 {
+        (Vec2::ONE - Vec2::new(p.y.abs(), p.x.abs())) * Vec2::new(sign(p.x), sign(p.y))
+    } else {
+        p
+    }
+}
+
 /// Encodes a (not necessarily normalised, non-zero) vector as a packed `u32` = two snorm16.
 #[inline]
 pub fn encode(n: Vec3) -> u32 {
-    let n = n / (n.x.abs() + n.y.abs() + n.z.abs());
-    let mut p = Vec2::new(n.x, n.y);
-    if n.z < 0.0 {
-        p = (Vec2::ONE - Vec2::new(p.y.abs(), p.x.abs())) * Vec2::new(sign(p.x), sign(p.y));
-    }
+    let p = project(n);
     let q = |v: f32| ((v.clamp(-1.0, 1.0) * 32767.0).round() as i16) as u16 as u32;
     q(p.x) | (q(p.y) << 16)
 }

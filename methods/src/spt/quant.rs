@@ -138,12 +138,8 @@ impl LodScale {
 /// plus 2¹¹ (`x | y << 12`).
 pub fn normal_code(n: Vec3) -> u32 {
     // The octahedral projection of `crate::octnormal::encode`, rounded to 12 bits.
-    let n = n / (n.x.abs() + n.y.abs() + n.z.abs());
-    let (mut x, mut y) = (n.x, n.y);
-    if n.z < 0.0 {
-        let sign = |v: f32| if v >= 0.0 { 1.0 } else { -1.0 };
-        (x, y) = ((1.0 - n.y.abs()) * sign(n.x), (1.0 - n.x.abs()) * sign(n.y));
-    }
+    let p = crate::octnormal::project(n);
+    let (x, y) = (p.x, p.y);
     let q = |v: f32| {
         let v = (v.clamp(-1.0, 1.0) * NORMAL_MAX as f32).round() as i32;
         (v.clamp(-NORMAL_MAX, NORMAL_MAX) + NORMAL_MAX + 1) as u32

@@ -3,34 +3,19 @@
 //! 0, budgets, the GPU-memory limit, determinism and normal clustering.
 #![allow(clippy::unwrap_used)]
 
-use std::path::Path;
+mod common;
 
+use common::spt_build_open as build_open;
 use glam::Vec3;
 use methods::spt::errors::{self, ChildDisk};
 use methods::spt::{self, Spt, build::PointTree, select};
-use methods::{DrawItem, Feedback, IntervalTest, LodMethod, Manifest, Params, Target};
+use methods::{DrawItem, Feedback, IntervalTest, LodMethod, Manifest, Target};
 use scenes::generators::Generator;
 use scenes::paths::PathSpec;
 use scenes::{PointCloud, View};
 
 fn statue(n: usize) -> PointCloud {
     Generator::Statue.generate(n, 7).unwrap()
-}
-
-fn build_open(
-    cloud: &PointCloud,
-    params: &[&str],
-    dir: &Path,
-) -> Result<Spt, methods::MethodError> {
-    std::fs::create_dir_all(dir).unwrap();
-    spt::build(
-        cloud,
-        &Params::parse(params).unwrap(),
-        "test",
-        dir,
-        &scenes::NoProgress,
-    )?;
-    Spt::open(dir, Manifest::read(dir).unwrap())
 }
 
 fn views(cloud: &PointCloud) -> Vec<View> {

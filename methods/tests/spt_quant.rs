@@ -11,22 +11,13 @@ use std::path::Path;
 
 use glam::Vec3;
 use methods::spt::{self, Spt, build::NO_PARENT, build::PointTree, quant, select};
-use methods::{IntervalTest, Manifest, Params};
+use methods::{IntervalTest, Manifest};
 use scenes::PointCloud;
 use scenes::generators::Generator;
 use scenes::paths::PathSpec;
 
 fn build_open(cloud: &PointCloud, params: &[&str], dir: &Path) -> Spt {
-    std::fs::create_dir_all(dir).unwrap();
-    spt::build(
-        cloud,
-        &Params::parse(params).unwrap(),
-        "test",
-        dir,
-        &scenes::NoProgress,
-    )
-    .unwrap();
-    Spt::open(dir, Manifest::read(dir).unwrap()).unwrap()
+    common::spt_build_open(cloud, params, dir).unwrap()
 }
 
 /// The exact tree of a default build (one cluster), its `lod` entries, and each tree node's

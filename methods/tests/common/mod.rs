@@ -132,3 +132,20 @@ pub fn entries(dir: &std::path::Path) -> Vec<String> {
     e.sort();
     e
 }
+
+/// Builds an SPT of `cloud` with `params` into `dir` and opens it.
+pub fn spt_build_open(
+    cloud: &PointCloud,
+    params: &[&str],
+    dir: &std::path::Path,
+) -> Result<methods::spt::Spt, methods::MethodError> {
+    std::fs::create_dir_all(dir).unwrap();
+    methods::spt::build(
+        cloud,
+        &methods::Params::parse(params).unwrap(),
+        "test",
+        dir,
+        &scenes::NoProgress,
+    )?;
+    methods::spt::Spt::open(dir, methods::Manifest::read(dir).unwrap())
+}

@@ -21,6 +21,12 @@
 //! parallel, results are scattered back to input order. Sharing the traversal made it
 //! faster than one descent per query, with the insertion-sort heap (200 k points, k = 6, 2 cores:
 //! statue ×1.7, terrain ×1.2; `cargo bench -p methods --bench kernels -- kernels/knn`).
+//! The tree keeps its coordinates per axis, so a query's distances to a whole leaf are one
+//! vectorised loop; the leaf's candidates below the query's k-th distance are then picked by
+//! a bit mask and merged into its sorted k by branch-free `min`/`max` steps. The branches
+//! of an insertion loop had been the search's largest cost (`perf annotate`); this change
+//! made the k-NN phase of `splatbench build --method full` on terrain 2 M (LAS) ≈ 1.4× faster
+//! (0.81–0.85 s → 0.59–0.62 s, 2 cores).
 //!
 //! **Degenerate input** (all documented fallbacks, never a panic):
 //! - `k = 0` is treated as `k = 1`; `k ≥ n` is clamped to `n − 1` (the farthest other point);
@@ -47,6 +53,8 @@ pub const DEFAULT_K: usize = 8;
 
 /// Most points in a kd-tree leaf; leaves hold between `LEAF_MAX / 2` and `LEAF_MAX`.
 const LEAF_MAX: usize = 16;
+// A leaf's candidates are a `u32` bit mask (`Batch::scan`).
+const _: () = assert!(LEAF_MAX <= 32);
 
 /// Splat radius for a sample of k-NN spacing `spacing`: the identity (see the module docs).
 #[inline]
@@ -132,16 +140,19 @@ impl KnnIndex {
     /// For every indexed point, in input order, the `k` smallest squared distances to the
     /// other indexed points, ascending, `+∞` where there are fewer: `k` values per point.
     pub fn self_lists(&self, k: usize) -> Vec<f32> {
-        let Some(t) = &self.tree else {
+        let Some(t) = &self.tree.as_ref().filter(|_| k > 0) else {
             return Vec::new();
         };
-        let by_tree = t.search_leaves(t, true, k, k, |h, o| o[..h.d.len()].copy_from_slice(&h.d));
+        let by_tree = t.search_leaves(t, true, k, k, |h, o| o.copy_from_slice(&h.d));
         t.to_input_order(&by_tree, k)
     }
 
     /// For every query point, in order, the `k` smallest squared distances to the indexed
     /// points (none excluded), ascending, `+∞` where there are fewer.
     pub fn query_lists(&self, queries: &[[f32; 3]], k: usize) -> Vec<f32> {
+        if k == 0 {
+            return Vec::new();
+        }
         let Some(t) = &self.tree else {
             return vec![f32::INFINITY; queries.len() * k];
         };
@@ -151,9 +162,7 @@ impl KnnIndex {
         // Batches of nearby queries: the leaves of a kd-tree over the queries themselves
         // (a batch's search is pruned by the box around its queries).
         let qt = KdTree::build(queries);
-        let by_tree = t.search_leaves(&qt, false, k, k, |h, o| {
-            o[..h.d.len()].copy_from_slice(&h.d)
-        });
+        let by_tree = t.search_leaves(&qt, false, k, k, |h, o| o.copy_from_slice(&h.d));
         qt.to_input_order(&by_tree, k)
     }
 }
@@ -167,8 +176,12 @@ struct Item {
 
 /// Implicit balanced kd-tree (see the module docs).
 struct KdTree {
-    /// Points in tree order: each leaf is a contiguous range.
-    items: Vec<Item>,
+    /// Coordinates of the points in tree order, one array per axis (each leaf is a
+    /// contiguous range; a leaf's distances are computed a whole array row at a time, which
+    /// the compiler vectorises).
+    xyz: [Vec<f32>; 3],
+    /// Input index of each point, in tree order.
+    index: Vec<usize>,
     /// Internal nodes in heap order: (split value, axis).
     nodes: Vec<(f32, u8)>,
 }
@@ -198,7 +211,19 @@ impl KdTree {
                 .zip(slices.into_par_iter())
                 .for_each(|(node, s)| *node = split_node(s));
         }
-        KdTree { items, nodes }
+        let xyz = [0, 1, 2].map(|a| items.iter().map(|it| it.p[a]).collect());
+        let index = items.iter().map(|it| it.index).collect();
+        KdTree { xyz, index, nodes }
+    }
+
+    fn len(&self) -> usize {
+        self.index.len()
+    }
+
+    /// The point at tree position `i`.
+    #[inline]
+    fn point(&self, i: usize) -> [f32; 3] {
+        [self.xyz[0][i], self.xyz[1][i], self.xyz[2][i]]
     }
 
     /// k-NN distance of every point, in input order.
@@ -209,9 +234,9 @@ impl KdTree {
 
     /// `width` values per point in tree order, rearranged to input order.
     fn to_input_order(&self, by_tree: &[f32], width: usize) -> Vec<f32> {
-        let mut out = vec![0.0f32; self.items.len() * width];
-        for (item, v) in self.items.iter().zip(by_tree.chunks_exact(width)) {
-            out[item.index * width..item.index * width + width].copy_from_slice(v);
+        let mut out = vec![0.0f32; self.len() * width];
+        for (&i, v) in self.index.iter().zip(by_tree.chunks_exact(width)) {
+            out[i * width..i * width + width].copy_from_slice(v);
         }
         out
     }
@@ -228,8 +253,8 @@ impl KdTree {
         width: usize,
         emit: impl Fn(&Knn, &mut [f32]) + Sync,
     ) -> Vec<f32> {
-        let n = self.items.len();
-        let q = queries.items.len();
+        let n = self.len();
+        let q = queries.len();
         let leaves = queries.nodes.len() + 1;
         // Each leaf's queries run together (one traversal for its ≤ LEAF_MAX points), the
         // leaves in parallel; results land at the queries' tree positions.
@@ -244,14 +269,16 @@ impl KdTree {
             rest = tail;
         }
         ranges.par_iter().zip(outs.into_par_iter()).for_each_init(
-            Vec::<Knn>::new,
-            |heaps, (r, out)| {
+            || (Vec::<Knn>::new(), Vec::<[f32; 3]>::new()),
+            |(heaps, points), (r, out)| {
                 heaps.resize_with(r.len(), || Knn::new(k));
                 heaps.iter_mut().for_each(Knn::clear);
+                points.clear();
+                points.extend(r.clone().map(|i| queries.point(i)));
                 // A query of another set is no indexed point: its `first` lies past every
                 // tree position.
                 let first = if own { r.start } else { usize::MAX / 2 };
-                let mut batch = Batch::new(&queries.items[r.clone()], first, heaps);
+                let mut batch = Batch::new(points, first, heaps);
                 let mut cell = [[f32::NEG_INFINITY, f32::INFINITY]; 3];
                 self.search_batch(0, 0, n, &mut cell, &mut batch);
                 for (o, h) in out.chunks_exact_mut(width).zip(batch.heaps.iter()) {
@@ -280,7 +307,8 @@ impl KdTree {
             return;
         }
         if node >= self.nodes.len() {
-            batch.scan(&self.items[lo..hi], lo, cell);
+            let [x, y, z] = &self.xyz;
+            batch.scan([&x[lo..hi], &y[lo..hi], &z[lo..hi]], lo, cell);
             return;
         }
         let (split, axis) = self.nodes[node];
@@ -306,7 +334,7 @@ impl KdTree {
 /// The queries of one leaf during [`KdTree::search_batch`].
 struct Batch<'a> {
     /// The queries, at tree positions `first..first + queries.len()`.
-    queries: &'a [Item],
+    queries: &'a [[f32; 3]],
     first: usize,
     /// Their k nearest so far.
     heaps: &'a mut [Knn],
@@ -319,13 +347,13 @@ struct Batch<'a> {
 }
 
 impl<'a> Batch<'a> {
-    fn new(queries: &'a [Item], first: usize, heaps: &'a mut [Knn]) -> Self {
+    fn new(queries: &'a [[f32; 3]], first: usize, heaps: &'a mut [Knn]) -> Self {
         let mut lo = [f32::INFINITY; 3];
         let mut hi = [f32::NEG_INFINITY; 3];
         for q in queries {
             for a in 0..3 {
-                lo[a] = lo[a].min(q.p[a]);
-                hi[a] = hi[a].max(q.p[a]);
+                lo[a] = lo[a].min(q[a]);
+                hi[a] = hi[a].max(q[a]);
             }
         }
         let centre = [0, 1, 2].map(|a| 0.5 * lo[a] + 0.5 * hi[a]);
@@ -351,24 +379,40 @@ impl<'a> Batch<'a> {
         d
     }
 
-    /// Offers the points `items` (tree positions from `lo`, inside `cell`) to every query
-    /// whose own distance to the cell is below its k-th distance.
-    fn scan(&mut self, items: &[Item], lo: usize, cell: &[[f32; 2]; 3]) {
+    /// Offers the points of a leaf (coordinates per axis, tree positions from `lo`, inside
+    /// `cell`) to every query whose own distance to the cell is below its k-th distance.
+    /// A query's distances to the whole leaf are computed first (the same arithmetic as
+    /// [`dist2`], vectorised), then the few below its k-th distance are inserted.
+    fn scan(&mut self, [xs, ys, zs]: [&[f32]; 3], lo: usize, cell: &[[f32; 2]; 3]) {
+        // Leaves hold at most LEAF_MAX points by construction (`KdTree::build`).
+        let len = xs.len();
+        let mut d = [0.0f32; LEAF_MAX];
         for (j, (q, heap)) in self.queries.iter().zip(self.heaps.iter_mut()).enumerate() {
             let mut to_cell = 0.0f32;
-            for (c, x) in cell.iter().zip(q.p) {
+            for (c, &x) in cell.iter().zip(q) {
                 let gap = (c[0] - x).max(x - c[1]).max(0.0);
                 to_cell += gap * gap;
             }
             if to_cell >= heap.worst() {
                 continue;
             }
+            for (((d, &x), &y), &z) in d.iter_mut().zip(xs).zip(ys).zip(zs) {
+                let (dx, dy, dz) = (x - q[0], y - q[1], z - q[2]);
+                *d = dx * dx + dy * dy + dz * dz;
+            }
+            // The places below the k-th distance as a bit mask (branch-free), then only
+            // those are offered, in order.
             let qi = self.first + j;
             let mut worst = heap.worst();
-            for (i, it) in items.iter().enumerate() {
-                let d = dist2(it.p, q.p);
-                if d < worst && lo + i != qi {
-                    heap.insert(d);
+            let mut below = 0u32;
+            for (i, &d) in d[..len].iter().enumerate() {
+                below |= u32::from(d < worst) << i;
+            }
+            while below != 0 {
+                let i = below.trailing_zeros() as usize;
+                below &= below - 1;
+                if d[i] < worst && lo + i != qi {
+                    heap.insert(d[i]);
                     worst = heap.worst();
                 }
             }
@@ -424,52 +468,44 @@ fn split_node(s: &mut [Item]) -> (f32, u8) {
     (m.p[axis], axis as u8)
 }
 
-#[inline]
+/// The squared distance as the search computes it (tests compare against it).
+#[cfg(test)]
 fn dist2(a: [f32; 3], b: [f32; 3]) -> f32 {
     let d = [a[0] - b[0], a[1] - b[1], a[2] - b[2]];
     d[0] * d[0] + d[1] * d[1] + d[2] * d[2]
 }
 
-/// The k smallest squared distances seen so far, sorted ascending.
+/// The k smallest squared distances seen so far, sorted ascending, `+∞` in the places not
+/// yet filled (so the last place is the k-th distance once `k` are held, ∞ before).
 struct Knn {
     d: Vec<f32>,
-    k: usize,
-    /// `d[k − 1]` once `k` are held, else ∞.
-    worst: f32,
 }
 
 impl Knn {
     fn new(k: usize) -> Knn {
+        debug_assert!(k > 0, "k = 0 is answered before any search");
         Knn {
-            d: Vec::with_capacity(k + 1),
-            k,
-            worst: f32::INFINITY,
+            d: vec![f32::INFINITY; k],
         }
     }
     fn clear(&mut self) {
-        self.d.clear();
-        self.worst = f32::INFINITY;
+        self.d.fill(f32::INFINITY);
     }
     #[inline]
     fn worst(&self) -> f32 {
-        self.worst
+        self.d[self.d.len() - 1]
     }
-    /// Adds `x` (callers offer only `x < worst`), dropping the largest when `k` are held:
-    /// one insertion-sort step from the end (k is small).
+    /// Adds `x` (callers offer only `x < worst`, so never NaN), dropping the largest: `x`
+    /// bubbles up the sorted places by `min`/`max`, without branches (k is small; an
+    /// insertion loop's mispredicted exits cost more).
     #[inline]
-    fn insert(&mut self, x: f32) {
-        if self.d.len() == self.k {
-            self.d.pop();
-        }
-        let mut i = self.d.len();
-        self.d.push(x);
-        while i > 0 && self.d[i - 1] > x {
-            self.d[i] = self.d[i - 1];
-            i -= 1;
-        }
-        self.d[i] = x;
-        if self.d.len() == self.k {
-            self.worst = self.d[self.k - 1];
+    fn insert(&mut self, mut x: f32) {
+        for d in self.d.iter_mut() {
+            // `a < b ? a : b` (no NaN here), which compiles to `minss`/`maxss`.
+            let keep = *d < x;
+            let (lo, hi) = if keep { (*d, x) } else { (x, *d) };
+            *d = lo;
+            x = hi;
         }
     }
 }
@@ -600,6 +636,22 @@ mod tests {
             KnnIndex::new(&[]).query_lists(&p[..2], 3),
             vec![f32::INFINITY; 6]
         );
+        // k = 0: no values per point.
+        assert!(small.self_lists(0).is_empty());
+        assert!(small.query_lists(&p[..2], 0).is_empty());
+        // Every list equals the brute-force sorted distances (the whole list, not only the
+        // k-th value), here with a k larger than a leaf.
+        let k = 20;
+        let q = &p[..400];
+        let lists = KnnIndex::new(q).self_lists(k);
+        for (i, l) in lists.chunks_exact(k).enumerate() {
+            let mut d: Vec<f32> = (0..q.len())
+                .filter(|&j| j != i)
+                .map(|j| dist2(q[i], q[j]))
+                .collect();
+            d.sort_by(f32::total_cmp);
+            assert_eq!(l, &d[..k], "point {i}");
+        }
     }
 
     #[test]

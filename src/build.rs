@@ -29,7 +29,9 @@ pub fn main(a: &BuildArgs) -> anyhow::Result<()> {
 }
 
 /// Loads the scene and builds the method into `out` (`sweep` builds through it too);
-/// `build.json`'s `extra` records the process's peak RSS (`peak_rss_bytes`).
+/// `build.json`'s `extra` records the process's peak RSS (`peak_rss_bytes`) and the wall
+/// seconds of every progress phase in order, the scene's load included (`phases`: a list of
+/// `{"phase", "seconds"}`).
 pub fn build(
     m: &MethodArgs,
     s: &SceneArgs,
@@ -51,6 +53,12 @@ pub fn build(
         "peak_rss_bytes".into(),
         serde_json::Value::from(harness::rss::peak_bytes()),
     );
+    let phases: Vec<serde_json::Value> = bar
+        .phases()
+        .into_iter()
+        .map(|(phase, seconds)| serde_json::json!({ "phase": phase, "seconds": seconds }))
+        .collect();
+    stats.extra.insert("phases".into(), phases.into());
     stats.write(out)?;
     Ok(stats)
 }

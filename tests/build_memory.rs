@@ -53,6 +53,23 @@ fn same_files_within_16_mb(method: &str, files: &[&str]) {
         let read = |d: &str| std::fs::read(tmp.path().join(d).join(f)).unwrap();
         assert!(read("small") == read("whole"), "{method}: {f} differs");
     }
+    // The phases are on file, each of the build's own within the build's seconds (phases
+    // never overlap: one starting ends the one before).
+    for b in [&small, &whole] {
+        let phases = b["extra"]["phases"].as_array().unwrap();
+        let own: f64 = phases
+            .iter()
+            .filter(|p| {
+                p["phase"]
+                    .as_str()
+                    .unwrap()
+                    .starts_with(&format!("{method}:"))
+            })
+            .map(|p| p["seconds"].as_f64().unwrap())
+            .sum();
+        assert!(own > 0.0, "{method}: no phase of its own timed: {b}");
+        assert!(own <= b["seconds"].as_f64().unwrap(), "{method}: {b}");
+    }
     let peak = small["extra"]["peak_rss_bytes"].as_u64().unwrap();
     let bound = (16 << 20) + small["bytes_in"].as_u64().unwrap() + FIXED_BYTES;
     assert!(peak <= bound, "{method}: peak RSS {peak} > {bound}");

@@ -100,6 +100,16 @@ fn a_short_or_altered_spill_file_is_an_error_naming_it_and_leaves_nothing() {
     common::spill_damage_is_named(tmp.path(), &|dir, hook| {
         build_hooked(&cloud, dir, hook).map(|_| ())
     });
+    // The units' saved partitions (the hook's second call), damaged the same ways.
+    let parts = tmp.path().join("partitions");
+    common::spill_damage_is_named(&parts, &|dir, hook| {
+        build_hooked(&cloud, dir, &|spills| {
+            if spills[0].path.to_string_lossy().contains("partition-") {
+                hook(spills);
+            }
+        })
+        .map(|_| ())
+    });
     // Undamaged, the same call succeeds and leaves only the tree.
     let out = tmp.path().join("fine");
     let t = build_hooked(&cloud, &out, &|_| {}).unwrap();

@@ -21,6 +21,7 @@ use glam::Vec3;
 use scenes::PointCloud;
 
 use crate::MethodError;
+use crate::spill::{Spill, SpillDir};
 
 /// Ranges at least this long are split in parallel.
 pub const PAR_THRESHOLD: usize = 1 << 15;
@@ -322,6 +323,76 @@ impl Partitioned {
     /// The root's split (0 for a single sample).
     pub(super) fn root_split(&self) -> u32 {
         self.tree.root
+    }
+
+    /// Bytes per sample of [`Partitioned::save`]'s file: the permutation, the two child
+    /// splits and the combine flag at each position.
+    pub(super) const RECORD: usize = 13;
+
+    /// Writes the permutation and the binary tree to a spill file (the root's split and
+    /// cost are the caller's to keep), so that a build in units partitions each unit once.
+    pub(super) fn save(&self, dir: &SpillDir) -> Result<Spill, MethodError> {
+        let mut w = dir.writer("partition", Self::RECORD)?;
+        let t = &self.tree;
+        let mut rec = [0u8; Self::RECORD];
+        for i in 0..self.perm.len() {
+            rec[0..4].copy_from_slice(&self.perm[i].to_le_bytes());
+            rec[4..8].copy_from_slice(&t.left[i].to_le_bytes());
+            rec[8..12].copy_from_slice(&t.right[i].to_le_bytes());
+            rec[12] = u8::from(t.grand[i]);
+            w.push(&rec)?;
+        }
+        w.finish()
+    }
+
+    /// Reads back what [`Partitioned::save`] wrote for a range of `n` samples whose root
+    /// splits at `root` with `cost`. The file's blocks are checksummed; values out of range
+    /// (which only a bug could write) are an error naming the file, never an index panic.
+    pub(super) fn load(
+        spill: &Spill,
+        n: usize,
+        root: u32,
+        cost: Cost,
+    ) -> Result<Self, MethodError> {
+        let mut perm = Vec::with_capacity(n);
+        let (mut left, mut right, mut grand) = (
+            Vec::with_capacity(n),
+            Vec::with_capacity(n),
+            Vec::with_capacity(n),
+        );
+        let mut seen = vec![false; n];
+        let bad =
+            |what: String| MethodError::corrupt(&spill.path, format!("temporary file: {what}"));
+        spill.read(|block| {
+            for r in block.chunks_exact(Self::RECORD) {
+                let at = |o: usize| u32::from_le_bytes([r[o], r[o + 1], r[o + 2], r[o + 3]]);
+                let (p, l, rt) = (at(0), at(4), at(8));
+                if p as usize >= n || std::mem::replace(&mut seen[p as usize], true) {
+                    return Err(bad(format!("sample {p} is not a permutation's")));
+                }
+                if l as usize >= n || rt as usize >= n {
+                    return Err(bad(format!("split {} past {n} samples", l.max(rt))));
+                }
+                perm.push(p);
+                left.push(l);
+                right.push(rt);
+                grand.push(r[12] != 0);
+            }
+            Ok(())
+        })?;
+        if perm.len() != n || (root as usize >= n.max(1)) {
+            return Err(bad(format!("{} positions for {n} samples", perm.len())));
+        }
+        Ok(Self {
+            perm,
+            tree: Binary {
+                left,
+                right,
+                grand,
+                root,
+            },
+            cost,
+        })
     }
 
     /// The forest of the given roots.

@@ -24,10 +24,13 @@
 //!    nodes and the units' nodes in left-to-right (sample-position) order, which is the
 //!    breadth-first order of the in-memory tree.
 //!
-//! A unit is partitioned three times (steps 2–4) rather than keeping its tree between steps:
-//! partitioning is ≈ 7 % of a build, the kept arrays would be ≈ 70 bytes per sample of disk
-//! traffic each way. Units are processed one at a time, each in parallel inside, so the bound
-//! holds for any thread count and the output does not depend on it.
+//! A unit is partitioned once (step 2): its permutation and binary tree go to a spill file
+//! (13 bytes per sample) that steps 3 and 4 read back. Partitioning it again in each step
+//! had been a quarter of the build's CPU time (`perf`, terrain 2 M in 3 units). Its true
+//! properties are computed twice (steps 3 and 4) rather than kept: they would be ≈ 70 bytes
+//! per sample of disk traffic each way for about as much time as they take to compute.
+//! Units are processed one at a time, each in parallel inside, so the bound holds for any
+//! thread count and the output does not depend on it.
 //!
 //! Spill files sit in `<dir>/qsplat-spill.tmp/` and are removed on success and on error; a
 //! spill file that changed or was cut short is an error naming it ([`crate::spill`]).
@@ -137,18 +140,22 @@ pub fn build_file(
         Some(r)
     };
     progress.start("qsplat: unit splits", n as u64);
-    let mut costs = Vec::with_capacity(top.units.len());
-    for u in &top.units {
+    for u in &mut top.units {
         let (_, pos) = u.positions(layout)?;
         let p = Partitioned::new(&pos, opt);
-        costs.push((p.cost, p.root_split() as u64));
+        u.cost = p.cost;
+        u.split = p.root_split() as u64;
+        u.partition = Some(p.save(&spill)?);
         progress.inc(u.n);
     }
-    for (u, (cost, split)) in top.units.iter_mut().zip(costs) {
-        u.cost = cost;
-        u.split = split;
-    }
     progress.finish();
+    if let Some(h) = hook {
+        h(&top
+            .units
+            .iter()
+            .flat_map(|u| &u.partition)
+            .collect::<Vec<_>>());
+    }
     top.decide(opt.combine);
     let combined = top.combined();
     let mut capped = 0;
@@ -163,8 +170,13 @@ pub fn build_file(
             }
             None => None,
         };
-        let s = top.units[u].load(layout, r)?;
-        let p = Partitioned::new(&s.pos, opt);
+        let unit = &top.units[u];
+        let s = unit.load(layout, r)?;
+        let saved = unit
+            .partition
+            .as_ref()
+            .ok_or_else(|| MethodError::Limit(format!("qsplat: unit {u} was never partitioned")))?;
+        let p = Partitioned::load(saved, unit.n as usize, unit.split as u32, unit.cost)?;
         let forest = p.forest(combined.unit_roots[u]);
         let truth = forest.truths(&p.perm, s.view());
         Ok((forest, truth))
@@ -243,6 +255,8 @@ struct Unit {
     lo: u64,
     n: u64,
     spill: Spill,
+    /// Its permutation and binary tree (step 2; read back by steps 3 and 4).
+    partition: Option<Spill>,
     /// Its root's split costs (step 2).
     cost: (u64, u64),
     /// Its root's split, relative to `lo` (step 2).
@@ -326,6 +340,7 @@ fn partition_top(
                 lo: r.lo,
                 n: r.n,
                 spill: src,
+                partition: None,
                 cost: (0, 0),
                 split: 0,
                 bbox: r.bbox,

@@ -30,7 +30,8 @@ pub struct Budget<'a> {
     pub mem_bytes: u64,
     /// Where the spill directory is made (the build directory).
     pub dir: &'a Path,
-    /// Called with the units' sample files once they are written (tests damage them to
+    /// Called with the units' sample files once they are written, and by a build that
+    /// writes more files per unit (QSplat's partitions) with those too (tests damage them to
     /// check the errors).
     pub hook: Option<SpillHook<'a>>,
 }

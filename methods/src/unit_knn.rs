@@ -9,7 +9,12 @@
 //!    hold a nearer one: those units (found through a small tree over the units' boxes) are
 //!    sent a query, and the point's own list is kept.
 //! 2. **Others.** Each unit answers the queries sent to it with its own `k` smallest
-//!    squared distances to the query point, sent back to the query's unit.
+//!    squared distances to the query point, sent back to the query's unit. Only the unit's
+//!    points within `R` of the queries' bounding box are indexed, `R` the largest query's
+//!    own k-th distance (generous by a relative 1e-5): a point farther from a query than
+//!    that query's own k-th distance `r` cannot change the k-th smallest of the merged list,
+//!    whose own part already holds `k` values ≤ `r`. Indexing the whole unit again had
+//!    been most of this pass.
 //! 3. **Merge.** Each point's k-th smallest over its own list and the answers is its k-NN
 //!    distance: the union holds every one of its true k nearest, and every distance in it is
 //!    a distance to another point, computed with the same `f32` arithmetic as in memory.
@@ -27,6 +32,10 @@ use crate::MethodError;
 use crate::leaf::{LEAF_K, isolation_cap, quantile_stride};
 use crate::spill::samples::{f32_at, f32s, u32_at};
 use crate::spill::{Spill, SpillDir, SpillWriter};
+
+/// Bytes of a query record: home unit, position in it, the point, its own k-th squared
+/// distance.
+const QUERY_BYTES: usize = 24;
 
 /// Bytes per block of the query and answer spill files (one writer per unit is open at a
 /// time during passes 1 and 2, so these are small).
@@ -194,22 +203,29 @@ impl<'a> Writers<'a> {
 }
 
 /// The leaf radii of a cloud of `total` samples (bounds `bounds`) held as `units`, whose
-/// positions `load` reads; spill files go in `dir`. `progress` counts 3 × `total`.
+/// positions `load` reads; spill files go in `dir`. Each pass is a `progress` phase of its
+/// own, named after `method` ("qsplat: leaf radii 1/3, own", …).
 pub fn unit_radii(
     units: &[UnitBox],
     load: LoadPositions<'_>,
     total: usize,
     bounds: Aabb,
     dir: &SpillDir,
+    method: &str,
     progress: &dyn Progress,
 ) -> Result<UnitRadii, MethodError> {
+    let phase = |i: usize, what: &str| {
+        progress.finish();
+        progress.start(&format!("{method}: leaf radii {i}/3, {what}"), total as u64);
+    };
     let k = LEAF_K.clamp(1, total.saturating_sub(1).max(1));
     let boxes = BoxTree::new(units);
     let stride = quantile_stride(total);
     let list_bytes = 4 + 4 * k;
 
     // Pass 1: own lists, queries to other units.
-    let mut queries = Writers::new(dir, "knn-query", 20, units.len());
+    phase(1, "own");
+    let mut queries = Writers::new(dir, "knn-query", QUERY_BYTES, units.len());
     let mut raw: Vec<Spill> = Vec::with_capacity(units.len());
     let mut own: Vec<Spill> = Vec::with_capacity(units.len());
     // (unit, position in unit) of the samples the quantile is estimated from.
@@ -227,7 +243,7 @@ pub fn unit_radii(
         let lists = KnnIndex::new(&pos).self_lists(k);
         let mut r = dir.writer("knn-raw", 4)?;
         let mut o = dir.writer_with_block("knn-own", list_bytes, SMALL_BLOCK)?;
-        let mut rec = Vec::with_capacity(list_bytes.max(20));
+        let mut rec = Vec::with_capacity(list_bytes.max(QUERY_BYTES));
         for (i, (p, l)) in pos.iter().zip(lists.chunks_exact(k)).enumerate() {
             r.push(&l[k - 1].sqrt().to_le_bytes())?;
             if (idx[i] as usize).is_multiple_of(stride) {
@@ -247,6 +263,7 @@ pub fn unit_radii(
             rec.extend_from_slice(&(i as u32).to_le_bytes());
             p.iter()
                 .for_each(|c| rec.extend_from_slice(&c.to_le_bytes()));
+            rec.extend_from_slice(&l[k - 1].to_le_bytes());
             for &v in &near {
                 queries.get(v)?.push(&rec)?;
             }
@@ -258,11 +275,30 @@ pub fn unit_radii(
     let queries = queries.finish()?;
 
     // Pass 2: answers.
+    phase(2, "others");
     let mut answers = Writers::new(dir, "knn-answer", list_bytes, units.len());
     let mut rec = Vec::with_capacity(list_bytes);
     for (v, q) in queries.into_iter().enumerate() {
         if let Some(q) = q {
-            let (_, pos) = load(v)?;
+            // Only unit `v`'s points within the largest query reach of the queries' box
+            // can answer (see the module docs): the index holds those.
+            let (mut lo, mut hi) = (DVec3::INFINITY, DVec3::NEG_INFINITY);
+            let mut reach2 = 0.0f32;
+            q.read(|b| {
+                for r in b.chunks_exact(QUERY_BYTES) {
+                    let p = Vec3::new(f32_at(r, 8), f32_at(r, 12), f32_at(r, 16)).as_dvec3();
+                    (lo, hi) = (lo.min(p), hi.max(p));
+                    reach2 = reach2.max(f32_at(r, 20));
+                }
+                Ok(())
+            })?;
+            let reach = (reach2 as f64).sqrt() * (1.0 + 1e-5);
+            let (lo, hi) = (lo - reach, hi + reach);
+            let (_, mut pos) = load(v)?;
+            pos.retain(|p| {
+                let p = Vec3::from(*p).as_dvec3();
+                p.cmpge(lo).all() && p.cmple(hi).all()
+            });
             let index = KnnIndex::new(&pos);
             drop(pos);
             let mut homes: Vec<(u32, u32)> = Vec::new();
@@ -270,7 +306,7 @@ pub fn unit_radii(
             q.read(|b| {
                 homes.clear();
                 qpos.clear();
-                for r in b.chunks_exact(20) {
+                for r in b.chunks_exact(QUERY_BYTES) {
                     let home = u32_at(r, 0);
                     if home as usize >= units.len() || home as usize == v {
                         return Err(MethodError::corrupt(
@@ -298,6 +334,7 @@ pub fn unit_radii(
     let answers = answers.finish()?;
 
     // Pass 3: merge; the smallest positive distance and the strided sample.
+    phase(3, "merge");
     let mut files = Vec::with_capacity(units.len());
     let mut smallest = f32::INFINITY;
     let mut sample: Vec<f32> = Vec::with_capacity(strided.len());
@@ -375,6 +412,7 @@ pub fn unit_radii(
     } else {
         f32::INFINITY
     };
+    progress.finish();
     Ok(UnitRadii {
         files,
         fallback,

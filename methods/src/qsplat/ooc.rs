@@ -125,7 +125,6 @@ pub fn build_file(
     let radii = if layout.radii {
         None
     } else {
-        progress.start("qsplat: leaf radii (3 passes)", 3 * n as u64);
         let boxes: Vec<UnitBox> = top
             .units
             .iter()
@@ -135,8 +134,7 @@ pub fn build_file(
             })
             .collect();
         let load = |u: usize| top.units[u].positions(layout);
-        let r = unit_radii(&boxes, &load, n, bounds, &spill, progress)?;
-        progress.finish();
+        let r = unit_radii(&boxes, &load, n, bounds, &spill, "qsplat", progress)?;
         Some(r)
     };
     progress.start("qsplat: unit splits", n as u64);

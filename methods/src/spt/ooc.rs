@@ -472,7 +472,6 @@ pub(crate) fn list_in_units(
     let radii = if layout.radii {
         None
     } else {
-        progress.start("spt: leaf radii (3 passes)", 3 * n as u64);
         let boxes: Vec<UnitBox> = units
             .iter()
             .map(|u| UnitBox {
@@ -481,8 +480,7 @@ pub(crate) fn list_in_units(
             })
             .collect();
         let load = |u: usize| samples::positions(&units[u].spill, layout);
-        let r = unit_radii(&boxes, &load, n, cloud.bounds(), &dir, progress)?;
-        progress.finish();
+        let r = unit_radii(&boxes, &load, n, cloud.bounds(), &dir, "spt", progress)?;
         Some(r)
     };
     let capped = std::cell::Cell::new(0u64);

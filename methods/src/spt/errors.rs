@@ -55,36 +55,37 @@ fn enclosing<V>(
 where
     V: Copy,
 {
-    let radius = |c: V| {
-        items
-            .iter()
-            .map(|&(q, r)| len(sub(q, c)) + r)
-            .fold(0.0f32, f32::max)
-    };
-    let mut best = (mean, radius(mean));
-    let rm = radius(mid);
-    if rm < best.1 {
-        best = (mid, rm);
-    }
-    let mut c = mean;
-    for step in 1..=BC_STEPS {
-        // Farthest point of the farthest circle from c.
-        let mut far = None;
-        let mut fd = -1.0f32;
+    // The radius around `c` and the farthest point of the farthest circle from `c`, in
+    // one pass (a Bădoiu–Clarkson step needs the second at the centre whose radius the step
+    // before measured: one pass per step instead of two).
+    let eval = |c: V| {
+        let (mut radius, mut fd, mut far) = (0.0f32, -1.0f32, None);
         for &(q, r) in items {
             let v = sub(q, c);
             let l = len(v);
+            radius = radius.max(l + r);
             if l + r > fd {
                 fd = l + r;
                 far = Some(if l > 0.0 { add_scaled(q, v, r / l) } else { q });
             }
         }
+        (radius, far)
+    };
+    let (r0, mut far) = eval(mean);
+    let mut best = (mean, r0);
+    let rm = eval(mid).0;
+    if rm < best.1 {
+        best = (mid, rm);
+    }
+    let mut c = mean;
+    for step in 1..=BC_STEPS {
         let Some(f) = far else { break };
         c = add_scaled(c, sub(f, c), 1.0 / (step as f32 + 1.0));
-        let rc = radius(c);
+        let (rc, next) = eval(c);
         if rc < best.1 {
             best = (c, rc);
         }
+        far = next;
     }
     best
 }

@@ -228,12 +228,27 @@ impl Ctx<'_> {
         ranges
     }
 
+    /// The highest level `≤ level` at which `keys[lo..hi]` (sorted) fall into more than
+    /// one child cell, 0 if none: every level above it has one occupied child, which is no
+    /// node, so the recursion goes there directly (one step instead of a search per level).
+    fn first_split(&self, lo: usize, hi: usize, level: u32) -> u32 {
+        let bits = 3 * level;
+        let mask = if bits >= 64 { u64::MAX } else { (1u64 << bits) - 1 };
+        let diff = (self.keys[lo].0 ^ self.keys[hi - 1].0) & mask;
+        if diff == 0 {
+            0
+        } else {
+            (63 - diff.leading_zeros()) / 3 + 1
+        }
+    }
+
     /// Nodes of the subtree [`Self::subtree`] builds for the same cell (its structure
     /// follows from the keys alone).
     fn count(&self, lo: usize, hi: usize, level: u32) -> usize {
         if hi - lo == 1 {
             return 1;
         }
+        let level = self.first_split(lo, hi, level);
         if level == 0 {
             return hi - lo + 1;
         }
@@ -253,9 +268,13 @@ impl Ctx<'_> {
     /// its own part of `out`: the nodes, their numbering and every value are those of the
     /// sequential recursion, and nothing is copied.
     fn subtree(&self, out: &mut [Node], base: u32, lo: usize, hi: usize, level: u32) -> (u32, u32) {
-        if hi - lo == 1 {
-            return (self.leaf(out, base, 0, lo), 1);
+        if hi - lo < PAR_SAMPLES {
+            let mut at = 0;
+            let r = self.sequential(out, base, &mut at, lo, hi, level);
+            debug_assert_eq!(at, out.len(), "count and build disagree");
+            return r;
         }
+        let level = self.first_split(lo, hi, level);
         let mut children = Vec::with_capacity(8);
         let mut height = 0;
         if level == 0 {
@@ -301,6 +320,43 @@ impl Ctx<'_> {
         (self.inner(out, base, &children), height + 1)
     }
 
+    /// [`Self::subtree`] on one thread: the nodes go to `out[*at..]` in post-order, `at`
+    /// advancing past them, so no subtree needs counting first (counting before every
+    /// split had walked each subtree once per level above it).
+    fn sequential(
+        &self,
+        out: &mut [Node],
+        base: u32,
+        at: &mut usize,
+        lo: usize,
+        hi: usize,
+        level: u32,
+    ) -> (u32, u32) {
+        if hi - lo == 1 {
+            *at += 1;
+            return (self.leaf(out, base, *at - 1, lo), 1);
+        }
+        let level = self.first_split(lo, hi, level);
+        let mut children = Vec::with_capacity(8);
+        let mut height = 0;
+        if level == 0 {
+            for i in lo..hi {
+                children.push(self.leaf(out, base, *at, i));
+                *at += 1;
+            }
+            height = 1;
+        } else {
+            // At least two child cells: `first_split` found the keys differing here.
+            for (s, e) in self.child_ranges(lo, hi, level) {
+                let (c, h) = self.sequential(out, base, at, s, e, level - 1);
+                children.push(c);
+                height = height.max(h);
+            }
+        }
+        *at += 1;
+        (self.inner_at(out, base, *at - 1, &children), height + 1)
+    }
+
     /// Writes the leaf of `keys[k]` into slot `j` of `out` (node `base + j`).
     fn leaf(&self, out: &mut [Node], base: u32, j: usize, k: usize) -> u32 {
         let i = self.keys[k].1 as usize;
@@ -328,7 +384,11 @@ impl Ctx<'_> {
 
     /// Writes the inner node over `children` into the last slot of `out`.
     fn inner(&self, out: &mut [Node], base: u32, children: &[u32]) -> u32 {
-        let last = out.len() - 1;
+        self.inner_at(out, base, out.len() - 1, children)
+    }
+
+    /// Writes the inner node over `children` into slot `last` of `out`.
+    fn inner_at(&self, out: &mut [Node], base: u32, last: usize, children: &[u32]) -> u32 {
         let idx = base + last as u32;
         let at = |c: u32| (c - base) as usize;
         let kids: Vec<Node> = children.iter().map(|&c| out[at(c)]).collect();

@@ -29,6 +29,7 @@ use rayon::prelude::*;
 use scenes::Aabb;
 
 use crate::MethodError;
+use crate::sortkey::f32_total_order;
 
 /// Depth of the leaves (the root is level 0; the tree has `depth + 1` levels): the smallest
 /// `d ≥ 0` with `N^d · (s + 1) ≥ n` (see the module docs). Errors if `n = 0`, `N < 2` or
@@ -348,25 +349,36 @@ pub struct Tree {
     pub order: Vec<u32>,
 }
 
-/// Partitions `idx` so that positions `< b` for each boundary `b` come before `b` along
-/// `axis` (multi-select: middle boundary first, then both halves; depth ≤ log₂ N + 1).
+/// Partitions `idx` so that, for each boundary `b`, the `b` samples first along `axis`
+/// (coordinate in total order, then index: every sample has its own rank) come before the
+/// others. The selection runs on 64-bit keys (coordinate bits, index) rather than on the
+/// indices with a comparator that looks the positions up: the same sets, without a random
+/// read per comparison (it had been a sixth of the build's cycles).
 fn multi_select(idx: &mut [u32], bounds: &[usize], pos: &[[f32; 3]], axis: usize) {
-    if bounds.is_empty() || idx.len() < 2 {
+    let mut keys: Vec<u64> = idx
+        .iter()
+        .map(|&i| ((f32_total_order(pos[i as usize][axis]) as u64) << 32) | i as u64)
+        .collect();
+    select_keys(&mut keys, bounds);
+    for (i, k) in idx.iter_mut().zip(&keys) {
+        *i = *k as u32;
+    }
+}
+
+/// [`multi_select`] on the keys: middle boundary first, then both halves (depth ≤ log₂ N + 1).
+fn select_keys(keys: &mut [u64], bounds: &[usize]) {
+    if bounds.is_empty() || keys.len() < 2 {
         return;
     }
     let mid = bounds.len() / 2;
     let b = bounds[mid];
-    if b > 0 && b < idx.len() {
-        idx.select_nth_unstable_by(b, |&x, &y| {
-            pos[x as usize][axis]
-                .total_cmp(&pos[y as usize][axis])
-                .then(x.cmp(&y))
-        });
+    if b > 0 && b < keys.len() {
+        keys.select_nth_unstable(b);
     }
-    let (left, right) = idx.split_at_mut(b.min(idx.len()));
-    multi_select(left, &bounds[..mid], pos, axis);
+    let (left, right) = keys.split_at_mut(b.min(keys.len()));
+    select_keys(left, &bounds[..mid]);
     let rb: Vec<usize> = bounds[mid + 1..].iter().map(|&x| x - b).collect();
-    multi_select(right, &rb, pos, axis);
+    select_keys(right, &rb);
 }
 
 fn bounds_of(idx: &[u32], pos: &[[f32; 3]]) -> Aabb {

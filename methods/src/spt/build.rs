@@ -233,7 +233,11 @@ impl Ctx<'_> {
     /// node, so the recursion goes there directly (one step instead of a search per level).
     fn first_split(&self, lo: usize, hi: usize, level: u32) -> u32 {
         let bits = 3 * level;
-        let mask = if bits >= 64 { u64::MAX } else { (1u64 << bits) - 1 };
+        let mask = if bits >= 64 {
+            u64::MAX
+        } else {
+            (1u64 << bits) - 1
+        };
         let diff = (self.keys[lo].0 ^ self.keys[hi - 1].0) & mask;
         if diff == 0 {
             0

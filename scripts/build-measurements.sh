@@ -56,7 +56,10 @@ for meth in $methods; do
     --cache "$dir/cache-$meth" >"$dir/$meth.json" 2>"$dir/$meth.log" \
     || { cat "$dir/$meth.log" >&2; exit 1; }
   read -r w m <"$dir/$meth.time"
-  note=$(jq -r --argjson n "$n" '"build \(.seconds*10|round/10) s after the LAS read; \(.bytes_out*8/$n*10|round/10) bits/point; units \(.extra.units // "-")"' \
+  # LPC's temporary-file bytes per point (its linearity goal); every build's phases stay in
+  # OUT/N/METHOD.json (`extra.phases`).
+  note=$(jq -r --argjson n "$n" '"build \(.seconds*10|round/10) s after the LAS read; \(.bytes_out*8/$n*10|round/10) bits/point; units \(.extra.units // "-")"
+    + (if .extra.temp_bytes then "; temp \(.extra.temp_bytes/$n*10|round/10) B/point" else "" end)' \
     "$dir/$meth.json")
   row "$meth" "$w" "$m" "$note"
   rm -rf "$dir/$meth" "$dir/cache-$meth"

@@ -235,24 +235,46 @@ fn cell_keys(pos: &[Vec3], lo: Vec3, size: Vec3, k: u32) -> Vec<u64> {
         .collect()
 }
 
-fn occupied(keys: &[u64]) -> usize {
-    let mut k = keys.to_vec();
-    k.sort_unstable();
-    k.dedup();
-    k.len()
+/// Whether the keys of a `k`-grid ([`cell_keys`]) occupy at most `target` cells. Up to
+/// [`BITMAP_CELLS`] cells this marks a bitmap and stops at the first cell past `target` (one
+/// pass, most probes of [`choose_grid`] stop early); finer grids sort and count.
+fn occupied_at_most(keys: &[u64], k: u32, target: usize) -> bool {
+    let cells = u64::from(k).pow(3);
+    if cells > BITMAP_CELLS {
+        let mut v = keys.to_vec();
+        v.sort_unstable();
+        v.dedup();
+        return v.len() <= target;
+    }
+    let mut seen = vec![0u64; cells.div_ceil(64) as usize];
+    let mut count = 0usize;
+    for &key in keys {
+        let (word, bit) = ((key / 64) as usize, 1u64 << (key % 64));
+        if seen[word] & bit == 0 {
+            seen[word] |= bit;
+            count += 1;
+            if count > target {
+                return false;
+            }
+        }
+    }
+    true
 }
+
+/// Most cells of a grid whose occupancy [`occupied_at_most`] counts with a bitmap (512 KiB).
+const BITMAP_CELLS: u64 = 1 << 22;
 
 /// The largest `k ≤ grid` whose grid has at most `target` occupied cells.
 fn choose_grid(pos: &[Vec3], lo: Vec3, size: Vec3, grid: u32, target: usize) -> (u32, Vec<u64>) {
     let keys = cell_keys(pos, lo, size, grid);
-    if occupied(&keys) <= target {
+    if occupied_at_most(&keys, grid, target) {
         return (grid, keys);
     }
     // Binary search assuming monotonicity, then walk down if a glitch breaks it.
     let (mut good, mut bad) = (1u32, grid);
     while bad - good > 1 {
         let mid = good + (bad - good) / 2;
-        if occupied(&cell_keys(pos, lo, size, mid)) <= target {
+        if occupied_at_most(&cell_keys(pos, lo, size, mid), mid, target) {
             good = mid;
         } else {
             bad = mid;
@@ -261,7 +283,7 @@ fn choose_grid(pos: &[Vec3], lo: Vec3, size: Vec3, grid: u32, target: usize) -> 
     let mut k = good;
     loop {
         let keys = cell_keys(pos, lo, size, k);
-        if k == 1 || occupied(&keys) <= target {
+        if k == 1 || occupied_at_most(&keys, k, target) {
             return (k, keys);
         }
         k -= 1;
@@ -583,5 +605,36 @@ pub fn representatives(input: &Splats, target: usize, cfg: &RepConfig) -> Select
         members,
         grid_used: k,
         theta_used_deg: theta.to_degrees(),
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn occupancy_test_agrees_with_counting_distinct_cells() {
+        let mut rng = scenes::rng::Pcg32::new(3);
+        // k = 35 takes the bitmap, k = 200 (8·10⁶ cells) the sort.
+        for k in [1u32, 2, 35, 200] {
+            let cells = u64::from(k).pow(3);
+            for m in [1usize, 50, 3000] {
+                let keys: Vec<u64> = (0..m)
+                    .map(|_| u64::from(rng.below(cells.min(2000) as u32)) * (cells / 2000).max(1))
+                    .map(|c| c.min(cells - 1))
+                    .collect();
+                let mut distinct = keys.clone();
+                distinct.sort_unstable();
+                distinct.dedup();
+                let d = distinct.len();
+                for target in [d.saturating_sub(1), d, d + 1] {
+                    assert_eq!(
+                        occupied_at_most(&keys, k, target),
+                        d <= target,
+                        "k {k} m {m}"
+                    );
+                }
+            }
+        }
     }
 }

@@ -363,9 +363,9 @@ fn out_of_core_equals_in_core() {
     check_tree(&nodes, &clouds, 30_000, 256);
     let stats = BuildStats::read(d2.path()).unwrap();
     // Streamed: frontier files on top of the cloud file (20 bytes a sample), each sample
-    // written once to them (lpc/multilevel.rs; exact count in lpc_ooc.rs).
+    // written to them at most twice here (lpc/multilevel.rs; exact count in lpc_ooc.rs).
     let temp = stats.extra["temp_bytes"].as_u64().unwrap();
-    assert!(temp > 30_000 * 20 && temp < 30_000 * 20 * 2, "{temp}");
+    assert!(temp > 30_000 * 20 && temp <= 30_000 * 20 * 3, "{temp}");
     for f in [lpc::INDEX_FILE, lpc::REPO_FILE] {
         let a = std::fs::read(d1.path().join(f)).unwrap();
         let b = std::fs::read(d2.path().join(f)).unwrap();

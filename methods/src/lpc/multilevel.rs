@@ -100,12 +100,17 @@ struct GNode {
     sim: bool,
     /// Whether the children (`kids`) are known.
     learned: bool,
+    /// Children written to files in the pass that learns them (speculation).
+    spec: bool,
     /// The children's indices; `None`: empty, or not known yet.
     kids: [Option<usize>; 2],
     /// The scan of this pass (simulated nodes being scanned).
     scan: Option<Scan>,
-    /// Index of the frontier file (last pass).
+    /// Files being written in this pass: a frontier node's own, a speculated node's
+    /// children's (by side).
     out: Option<usize>,
+    spec_out: [Option<usize>; 2],
+    /// A frontier node's file, once it is being written.
     path: Option<PathBuf>,
     done: Option<Done>,
 }
@@ -118,9 +123,11 @@ impl GNode {
             parent,
             sim: false,
             learned: false,
+            spec: false,
             kids: [None; 2],
             scan: None,
             out: None,
+            spec_out: [None; 2],
             path: None,
             done: None,
         }
@@ -132,11 +139,14 @@ struct Out {
     w: BufWriter<File>,
     path: PathBuf,
     n: u64,
+    /// A speculated child that turned out empty (the file is removed).
+    empty: bool,
 }
 
-/// Hands `s` to node `j`: its scan and, routed straight, on down the group; a frontier
-/// node writes it (last pass). Samples reaching a node not scanned in this pass are dropped
-/// (its parent's scan has counted them).
+/// Hands `s` to node `j`: its scan and, routed straight, on down the group, to the file of
+/// the frontier node (or speculated child) it reaches when that file is written in this
+/// pass. Samples reaching a node with nothing to do in this pass are dropped (its parent's
+/// scan has counted them).
 #[inline]
 fn deliver(
     nodes: &mut [GNode],
@@ -146,41 +156,64 @@ fn deliver(
 ) -> Result<(), MethodError> {
     loop {
         let node = &mut nodes[j];
+        let mut out = node.out;
         if let Some(scan) = node.scan.as_mut() {
-            match scan.step(*s).and_then(|side| node.kids[side]) {
-                Some(k) => {
-                    j = k;
-                    continue;
-                }
-                None => return Ok(()),
+            let step = if node.learned {
+                scan.step_known(*s)
+            } else {
+                scan.step(*s)
+            };
+            let Some(side) = step else {
+                return Ok(());
+            };
+            if let Some(k) = node.kids[side] {
+                j = k;
+                continue;
             }
+            out = node.spec_out[side];
         }
-        if let Some(o) = node.out {
-            let o = &mut outs[o];
-            o.n += 1;
-            o.w.write_all(bytemuck::bytes_of(s))
-                .map_err(|e| MethodError::io(&o.path, e))?;
+        if let Some(o) = out {
+            outs[o].write(s)?;
         }
         return Ok(());
     }
 }
 
+impl Out {
+    #[inline]
+    fn write(&mut self, s: &Sample) -> Result<(), MethodError> {
+        self.n += 1;
+        self.w
+            .write_all(bytemuck::bytes_of(s))
+            .map_err(|e| MethodError::io(&self.path, e))
+    }
+}
+
 impl Phase1<'_> {
     /// Partitions the node `root` (it does not fit the budget) from `src` and the levels
-    /// below it that do not fit either, in read-only passes over `src` (module docs);
-    /// `label` names the passes on the progress bar. Returns the group's tree.
+    /// below it that do not fit either, in read-only passes over `src` (module docs), with
+    /// speculation when `speculate`; `label` names the passes on the progress bar. Returns
+    /// the group's tree.
     pub(super) fn group(
         &mut self,
         root: Task,
         src: Source<'_>,
+        speculate: bool,
         label: &str,
         temps: &mut Temps,
     ) -> Result<Item, MethodError> {
         let mut nodes = vec![GNode::new(root, 0, usize::MAX)];
         nodes[0].sim = true;
+        let m = self.cfg.m as u64;
         let mut pass = 1;
         loop {
-            let last = nodes.iter().all(|x| !x.sim || x.learned);
+            // The pass is the last when every node it learns is speculated (none: it only
+            // writes the frontier files).
+            let mut last = true;
+            for x in nodes.iter_mut().filter(|x| x.sim && !x.learned) {
+                x.spec = speculate && self.fits(x.task.n.saturating_sub(m).div_ceil(2));
+                last &= x.spec;
+            }
             self.pass(
                 &mut nodes,
                 src,
@@ -203,6 +236,7 @@ impl Phase1<'_> {
         let mut sims = nodes.len() - files;
         for x in nodes.iter_mut() {
             if x.sim
+                || x.path.is_some()
                 || self.fits(x.task.n)
                 || x.depth >= MAX_LEVELS
                 || sims >= MAX_SIMULATED
@@ -216,8 +250,9 @@ impl Phase1<'_> {
         }
     }
 
-    /// One pass over `src`: before the last, it learns the children of the simulated nodes
-    /// whose children are unknown; the last writes the frontier files and the clouds.
+    /// One pass over `src`: it learns the children of the simulated nodes whose children are
+    /// unknown (and closes them: clouds appended), writing the speculated ones' children to
+    /// files; the last pass also writes the frontier files not written yet.
     fn pass(
         &mut self,
         nodes: &mut Vec<GNode>,
@@ -226,13 +261,20 @@ impl Phase1<'_> {
         label: &str,
         temps: &mut Temps,
     ) -> Result<(), MethodError> {
-        // Scanned: every simulated node in the last pass, else those on a path to a node
-        // whose children are unknown (children come after their parents).
+        // Scanned: the simulated nodes on a path to a node whose children are unknown or,
+        // in the last pass, to a frontier node without a file (children come after their
+        // parents).
         let mut live = vec![false; nodes.len()];
         for i in (0..nodes.len()).rev() {
-            live[i] |= nodes[i].sim && (last || !nodes[i].learned);
-            if live[i] && i > 0 {
-                live[nodes[i].parent] = true;
+            let x = &nodes[i];
+            let need = if x.sim {
+                !x.learned
+            } else {
+                last && x.path.is_none()
+            };
+            live[i] |= x.sim && need;
+            if (need || live[i]) && i > 0 {
+                live[x.parent] = true;
             }
         }
         for (x, _) in nodes.iter_mut().zip(&live).filter(|(_, l)| **l) {
@@ -240,25 +282,23 @@ impl Phase1<'_> {
             x.scan = Some(self.cfg.scan_for(&x.task, &mut spare));
         }
         let mut outs = Vec::new();
-        if last {
-            for x in nodes.iter_mut().filter(|x| !x.sim) {
-                let path = self.dir.join(format!("lpc-part-{}.tmp", self.files));
-                self.files += 1;
-                temps.0.push(path.clone());
-                let f = File::create(&path).map_err(|e| MethodError::io(&path, e))?;
+        for x in nodes.iter_mut() {
+            if x.sim && !x.learned && x.spec {
+                for side in 0..2 {
+                    x.spec_out[side] = Some(outs.len());
+                    outs.push(self.temp_file(temps)?);
+                }
+            } else if !x.sim && last && x.path.is_none() {
                 x.out = Some(outs.len());
-                x.path = Some(path.clone());
-                outs.push(Out {
-                    w: BufWriter::with_capacity(WRITE_BUF, f),
-                    path,
-                    n: 0,
-                });
+                let o = self.temp_file(temps)?;
+                x.path = Some(o.path.clone());
+                outs.push(o);
             }
         }
 
         // The next block is fetched (converted / read) while this one is scanned.
         self.progress.start(label, src.len());
-        let mut reader = src.reader(true)?;
+        let mut reader = src.reader()?;
         let mut block = Vec::with_capacity(BLOCK);
         let mut ahead = Vec::with_capacity(BLOCK);
         let mut more = reader.next(&mut block)?;
@@ -277,11 +317,6 @@ impl Phase1<'_> {
             self.progress.inc(block.len() as u64);
             std::mem::swap(&mut block, &mut ahead);
         }
-        if let Some(nsum) = reader.normal_sum() {
-            // The scene's root: its normal sum (cone axis) is known from now on; the
-            // first pass does not use it (the axis changes no routing).
-            nodes[0].task.nsum = nsum;
-        }
         self.progress.finish();
 
         // Finish the scans in depth order: a node's give-back goes on into its children's
@@ -293,41 +328,69 @@ impl Phase1<'_> {
             };
             let mc = scan.select();
             let kids = nodes[i].kids;
-            scan.give_back(mc, &mut |side, s| match kids[side] {
-                Some(j) => deliver(nodes, &mut outs, j, s),
-                None => Ok(()),
+            let spec_out = nodes[i].spec_out;
+            scan.give_back(mc, &mut |side, s| match (kids[side], spec_out[side]) {
+                (Some(j), _) => deliver(nodes, &mut outs, j, s),
+                (None, Some(o)) => outs[o].write(s),
+                (None, None) => Ok(()),
             })?;
             held += scan.res.capacity() + scan.hold.capacity();
-            let closed = scan.closed(nodes[i].task.key);
-            if last {
+            if !nodes[i].learned {
+                // Its first scan: close it, learn its children.
+                let closed = scan.closed(nodes[i].task.key);
                 let off = self.append(&scan.res[..mc])?;
+                let depth = nodes[i].depth + 1;
+                for (side, t) in closed.kids(NONE).into_iter().enumerate() {
+                    let spec = nodes[i].spec_out[side].take();
+                    match (t, spec) {
+                        (Some(t), spec) => {
+                            nodes[i].kids[side] = Some(nodes.len());
+                            let mut kid = GNode::new(t, depth, i);
+                            kid.path = spec.map(|o| outs[o].path.clone());
+                            nodes.push(kid);
+                        }
+                        (None, Some(o)) => outs[o].empty = true,
+                        (None, None) => {}
+                    }
+                }
+                nodes[i].learned = true;
                 nodes[i].done = Some(Done {
                     closed,
                     off,
                     m: mc as u32,
                 });
-            } else if !nodes[i].learned {
-                let depth = nodes[i].depth + 1;
-                for (side, t) in closed.kids(NONE).into_iter().enumerate() {
-                    if let Some(t) = t {
-                        nodes[i].kids[side] = Some(nodes.len());
-                        nodes.push(GNode::new(t, depth, i));
-                    }
-                }
-                nodes[i].learned = true;
             }
             self.pool.push((scan.res, scan.hold));
+        }
+        for x in nodes.iter_mut() {
+            x.out = None;
         }
         self.peak = self.peak.max(
             (2 * BLOCK + held) as u64 * RECORD_BYTES + (IO_BUF + outs.len() * WRITE_BUF) as u64,
         );
-        for (o, x) in outs.into_iter().zip(nodes.iter().filter(|x| !x.sim)) {
-            debug_assert_eq!(o.n, x.task.n, "frontier file {}", o.path.display());
+        for o in outs {
             o.w.into_inner()
                 .map_err(|e| MethodError::io(&o.path, e.into_error()))?;
+            if o.empty {
+                let _ = std::fs::remove_file(&o.path);
+            }
             self.temp_bytes += o.n * RECORD_BYTES;
         }
         Ok(())
+    }
+
+    /// A new temporary file (deleted at the end of the build if still there).
+    fn temp_file(&mut self, temps: &mut Temps) -> Result<Out, MethodError> {
+        let path = self.dir.join(format!("lpc-part-{}.tmp", self.files));
+        self.files += 1;
+        temps.0.push(path.clone());
+        let f = File::create(&path).map_err(|e| MethodError::io(&path, e))?;
+        Ok(Out {
+            w: BufWriter::with_capacity(WRITE_BUF, f),
+            path,
+            n: 0,
+            empty: false,
+        })
     }
 }
 

@@ -340,6 +340,20 @@ impl Scan {
         }
         Some(self.route(&s, d))
     }
+    /// [`Scan::step`] for a node scanned before (its sphere, cone and children known): the
+    /// same draws, kept, held-back and routed samples, without the bookkeeping.
+    #[inline]
+    pub(super) fn step_known(&mut self, s: Sample) -> Option<usize> {
+        if self.leaf || self.keep_all || self.rng.f32() < self.p {
+            self.res.push(s);
+            return None;
+        }
+        if self.hold.len() < self.m {
+            self.hold.push(s);
+            return None;
+        }
+        Some((s.p[self.axis] >= self.mid) as usize)
+    }
     /// Adds `s` (decoded normal `d`) to its child; returns the side.
     #[inline]
     pub(super) fn route(&mut self, s: &Sample, d: [f32; 3]) -> usize {
@@ -526,10 +540,11 @@ impl<'a> Phase1<'a> {
             }
             self.in_core(root(nsum), &mut bufs)?;
         } else {
-            // The root's normal sum (its cone axis) comes from the group's first pass.
+            // A first pass over the normal column gives the root's cone axis.
             let item = self.group(
-                root(DVec3::ZERO),
+                root(cols.normal_sum()),
                 Source::Columns(&cols),
+                true,
                 "lpc: partition",
                 temps,
             )?;
@@ -566,7 +581,7 @@ impl<'a> Phase1<'a> {
                             n: task.n,
                         };
                         let label = format!("lpc: partition node {id}");
-                        let item = self.group(task, src, &label, temps)?;
+                        let item = self.group(task, src, false, &label, temps)?;
                         let _ = std::fs::remove_file(&path);
                         self.progress.start("lpc: partition", n - self.clouds_len);
                         stack.push((item, id));

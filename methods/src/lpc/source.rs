@@ -45,6 +45,47 @@ impl<'c> Columns<'c> {
         self.cloud.len() as u64
     }
 
+    /// The sum of the quantised normals, in order (the root's cone axis before its scan; zero
+    /// without normals): one pass over the normal column, blocks encoded in parallel while
+    /// the previous one is summed.
+    pub(super) fn normal_sum(&self) -> DVec3 {
+        let mut nsum = DVec3::ZERO;
+        let Some(nv) = self.cloud.normals() else {
+            return nsum;
+        };
+        let n = nv.len();
+        let table = cloud::normal_table();
+        let (mut codes, mut prev) = (vec![0u16; BLOCK], vec![0u16; BLOCK]);
+        let mut prev_len = 0;
+        let sum = |codes: &[u16], nsum: &mut DVec3| {
+            for &c in codes {
+                let d = table[c as usize].1;
+                *nsum += DVec3::new(d[0] as f64, d[1] as f64, d[2] as f64);
+            }
+        };
+        for lo in (0..n).step_by(BLOCK) {
+            let hi = (lo + BLOCK).min(n);
+            rayon::join(
+                || sum(&prev[..prev_len], &mut nsum),
+                || {
+                    codes[..hi - lo]
+                        .par_chunks_mut(CONVERT_CHUNK)
+                        .zip(nv[lo..hi].par_chunks(CONVERT_CHUNK))
+                        .for_each(|(c, v)| {
+                            for (c, v) in c.iter_mut().zip(v) {
+                                *c = cloud::oct16_encode(Vec3::from(*v));
+                            }
+                        });
+                    self.cloud.release_pages(lo..hi);
+                },
+            );
+            std::mem::swap(&mut codes, &mut prev);
+            prev_len = hi - lo;
+        }
+        sum(&prev[..prev_len], &mut nsum);
+        nsum
+    }
+
     /// Appends the samples of `range` to `out` (converted in parallel), adds their quantised
     /// normals to `nsum` when given (in order: the same sum for any thread count) and
     /// releases the columns' pages of `range`.
@@ -107,15 +148,10 @@ impl<'a> Source<'a> {
         }
     }
 
-    /// Opens one read of the source; `sum_normals` also sums the quantised normals of the
-    /// columns (the root's normal sum, [`Reader::normal_sum`]).
-    pub(super) fn reader(&self, sum_normals: bool) -> Result<Reader<'a>, MethodError> {
+    /// Opens one read of the source.
+    pub(super) fn reader(&self) -> Result<Reader<'a>, MethodError> {
         Ok(match *self {
-            Source::Columns(cols) => Reader::Columns {
-                cols,
-                next: 0,
-                nsum: sum_normals.then_some(DVec3::ZERO),
-            },
+            Source::Columns(cols) => Reader::Columns { cols, next: 0 },
             Source::File { path, n } => {
                 let file = File::open(path).map_err(|e| MethodError::io(path, e))?;
                 Reader::File {
@@ -133,7 +169,6 @@ pub(super) enum Reader<'a> {
     Columns {
         cols: &'a Columns<'a>,
         next: usize,
-        nsum: Option<DVec3>,
     },
     File {
         path: &'a Path,
@@ -148,13 +183,13 @@ impl Reader<'_> {
     pub(super) fn next(&mut self, block: &mut Vec<Sample>) -> Result<bool, MethodError> {
         block.clear();
         match self {
-            Reader::Columns { cols, next, nsum } => {
+            Reader::Columns { cols, next } => {
                 let n = cols.len() as usize;
                 if *next >= n {
                     return Ok(false);
                 }
                 let hi = (*next + BLOCK).min(n);
-                cols.convert(*next..hi, block, nsum.as_mut());
+                cols.convert(*next..hi, block, None);
                 *next = hi;
             }
             Reader::File { path, r, left } => {
@@ -169,14 +204,6 @@ impl Reader<'_> {
             }
         }
         Ok(true)
-    }
-
-    /// The normal sum of the columns read so far (when asked for).
-    pub(super) fn normal_sum(&self) -> Option<DVec3> {
-        match self {
-            Reader::Columns { nsum, .. } => *nsum,
-            Reader::File { .. } => None,
-        }
     }
 }
 

@@ -65,8 +65,9 @@
 //! **Temporary files** (`temp_bytes` in `build.json`): the cloud file (`20·N` bytes) plus
 //! `20` bytes for each sample written to a streamed group's frontier file. With no group
 //! past its limits (balanced trees up to 64 in-core subtrees), that is each sample outside
-//! the streamed nodes' clouds once: `20·(N + Σ n_j)` over the in-core subtrees `j` whose
-//! parent is streamed.
+//! the streamed nodes' clouds once, `20·(N + Σ n_j)` over the in-core subtrees `j` whose
+//! parent is streamed, plus once more the samples of each speculated child that did not fit
+//! (see [`super::multilevel`]).
 //!
 //! Files: phase 1 is in [`super::partition`] (in-core path, processing order), the streamed
 //! levels in [`super::multilevel`], their sources in [`super::source`], the input and

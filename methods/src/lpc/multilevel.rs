@@ -55,9 +55,9 @@
 //! scans per pass.
 //!
 //! **Measured** (`terrain` LAS, 2 cores, shared machine; commands in the lpc README):
-//! 50 M samples, 91.5 → 46.5 bytes of temporary files per sample; the time is the same
-//! within the noise or up to 15 % longer, because on a machine whose page cache holds the
-//! temporary files a write costs about what a re-scan costs.
+//! 50 M samples, 91.5 → 46.5 bytes of temporary files per sample; the build time moved by
+//! −6 % to +15 % over three back-to-back pairs (noise of a shared machine): where the page
+//! cache holds the temporary files, writing a sample costs about what re-scanning it does.
 
 use std::fs::File;
 use std::io::{BufWriter, Write};

@@ -230,3 +230,19 @@ fn a_short_temporary_file_is_an_error_naming_it() {
         }
     }
 }
+
+#[test]
+fn a_budget_below_one_cloud_equals_the_in_core_build() {
+    // 100 samples per in-core subtree with M = 256: leaves of 101–255 samples are streamed
+    // (simulated nodes without children).
+    let c = Generator::Statue.generate(5_000, 7).unwrap();
+    let d1 = tempfile::tempdir().unwrap();
+    let d2 = tempfile::tempdir().unwrap();
+    let (_, want, _) = build_files(&c, &P, d1.path(), 1 << 30);
+    let (nodes, got, temp) = build_files(&c, &P, d2.path(), 100 * 40);
+    let s = streamed(&nodes, 100 * 40);
+    assert!(s.streamed.iter().any(|&i| nodes[i].is_leaf()));
+    assert!(want == got, "index.bin / repo.bin differ");
+    // No in-core subtree: only the cloud file, unless a group passed its limits.
+    assert!(temp >= 20 * 5_000, "{temp}");
+}

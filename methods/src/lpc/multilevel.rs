@@ -228,6 +228,10 @@ impl Phase1<'_> {
                 x.spec = speculate && self.fits(x.task.n.saturating_sub(m).div_ceil(2));
                 last &= x.spec;
             }
+            let work = |x: &GNode| if x.sim { !x.learned } else { x.path.is_none() };
+            if last && !nodes.iter().any(work) {
+                break; // nothing left to learn or write (streamed nodes without children)
+            }
             self.pass(
                 &mut nodes,
                 src,

@@ -362,7 +362,10 @@ fn out_of_core_equals_in_core() {
     let (nodes, clouds, _) = build_read(&c, &p, d2.path(), Some(2_000 * 40));
     check_tree(&nodes, &clouds, 30_000, 256);
     let stats = BuildStats::read(d2.path()).unwrap();
-    assert!(stats.extra["temp_bytes"].as_u64().unwrap() > 30_000 * 20 * 2);
+    // Streamed: frontier files on top of the cloud file (20 bytes a sample), each sample
+    // written to them at most twice here (lpc/multilevel.rs; exact count in lpc_ooc.rs).
+    let temp = stats.extra["temp_bytes"].as_u64().unwrap();
+    assert!(temp > 30_000 * 20 && temp <= 30_000 * 20 * 3, "{temp}");
     for f in [lpc::INDEX_FILE, lpc::REPO_FILE] {
         let a = std::fs::read(d1.path().join(f)).unwrap();
         let b = std::fs::read(d2.path().join(f)).unwrap();

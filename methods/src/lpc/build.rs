@@ -24,10 +24,13 @@
 //! (degenerate inputs make deep trees: no recursion). A subtree whose samples fit the memory
 //! budget (`2 × 20` bytes per sample: a source and a destination buffer) is loaded and
 //! partitioned in memory, by stable partitioning into the other buffer; a larger one is
-//! streamed from a temporary file into two child files. Both paths visit the samples in the
-//! same order and draw the same random numbers, so they give the same tree and clouds. The
-//! root reads the scene's columns sequentially in blocks and releases their pages behind
-//! the cursor. Clouds are appended to a temporary cloud file in processing order.
+//! streamed. Streamed levels are simulated in read-only passes over their source (the scene's
+//! columns, read sequentially in blocks with their pages released behind the cursor, or a
+//! temporary file), and each sample is written once, to the file of the subtree that fits
+//! (or, past the limits of [`super::multilevel`], to a file that starts the next group): the
+//! temporary-file traffic is linear in `N`, not `N` times the number of streamed levels. Both
+//! paths visit the samples in the same order and draw the same random numbers, so they give
+//! the same tree and clouds. Clouds are appended to a temporary cloud file.
 //!
 //! **Parallelism** (the current rayon pool; the output is byte-identical for any number of
 //! threads). Streamed subtrees are taken one at a time, so at most one in-core subtree is
@@ -59,8 +62,17 @@
 //! the in-core subtree that contains it when that subtree is loaded ([`probe_knn`]). Probes
 //! that end up in the cloud of an out-of-core node are not measured.
 //!
-//! Files: phase 1 is in [`super::partition`], the input and per-node spacings in
-//! [`super::spacing`]; this file runs the two phases and writes the build.
+//! **Temporary files** (`temp_bytes` in `build.json`): the cloud file (`20·N` bytes) plus
+//! `20` bytes for each sample written to a streamed group's frontier file. With no group
+//! past its limits (balanced trees up to 64 in-core subtrees), that is each sample outside
+//! the streamed nodes' clouds once, `20·(N + Σ n_j)` over the in-core subtrees `j` whose
+//! parent is streamed, plus once more the samples of each speculated child that did not fit
+//! (see [`super::multilevel`]).
+//!
+//! Files: phase 1 is in [`super::partition`] (in-core path, processing order), the streamed
+//! levels in [`super::multilevel`], their sources in [`super::source`], the input and
+//! per-node spacings in [`super::spacing`]; this file runs the two phases and writes the
+//! build.
 
 use std::fs::File;
 use std::io::{BufWriter, Read, Seek, SeekFrom};
@@ -77,6 +89,7 @@ use super::{INDEX_FILE, INFO_FILE, Info, LpcParams, REPO_FILE, SpacingRule};
 use crate::store::{self, RepoWriter};
 use crate::{BuildStats, MethodError};
 
+pub use super::multilevel::{MAX_FILES, MAX_LEVELS, MAX_SIMULATED, WRITE_BUF};
 pub use super::partition::PAR_MIN;
 use super::partition::{Cfg, Phase1, Temps};
 pub use super::spacing::{
@@ -115,7 +128,7 @@ pub fn build(
 
 /// [`build`] with an explicit working-memory budget in bytes (tests force the out-of-core
 /// path with a tiny one). Subtrees of up to `mem_bytes / 40` samples are partitioned in
-/// memory; the fixed I/O buffers (≈ 6 MiB) come on top.
+/// memory; the fixed I/O buffers (≈ 13 MiB, with the 64 frontier-file writers) come on top.
 pub fn build_with_budget(
     cloud: &PointCloud,
     params: &LpcParams,
@@ -145,14 +158,13 @@ pub fn build_with_budget(
         clouds: BufWriter::with_capacity(IO_BUF, clouds_file),
         clouds_path: clouds_path.clone(),
         clouds_len: 0,
-        spare: (Vec::new(), Vec::new()),
+        pool: Vec::new(),
         probes: Vec::new(),
         peak: 0,
         temp_bytes: 0,
         files: 0,
         progress,
     };
-    progress.start("lpc: partition", cloud.len() as u64);
     p1.run(cloud, &mut temps)?;
     progress.finish();
     let Phase1 {

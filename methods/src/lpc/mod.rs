@@ -29,7 +29,9 @@
 pub mod build;
 pub mod cloud;
 pub mod index;
+mod multilevel;
 mod partition;
+mod source;
 pub mod spacing;
 pub mod traverse;
 

@@ -1,22 +1,21 @@
 //! Phase 1 of the LPC build: the recursive partitioning of [`super::build`]'s module docs —
-//! nodes, their Russian-roulette clouds, the in-core (parallel) and streamed (temporary
-//! file) paths, which give the same tree.
+//! nodes, their Russian-roulette clouds, the in-core (parallel) path and the order in which
+//! nodes are processed; the streamed levels are simulated by [`super::multilevel`] over the
+//! sources of [`super::source`]. Both paths give the same tree.
 
 use std::fs::File;
-use std::io::{BufReader, BufWriter, Read, Write};
-use std::path::{Path, PathBuf};
+use std::io::{BufWriter, Write};
+use std::path::PathBuf;
 
 use glam::{DVec3, Vec3};
-use rayon::prelude::*;
 use scenes::rng::{Pcg32, splitmix64};
 use scenes::{Aabb, PointCloud, Progress};
 
-use super::build::{
-    BLOCK, CONE_MARGIN, CONVERT_CHUNK, IN_CORE_BYTES_PER_SAMPLE, IO_BUF, PROBE, PROBES,
-    RECORD_BYTES,
-};
+use super::build::{BLOCK, CONE_MARGIN, IN_CORE_BYTES_PER_SAMPLE, RECORD_BYTES};
 use super::cloud::{self, Sample};
 use super::index::NONE;
+use super::multilevel::{FileTask, Item};
+use super::source::{Columns, Source, read_samples};
 use super::spacing::probe_knn;
 use crate::MethodError;
 use crate::leaf::LEAF_K;
@@ -341,6 +340,20 @@ impl Scan {
         }
         Some(self.route(&s, d))
     }
+    /// [`Scan::step`] for a node scanned before (its sphere, cone and children known): the
+    /// same draws, kept, held-back and routed samples, without the bookkeeping.
+    #[inline]
+    pub(super) fn step_known(&mut self, s: Sample) -> Option<usize> {
+        if self.leaf || self.keep_all || self.rng.f32() < self.p {
+            self.res.push(s);
+            return None;
+        }
+        if self.hold.len() < self.m {
+            self.hold.push(s);
+            return None;
+        }
+        Some((s.p[self.axis] >= self.mid) as usize)
+    }
     /// Adds `s` (decoded normal `d`) to its child; returns the side.
     #[inline]
     pub(super) fn route(&mut self, s: &Sample, d: [f32; 3]) -> usize {
@@ -412,8 +425,10 @@ pub(super) struct Phase1<'a> {
     pub(super) nodes: Vec<PNode>,
     pub(super) clouds: BufWriter<File>,
     pub(super) clouds_path: PathBuf,
+    /// Samples in the cloud file so far.
     pub(super) clouds_len: u64,
-    pub(super) spare: (Vec<Sample>, Vec<Sample>),
+    /// Scan buffers to reuse (reservoir, held back).
+    pub(super) pool: Vec<(Vec<Sample>, Vec<Sample>)>,
     /// `[nearest, LEAF_K-th nearest]` distances of the measured probes.
     pub(super) probes: Vec<[f32; 2]>,
     pub(super) peak: u64,
@@ -429,10 +444,22 @@ pub(super) fn child_key(key: u64, side: usize) -> u64 {
     splitmix64(&mut s)
 }
 
-/// A temporary file of samples with its task.
-pub(super) struct FileTask {
-    pub(super) task: Task,
-    pub(super) path: PathBuf,
+impl PNode {
+    /// A node whose subtree holds `n` samples, filled when it is attached.
+    fn new(parent: u32, level: u32, n: u64) -> Self {
+        Self {
+            parent,
+            children: [NONE; 2],
+            level,
+            n,
+            m: 0,
+            cloud_off: 0,
+            center: Vec3::ZERO,
+            radius: 0.0,
+            axis: Vec3::ZERO,
+            half: 0.0,
+        }
+    }
 }
 
 impl<'a> Phase1<'a> {
@@ -440,295 +467,129 @@ impl<'a> Phase1<'a> {
         n.saturating_mul(IN_CORE_BYTES_PER_SAMPLE) <= self.budget
     }
 
-    /// Writes the cloud of a node scanned by [`Phase1::stream`], fills the node and creates
-    /// its children; returns the child tasks.
-    pub(super) fn close(
-        &mut self,
-        task: &Task,
-        mut scan: Scan,
-        mc: usize,
-    ) -> Result<[Option<Task>; 2], MethodError> {
-        self.peak = self
-            .peak
-            .max((scan.res.capacity() + scan.hold.capacity()) as u64 * RECORD_BYTES);
-        let closed = scan.closed(task.key);
-        let kids = self.commit(task.id, &closed, &scan.res[..mc])?;
-        self.spare = (
-            std::mem::take(&mut scan.res),
-            std::mem::take(&mut scan.hold),
-        );
-        Ok(kids)
+    /// Appends a cloud to the cloud file; returns its offset (samples).
+    pub(super) fn append(&mut self, cloud: &[Sample]) -> Result<u64, MethodError> {
+        let off = self.clouds_len;
+        self.clouds
+            .write_all(bytemuck::cast_slice(cloud))
+            .map_err(|e| MethodError::io(&self.clouds_path, e))?;
+        self.clouds_len += cloud.len() as u64;
+        Ok(off)
     }
 
-    /// Appends the node `id`'s cloud to the cloud file, fills the node and creates its
-    /// children (the next ids, child 0 first); returns the child tasks.
+    /// Appends the node `id`'s cloud to the cloud file and attaches it ([`Phase1::attach`]).
     pub(super) fn commit(
         &mut self,
         id: u32,
         c: &Closed,
         cloud: &[Sample],
     ) -> Result<[Option<Task>; 2], MethodError> {
-        let off = self.clouds_len;
-        self.clouds
-            .write_all(bytemuck::cast_slice(cloud))
-            .map_err(|e| MethodError::io(&self.clouds_path, e))?;
-        self.clouds_len += cloud.len() as u64;
+        let off = self.append(cloud)?;
         self.progress.inc(cloud.len() as u64);
+        Ok(self.attach(id, c, off, cloud.len() as u32))
+    }
+
+    /// Fills the node `id` (its `m`-sample cloud is at `off` in the cloud file) and creates
+    /// its children (the next ids, child 0 first); returns the child tasks.
+    pub(super) fn attach(&mut self, id: u32, c: &Closed, off: u64, m: u32) -> [Option<Task>; 2] {
         let level = self.nodes[id as usize].level;
         let mut kids = [None, None];
         let mut ids = [NONE; 2];
         for (side, t) in c.kids(NONE).into_iter().enumerate() {
             let Some(mut t) = t else { continue };
             t.id = self.nodes.len() as u32;
-            self.nodes.push(PNode {
-                parent: id,
-                children: [NONE; 2],
-                level: level + 1,
-                n: t.n,
-                m: 0,
-                cloud_off: 0,
-                center: Vec3::ZERO,
-                radius: 0.0,
-                axis: Vec3::ZERO,
-                half: 0.0,
-            });
+            self.nodes.push(PNode::new(id, level + 1, t.n));
             ids[side] = t.id;
             kids[side] = Some(t);
         }
         let nd = &mut self.nodes[id as usize];
         nd.children = ids;
-        nd.m = cloud.len() as u32;
+        nd.m = m;
         nd.cloud_off = off;
         nd.center = c.center;
         nd.radius = c.radius;
         nd.axis = c.axis;
         nd.half = c.half;
-        Ok(kids)
+        kids
     }
 
+    /// Runs phase 1: the root in memory if it fits, else streamed groups of levels
+    /// ([`super::multilevel`]) down to subtrees that fit, each partitioned in memory;
+    /// nodes get their ids depth first, child 0 first.
     pub(super) fn run(&mut self, cloud: &PointCloud, temps: &mut Temps) -> Result<(), MethodError> {
-        let n = cloud.len();
-        self.nodes.push(PNode {
-            parent: NONE,
-            children: [NONE; 2],
-            level: 0,
-            n: n as u64,
-            m: 0,
-            cloud_off: 0,
-            center: Vec3::ZERO,
-            radius: 0.0,
-            axis: Vec3::ZERO,
-            half: 0.0,
-        });
-        let threshold = if n as u64 <= PROBES {
-            u64::MAX
-        } else {
-            (PROBES as f64 / n as f64 * u64::MAX as f64) as u64
-        };
-        let seed = self.cfg.seed;
-        // Appends the samples of `range` to `out` (converted in parallel) and adds their
-        // quantised normals to `nsum` (in order: the same sum for any thread count).
-        let convert = |range: std::ops::Range<usize>, out: &mut Vec<Sample>, nsum: &mut DVec3| {
-            let pos = &cloud.positions()[range.clone()];
-            let nrm = cloud.normals().map(|v| &v[range.clone()]);
-            let col = cloud.colors().map(|v| &v[range.clone()]);
-            let start = out.len();
-            out.resize(start + range.len(), Sample::default());
-            out[start..]
-                .par_chunks_mut(CONVERT_CHUNK)
-                .enumerate()
-                .for_each(|(c, chunk)| {
-                    for (jj, s) in chunk.iter_mut().enumerate() {
-                        let j = c * CONVERT_CHUNK + jj;
-                        let i = range.start + j;
-                        let mut h = seed ^ (i as u64).wrapping_mul(0xA24B_AED4_963E_E407);
-                        let probe = splitmix64(&mut h) <= threshold;
-                        *s = Sample {
-                            p: pos[j],
-                            normal: nrm.map_or(0, |nv| cloud::oct16_encode(Vec3::from(nv[j]))),
-                            flags: if probe { PROBE } else { 0 },
-                            color: col.map_or([0; 4], |c| [c[j][0], c[j][1], c[j][2], 0]),
-                        };
-                    }
-                });
-            if nrm.is_some() {
-                let table = cloud::normal_table();
-                for s in &out[start..] {
-                    let d = table[s.normal as usize].1;
-                    *nsum += DVec3::new(d[0] as f64, d[1] as f64, d[2] as f64);
-                }
-            }
-            cloud.release_pages(range);
-        };
+        let n = cloud.len() as u64;
+        self.nodes.push(PNode::new(NONE, 0, n));
+        let cols = Columns::new(cloud, self.cfg.seed);
         let root = |nsum: DVec3| Task {
             id: 0,
-            key: seed,
-            n: n as u64,
+            key: self.cfg.seed,
+            n,
             bbox: cloud.bounds(),
             nsum,
         };
         let mut bufs: [Vec<Sample>; 2] = [Vec::new(), Vec::new()];
-        let mut stack: Vec<FileTask> = Vec::new();
-        if self.fits(n as u64) {
+        // Nodes still to process, with their ids, depth first (child 0 on top).
+        let mut stack: Vec<(Item, u32)> = Vec::new();
+        if self.fits(n) {
+            self.progress.start("lpc: partition", n);
             let mut nsum = DVec3::ZERO;
-            bufs[0].reserve_exact(n);
-            for lo in (0..n).step_by(BLOCK) {
-                convert(lo..(lo + BLOCK).min(n), &mut bufs[0], &mut nsum);
+            bufs[0].reserve_exact(n as usize);
+            for lo in (0..n as usize).step_by(BLOCK) {
+                let hi = (lo + BLOCK).min(n as usize);
+                cols.convert(lo..hi, &mut bufs[0], Some(&mut nsum));
             }
             self.in_core(root(nsum), &mut bufs)?;
         } else {
-            // The root streams the scene: a first pass for the normal sum (the cone axis).
-            // Blocks are encoded in parallel while the previous one is summed (in order).
-            let mut nsum = DVec3::ZERO;
-            if let Some(nv) = cloud.normals() {
-                let table = cloud::normal_table();
-                let (mut codes, mut prev) = (vec![0u16; BLOCK], vec![0u16; BLOCK]);
-                let mut prev_len = 0;
-                let sum = |codes: &[u16], nsum: &mut DVec3| {
-                    for &c in codes {
-                        let d = table[c as usize].1;
-                        *nsum += DVec3::new(d[0] as f64, d[1] as f64, d[2] as f64);
-                    }
-                };
-                for lo in (0..n).step_by(BLOCK) {
-                    let hi = (lo + BLOCK).min(n);
-                    rayon::join(
-                        || sum(&prev[..prev_len], &mut nsum),
-                        || {
-                            codes[..hi - lo]
-                                .par_chunks_mut(CONVERT_CHUNK)
-                                .zip(nv[lo..hi].par_chunks(CONVERT_CHUNK))
-                                .for_each(|(c, v)| {
-                                    for (c, v) in c.iter_mut().zip(v) {
-                                        *c = cloud::oct16_encode(Vec3::from(*v));
-                                    }
-                                });
-                            cloud.release_pages(lo..hi);
-                        },
-                    );
-                    std::mem::swap(&mut codes, &mut prev);
-                    prev_len = hi - lo;
-                }
-                sum(&prev[..prev_len], &mut nsum);
-            }
-            let task = root(nsum);
-            let mut lo = 0;
-            let kids = self.stream(&task, temps, &mut |block| {
-                block.clear();
-                if lo >= n {
-                    return Ok(false);
-                }
-                let hi = (lo + BLOCK).min(n);
-                let mut unused = DVec3::ZERO;
-                convert(lo..hi, block, &mut unused);
-                lo = hi;
-                Ok(true)
-            })?;
-            stack.extend(kids.into_iter().rev().flatten());
+            // A first pass over the normal column gives the root's cone axis.
+            let item = self.group(
+                root(cols.normal_sum()),
+                Source::Columns(&cols),
+                true,
+                "lpc: partition",
+                temps,
+            )?;
+            self.progress.start("lpc: partition", n - self.clouds_len);
+            stack.push((item, 0));
         }
-        while let Some(ft) = stack.pop() {
-            if self.fits(ft.task.n) {
-                let len = ft.task.n as usize;
-                bufs[0].clear();
-                bufs[0].resize(len, Sample::default());
-                read_samples(&ft.path, &mut bufs[0])?;
-                let _ = std::fs::remove_file(&ft.path);
-                self.in_core(ft.task, &mut bufs)?;
-            } else {
-                let file = File::open(&ft.path).map_err(|e| MethodError::io(&ft.path, e))?;
-                let mut reader = BufReader::with_capacity(IO_BUF, file);
-                let mut left = ft.task.n as usize;
-                let path = ft.path.clone();
-                let kids = self.stream(&ft.task, temps, &mut |block| {
-                    let len = left.min(BLOCK);
-                    block.clear();
-                    if len == 0 {
-                        return Ok(false);
+        while let Some((item, id)) = stack.pop() {
+            match item {
+                Item::Node {
+                    closed,
+                    off,
+                    m,
+                    kids,
+                } => {
+                    let tasks = self.attach(id, &closed, off, m);
+                    for (t, k) in tasks.into_iter().zip(kids).rev() {
+                        debug_assert_eq!(t.is_some(), k.is_some());
+                        if let (Some(t), Some(k)) = (t, k) {
+                            stack.push((*k, t.id));
+                        }
                     }
-                    block.resize(len, Sample::default());
-                    reader
-                        .read_exact(bytemuck::cast_slice_mut(block))
-                        .map_err(|e| MethodError::io(&path, e))?;
-                    left -= len;
-                    Ok(true)
-                })?;
-                let _ = std::fs::remove_file(&ft.path);
-                stack.extend(kids.into_iter().rev().flatten());
+                }
+                Item::File(FileTask { mut task, path }) => {
+                    task.id = id;
+                    if self.fits(task.n) {
+                        bufs[0].clear();
+                        bufs[0].resize(task.n as usize, Sample::default());
+                        read_samples(&path, &mut bufs[0])?;
+                        let _ = std::fs::remove_file(&path);
+                        self.in_core(task, &mut bufs)?;
+                    } else {
+                        let src = Source::File {
+                            path: &path,
+                            n: task.n,
+                        };
+                        let label = format!("lpc: partition node {id}");
+                        let item = self.group(task, src, false, &label, temps)?;
+                        let _ = std::fs::remove_file(&path);
+                        self.progress.start("lpc: partition", n - self.clouds_len);
+                        stack.push((item, id));
+                    }
+                }
             }
         }
         Ok(())
-    }
-
-    /// Partitions one node out of core: samples come in blocks from `next`, the children
-    /// go to new temporary files.
-    pub(super) fn stream(
-        &mut self,
-        task: &Task,
-        temps: &mut Temps,
-        next: &mut (dyn FnMut(&mut Vec<Sample>) -> Result<bool, MethodError> + Send),
-    ) -> Result<[Option<FileTask>; 2], MethodError> {
-        let mut scan = self.cfg.scan_for(task, &mut self.spare);
-        let mut paths = Vec::with_capacity(2);
-        let mut writers = Vec::with_capacity(2);
-        for _ in 0..2 {
-            let path = self.dir.join(format!("lpc-part-{}.tmp", self.files));
-            self.files += 1;
-            temps.0.push(path.clone());
-            let f = File::create(&path).map_err(|e| MethodError::io(&path, e))?;
-            writers.push(BufWriter::with_capacity(IO_BUF, f));
-            paths.push(path);
-        }
-        let mut block = Vec::with_capacity(BLOCK);
-        let mut ahead = Vec::with_capacity(BLOCK);
-        self.peak = self
-            .peak
-            .max(2 * (BLOCK as u64) * RECORD_BYTES + 4 * IO_BUF as u64);
-        let mut write = |side: usize, s: &Sample| -> Result<(), MethodError> {
-            writers[side]
-                .write_all(bytemuck::bytes_of(s))
-                .map_err(|e| MethodError::io(&paths[side], e))
-        };
-        // The next block is fetched (converted / read) while this one is scanned.
-        let mut more = next(&mut block)?;
-        while more {
-            let (scanned, fetched) = rayon::join(
-                || -> Result<(), MethodError> {
-                    for s in &block {
-                        if let Some(side) = scan.step(*s) {
-                            write(side, s)?;
-                        }
-                    }
-                    Ok(())
-                },
-                || next(&mut ahead),
-            );
-            scanned?;
-            more = fetched?;
-            std::mem::swap(&mut block, &mut ahead);
-        }
-        let mc = scan.select();
-        scan.give_back(mc, &mut write)?;
-        for (w, p) in writers.into_iter().zip(&paths) {
-            w.into_inner()
-                .map_err(|e| MethodError::io(p, e.into_error()))?;
-        }
-        let kids = self.close(task, scan, mc)?;
-        let mut out = [None, None];
-        for side in 0..2 {
-            match kids[side] {
-                Some(t) => {
-                    self.temp_bytes += t.n * RECORD_BYTES;
-                    out[side] = Some(FileTask {
-                        task: t,
-                        path: paths[side].clone(),
-                    });
-                }
-                None => {
-                    let _ = std::fs::remove_file(&paths[side]);
-                }
-            }
-        }
-        Ok(out)
     }
 
     /// Partitions the subtree of `root`, whose samples are `bufs[0][..root.n]`, in memory
@@ -773,11 +634,4 @@ impl<'a> Phase1<'a> {
         debug_assert!(ids.is_empty());
         Ok(())
     }
-}
-
-pub(super) fn read_samples(path: &Path, out: &mut [Sample]) -> Result<(), MethodError> {
-    let file = File::open(path).map_err(|e| MethodError::io(path, e))?;
-    let mut r = BufReader::with_capacity(IO_BUF, file);
-    r.read_exact(bytemuck::cast_slice_mut(out))
-        .map_err(|e| MethodError::io(path, e))
 }

@@ -597,7 +597,7 @@ mod tests {
         let mut p: Vec<[f32; 3]> = (0..3000)
             .map(|_| [r.f32(), r.f32() * 0.5, r.f32() * 0.01])
             .collect();
-        p.extend_from_slice(&p[..40].to_vec());
+        p.extend_from_within(..40);
         let k = 6;
         let whole = knn_spacing(&p, k);
         let cuts = [0, 700, 2100, p.len()];

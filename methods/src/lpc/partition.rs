@@ -330,26 +330,30 @@ impl Scan {
             d = self.table[s.normal as usize].1;
             self.min_dot = self.min_dot.min(Vec3::from(d).dot(self.naxis));
         }
-        if self.leaf || self.keep_all || self.rng.f32() < self.p {
-            self.res.push(s);
-            return None;
-        }
-        if self.hold.len() < self.m {
-            self.hold.push(s);
+        if self.keep_or_hold(s) {
             return None;
         }
         Some(self.route(&s, d))
+    }
+    /// The Russian roulette and the held-back samples: true if `s` stays with the node
+    /// (kept, or held back while fewer than `M` are), false if it goes to a child.
+    #[inline]
+    fn keep_or_hold(&mut self, s: Sample) -> bool {
+        if self.leaf || self.keep_all || self.rng.f32() < self.p {
+            self.res.push(s);
+            return true;
+        }
+        if self.hold.len() < self.m {
+            self.hold.push(s);
+            return true;
+        }
+        false
     }
     /// [`Scan::step`] for a node scanned before (its sphere, cone and children known): the
     /// same draws, kept, held-back and routed samples, without the bookkeeping.
     #[inline]
     pub(super) fn step_known(&mut self, s: Sample) -> Option<usize> {
-        if self.leaf || self.keep_all || self.rng.f32() < self.p {
-            self.res.push(s);
-            return None;
-        }
-        if self.hold.len() < self.m {
-            self.hold.push(s);
+        if self.keep_or_hold(s) {
             return None;
         }
         Some((s.p[self.axis] >= self.mid) as usize)

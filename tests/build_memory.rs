@@ -53,10 +53,11 @@ fn same_files_within_16_mb(method: &str, files: &[&str]) {
         let read = |d: &str| std::fs::read(tmp.path().join(d).join(f)).unwrap();
         assert!(read("small") == read("whole"), "{method}: {f} differs");
     }
-    // The phases are on file, each of the build's own within the build's seconds (phases
-    // never overlap: one starting ends the one before).
+    // The phases are on file, the scene's load first, each of the build's own within the
+    // build's seconds (phases never overlap: one starting ends the one before).
     for b in [&small, &whole] {
         let phases = b["extra"]["phases"].as_array().unwrap();
+        assert_eq!(phases[0]["phase"], "scene: load", "{b}");
         let own: f64 = phases
             .iter()
             .filter(|p| {

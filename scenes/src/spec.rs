@@ -376,13 +376,17 @@ impl SceneSpec {
     }
 
     /// Loads the scene. Large generated scenes go through `cache_dir` (when given) as column
-    /// files.
+    /// files. The load is a `progress` phase ("scene: load"; a generator's own phase takes
+    /// over from it), so a build's timed phases cover it.
     pub fn load(
         &self,
         cache_dir: Option<&Path>,
         progress: &dyn Progress,
     ) -> Result<Loaded, SceneError> {
-        let (mut loaded, scalar) = self.read(cache_dir, progress)?;
+        progress.start("scene: load", 0);
+        let read = self.read(cache_dir, progress);
+        progress.finish();
+        let (mut loaded, scalar) = read?;
         if let Some(field) = self.colour_from {
             let path = self.file().ok_or_else(|| SceneError::Spec {
                 spec: self.text.clone(),

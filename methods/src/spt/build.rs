@@ -257,9 +257,8 @@ impl Ctx<'_> {
             return hi - lo + 1;
         }
         let ranges = self.child_ranges(lo, hi, level);
-        if ranges.len() == 1 {
-            return self.count(lo, hi, level - 1);
-        }
+        // At least two child cells: `first_split` found the keys differing here.
+        debug_assert!(ranges.len() >= 2);
         1 + ranges
             .iter()
             .map(|&(s, e)| self.count(s, e, level - 1))
@@ -288,9 +287,7 @@ impl Ctx<'_> {
             height = 1;
         } else {
             let ranges = self.child_ranges(lo, hi, level);
-            if ranges.len() == 1 {
-                return self.subtree(out, base, lo, hi, level - 1);
-            }
+            debug_assert!(ranges.len() >= 2, "first_split found a split here");
             let counts: Vec<usize> = ranges
                 .iter()
                 .map(|&(s, e)| self.count(s, e, level - 1))

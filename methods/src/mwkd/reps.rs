@@ -165,7 +165,39 @@ struct Cluster {
     center: Vec3,
     normal: Vec3,
     color: [f32; 3],
-    members: Vec<u32>,
+    /// First and last member: the members form a list threaded through [`Members::next`]
+    /// (one array for all clusters, not a vector per cluster).
+    head: u32,
+    tail: u32,
+}
+
+/// The member lists of all clusters: `next[i]` follows input splat `i` in its cluster's
+/// list ([`NONE`] at the end). Appending a cluster's list to another's is O(1).
+struct Members {
+    next: Vec<u32>,
+}
+
+const NONE: u32 = u32::MAX;
+
+impl Members {
+    /// Every input splat its own one-member list.
+    fn singletons(m: usize) -> Self {
+        Members {
+            next: vec![NONE; m],
+        }
+    }
+
+    /// The members of `c`, in the order they joined.
+    fn of<'a>(&'a self, c: &Cluster) -> impl Iterator<Item = usize> + 'a {
+        let mut at = c.head;
+        std::iter::from_fn(move || {
+            (at != NONE).then(|| {
+                let i = at;
+                at = self.next[i as usize];
+                i as usize
+            })
+        })
+    }
 }
 
 impl Cluster {
@@ -183,11 +215,12 @@ impl Cluster {
             center: p,
             normal: n.normalize_or_zero(),
             color: c,
-            members: vec![i as u32],
+            head: i as u32,
+            tail: i as u32,
         }
     }
 
-    fn absorb(&mut self, o: Cluster) {
+    fn absorb(&mut self, o: Cluster, members: &mut Members) {
         self.weight += o.weight;
         self.sum_p += o.sum_p;
         self.sum_n += o.sum_n;
@@ -202,7 +235,8 @@ impl Cluster {
             (self.sum_c[1] / w) as f32,
             (self.sum_c[2] / w) as f32,
         ];
-        self.members.extend(o.members);
+        members.next[self.tail as usize] = o.head;
+        self.tail = o.tail;
     }
 }
 
@@ -214,8 +248,9 @@ fn color_diff(a: [f32; 3], b: [f32; 3]) -> f32 {
     (0..3).map(|k| (a[k] - b[k]).abs()).fold(0.0, f32::max)
 }
 
-/// Cell coordinates of every input splat for a `k`-per-axis grid over `lo..lo+size`.
-fn cell_keys(pos: &[Vec3], lo: Vec3, size: Vec3, k: u32) -> Vec<u64> {
+/// The cell of a position in a `k`-per-axis grid over `lo..lo+size` (as a row-major index
+/// into the `k³` cells).
+fn cell_key(p: Vec3, lo: Vec3, size: Vec3, k: u32) -> u64 {
     let kf = k as f32;
     let coord = |v: f32, l: f32, s: f32| -> u64 {
         if s > 0.0 && v.is_finite() {
@@ -225,30 +260,32 @@ fn cell_keys(pos: &[Vec3], lo: Vec3, size: Vec3, k: u32) -> Vec<u64> {
         }
     };
     let k64 = u64::from(k);
-    pos.iter()
-        .map(|p| {
-            let x = coord(p.x, lo.x, size.x);
-            let y = coord(p.y, lo.y, size.y);
-            let z = coord(p.z, lo.z, size.z);
-            (x * k64 + y) * k64 + z
-        })
-        .collect()
+    let x = coord(p.x, lo.x, size.x);
+    let y = coord(p.y, lo.y, size.y);
+    let z = coord(p.z, lo.z, size.z);
+    (x * k64 + y) * k64 + z
 }
 
-/// Whether the keys of a `k`-grid ([`cell_keys`]) occupy at most `target` cells. Up to
-/// [`BITMAP_CELLS`] cells this marks a bitmap and stops at the first cell past `target` (one
-/// pass, most probes of [`choose_grid`] stop early); finer grids sort and count.
-fn occupied_at_most(keys: &[u64], k: u32, target: usize) -> bool {
+/// [`cell_key`] of every input splat.
+fn cell_keys(pos: &[Vec3], lo: Vec3, size: Vec3, k: u32) -> Vec<u64> {
+    pos.iter().map(|&p| cell_key(p, lo, size, k)).collect()
+}
+
+/// Whether the keys of a `k`-grid ([`cell_key`]) occupy at most `target` cells. Up to
+/// [`BITMAP_CELLS`] cells this marks a bitmap and stops at the first cell past `target`
+/// (keys are computed only up to there: most probes of [`choose_grid`] stop early); finer
+/// grids sort and count.
+fn occupied_at_most(keys: impl Iterator<Item = u64>, k: u32, target: usize) -> bool {
     let cells = u64::from(k).pow(3);
     if cells > BITMAP_CELLS {
-        let mut v = keys.to_vec();
+        let mut v: Vec<u64> = keys.collect();
         v.sort_unstable();
         v.dedup();
         return v.len() <= target;
     }
     let mut seen = vec![0u64; cells.div_ceil(64) as usize];
     let mut count = 0usize;
-    for &key in keys {
+    for key in keys {
         let (word, bit) = ((key / 64) as usize, 1u64 << (key % 64));
         if seen[word] & bit == 0 {
             seen[word] |= bit;
@@ -264,30 +301,28 @@ fn occupied_at_most(keys: &[u64], k: u32, target: usize) -> bool {
 /// Most cells of a grid whose occupancy [`occupied_at_most`] counts with a bitmap (512 KiB).
 const BITMAP_CELLS: u64 = 1 << 22;
 
-/// The largest `k ≤ grid` whose grid has at most `target` occupied cells.
+/// The largest `k ≤ grid` whose grid has at most `target` occupied cells, and the cell
+/// keys of that grid.
 fn choose_grid(pos: &[Vec3], lo: Vec3, size: Vec3, grid: u32, target: usize) -> (u32, Vec<u64>) {
-    let keys = cell_keys(pos, lo, size, grid);
-    if occupied_at_most(&keys, grid, target) {
-        return (grid, keys);
+    let fits = |k: u32| occupied_at_most(pos.iter().map(|&p| cell_key(p, lo, size, k)), k, target);
+    if fits(grid) {
+        return (grid, cell_keys(pos, lo, size, grid));
     }
     // Binary search assuming monotonicity, then walk down if a glitch breaks it.
     let (mut good, mut bad) = (1u32, grid);
     while bad - good > 1 {
         let mid = good + (bad - good) / 2;
-        if occupied_at_most(&cell_keys(pos, lo, size, mid), mid, target) {
+        if fits(mid) {
             good = mid;
         } else {
             bad = mid;
         }
     }
     let mut k = good;
-    loop {
-        let keys = cell_keys(pos, lo, size, k);
-        if k == 1 || occupied_at_most(&keys, k, target) {
-            return (k, keys);
-        }
+    while k > 1 && !fits(k) {
         k -= 1;
     }
+    (k, cell_keys(pos, lo, size, k))
 }
 
 /// Lists longer than this merge in batches over a window of neighbours (in Morton order)
@@ -455,9 +490,10 @@ pub fn representatives(input: &Splats, target: usize, cfg: &RepConfig) -> Select
     };
     let morton = morton_codes(&input.positions, lo, size);
     let mut order: Vec<u32> = (0..m as u32).collect();
-    order.sort_by_key(|&i| (keys[i as usize], morton[i as usize], i));
+    order.sort_unstable_by_key(|&i| (keys[i as usize], morton[i as usize], i));
 
     let mut clusters: Vec<Option<Cluster>> = (0..m).map(|i| Some(Cluster::new(input, i))).collect();
+    let mut member_lists = Members::singletons(m);
     let mut lists: Vec<Vec<usize>> = Vec::new();
     let mut prev = None;
     for &i in &order {
@@ -550,7 +586,7 @@ pub fn representatives(input: &Splats, target: usize, cfg: &RepConfig) -> Select
             if let Some(cb) = clusters[ib].take()
                 && let Some(ca) = clusters[ia].as_mut()
             {
-                ca.absorb(cb);
+                ca.absorb(cb, &mut member_lists);
             }
             dead[b] = true;
             count -= 1;
@@ -575,8 +611,7 @@ pub fn representatives(input: &Splats, target: usize, cfg: &RepConfig) -> Select
             };
             let k = reps.len() as u32;
             let mut r = 0.0f32;
-            for &mi in &cl.members {
-                let mi = mi as usize;
+            for mi in member_lists.of(cl) {
                 members[mi] = k;
                 r = r.max(input.positions[mi].distance(cl.center) + input.radii[mi]);
             }
@@ -586,7 +621,7 @@ pub fn representatives(input: &Splats, target: usize, cfg: &RepConfig) -> Select
                     input
                         .normals
                         .as_ref()
-                        .map_or(Vec3::ZERO, |v| v[cl.members[0] as usize])
+                        .map_or(Vec3::ZERO, |v| v[cl.head as usize])
                 } else {
                     cl.normal
                 };
@@ -629,7 +664,7 @@ mod tests {
                 let d = distinct.len();
                 for target in [d.saturating_sub(1), d, d + 1] {
                     assert_eq!(
-                        occupied_at_most(&keys, k, target),
+                        occupied_at_most(keys.iter().copied(), k, target),
                         d <= target,
                         "k {k} m {m}"
                     );

@@ -25,6 +25,7 @@ pub mod method;
 pub mod morton;
 pub mod mwkd;
 pub mod octnormal;
+pub mod overlap;
 pub mod params;
 pub mod qsplat;
 pub mod registry;

@@ -36,6 +36,7 @@ use super::list::{ListNode, ListWriter};
 use super::quant::{Extent, LodScale};
 use super::{Listed, SptMode, SptParams, cluster_of, list_key, lod_entry, non_finite};
 use crate::MethodError;
+use crate::overlap::overlapped;
 use crate::spill::samples::{self, EMPTY_BOX, SampleLayout, f32_at, grow, pos_of};
 use crate::spill::{Budget, Spill, SpillDir};
 use crate::unit_knn::{UnitBox, unit_radii};
@@ -56,6 +57,8 @@ const FIRST_DEPTH: u32 = 6;
 const STEP: u32 = 3;
 /// Samples per block when streaming the cloud.
 const BLOCK: usize = 1 << 16;
+/// Nodes per batch handed from the merge to the list's writer.
+const WRITE_BATCH: usize = 1 << 12;
 /// Bytes of a node record: key `u128`, centre, normal, colour + pad, radius, `lod`.
 const RECORD: usize = 64;
 
@@ -288,18 +291,23 @@ fn route(
 }
 
 /// A node record of a sorted run.
-fn encode_record(key: u128, nd: &ListNode, out: &mut Vec<u8>) {
-    out.clear();
-    out.extend_from_slice(&key.to_le_bytes());
+fn encode_record(key: u128, nd: &ListNode, out: &mut [u8]) {
+    let mut at = 0;
+    let mut put = |b: &[u8]| {
+        out[at..at + b.len()].copy_from_slice(b);
+        at += b.len();
+    };
+    put(&key.to_le_bytes());
     for v in nd.p.to_array().into_iter().chain(nd.n.to_array()) {
-        out.extend_from_slice(&v.to_le_bytes());
+        put(&v.to_le_bytes());
     }
-    out.extend_from_slice(&nd.color);
-    out.push(0);
-    out.extend_from_slice(&nd.r.to_le_bytes());
+    put(&nd.color);
+    put(&[0]);
+    put(&nd.r.to_le_bytes());
     for v in nd.lod {
-        out.extend_from_slice(&v.to_le_bytes());
+        put(&v.to_le_bytes());
     }
+    debug_assert_eq!(at, RECORD);
 }
 
 fn decode_record(r: &[u8]) -> (u128, ListNode) {
@@ -410,9 +418,7 @@ impl Walk<'_> {
         let base = self.next_id;
         let (p, has_n) = (self.p, self.has_normals);
         let root = nodes.len() - 1;
-        for nd in &nodes[..root] {
-            self.extent.add(nd);
-        }
+        self.extent = std::mem::take(&mut self.extent).merge(&Extent::of(&nodes[..root]));
         // Each non-root node's `lod` entry (its parent is in the unit), then the list keys.
         let lods: Vec<[f32; 4]> = nodes[..root]
             .par_iter()
@@ -428,16 +434,30 @@ impl Walk<'_> {
             })
             .collect();
         keyed.par_sort_unstable();
+        // The first node in list order with a non-finite `lod` entry is the error; the
+        // records are then encoded in parallel and written in one go.
+        if let Some(&(_, i)) = keyed
+            .par_iter()
+            .find_first(|&&(_, i)| !lods[i as usize].iter().all(|v| v.is_finite()))
+        {
+            return Err(non_finite(
+                base + u64::from(i),
+                &lods[i as usize],
+                &nodes[i as usize],
+            ));
+        }
+        let mut recs = vec![0u8; keyed.len() * RECORD];
+        recs.par_chunks_mut(RECORD)
+            .zip(&keyed)
+            .for_each(|(out, &(key, i))| {
+                let (nd, lod) = (&nodes[i as usize], lods[i as usize]);
+                encode_record(key, &ListNode::of(nd, lod, (key >> 96) as u32), out);
+            });
+        drop(keyed);
         // Small blocks: every run has a reader open during the merge.
         let mut w = self.dir.writer_with_block("run", RECORD, 1 << 16)?;
-        let mut rec = Vec::with_capacity(RECORD);
-        for &(key, i) in &keyed {
-            let (nd, lod) = (&nodes[i as usize], lods[i as usize]);
-            if !lod.iter().all(|v| v.is_finite()) {
-                return Err(non_finite(base + i as u64, &lod, nd));
-            }
-            encode_record(key, &ListNode::of(nd, lod, (key >> 96) as u32), &mut rec);
-            w.push(&rec)?;
+        for rec in recs.chunks_exact(RECORD) {
+            w.push(rec)?;
         }
         self.runs.push(w.finish()?);
         self.inner += nodes.iter().filter(|n| !n.leaf).count() as u64;
@@ -551,7 +571,7 @@ pub(crate) fn list_in_units(
     }
     top.sort_unstable_by_key(|t| t.0);
     // Step 4: merge.
-    let mut w = ListWriter::create(
+    let w = ListWriter::create(
         budget.dir,
         cloud.attributes(),
         &extent,
@@ -565,45 +585,56 @@ pub(crate) fn list_in_units(
         .iter()
         .map(Spill::reader)
         .collect::<Result<Vec<_>, _>>()?;
-    let mut heap: BinaryHeap<Reverse<(u128, usize)>> = BinaryHeap::new();
-    let mut heads: Vec<Option<ListNode>> = vec![None; readers.len()];
-    for (i, r) in readers.iter_mut().enumerate() {
-        if let Some(rec) = r.next_record()? {
-            let (k, nd) = decode_record(rec);
-            heads[i] = Some(nd);
-            heap.push(Reverse((k, i)));
-        }
-    }
-    let mut top_at = 0;
-    let mut written = 0u64;
-    loop {
-        let from_runs = heap.peek().map(|Reverse((k, _))| *k);
-        let from_top = top.get(top_at).map(|t| t.0);
-        match (from_runs, from_top) {
-            (None, None) => break,
-            (Some(k), t) if t.is_none_or(|t| k < t) => {
-                let Some(Reverse((_, i))) = heap.pop() else {
-                    break;
-                };
-                if let Some(nd) = heads[i].take() {
-                    w.push(&nd)?;
-                }
-                if let Some(rec) = readers[i].next_record()? {
+    // The merge on this thread, the list's encoding and writing on a second one.
+    let w = overlapped(
+        w,
+        WRITE_BATCH,
+        |w, nodes: Vec<ListNode>| {
+            for nd in &nodes {
+                w.push(nd)?;
+            }
+            progress.inc(nodes.len() as u64);
+            Ok::<(), MethodError>(())
+        },
+        |feed| {
+            let mut heap: BinaryHeap<Reverse<(u128, usize)>> = BinaryHeap::new();
+            let mut heads: Vec<Option<ListNode>> = vec![None; readers.len()];
+            for (i, r) in readers.iter_mut().enumerate() {
+                if let Some(rec) = r.next_record()? {
                     let (k, nd) = decode_record(rec);
                     heads[i] = Some(nd);
                     heap.push(Reverse((k, i)));
                 }
             }
-            _ => {
-                w.push(&top[top_at].1)?;
-                top_at += 1;
+            let mut top = top.into_iter().peekable();
+            loop {
+                let from_runs = heap.peek().map(|Reverse((k, _))| *k);
+                let from_top = top.peek().map(|t| t.0);
+                match (from_runs, from_top) {
+                    (None, None) => break,
+                    (Some(k), t) if t.is_none_or(|t| k < t) => {
+                        let Some(Reverse((_, i))) = heap.pop() else {
+                            break;
+                        };
+                        if let Some(nd) = heads[i].take() {
+                            feed.push(nd)?;
+                        }
+                        if let Some(rec) = readers[i].next_record()? {
+                            let (k, nd) = decode_record(rec);
+                            heads[i] = Some(nd);
+                            heap.push(Reverse((k, i)));
+                        }
+                    }
+                    _ => {
+                        if let Some((_, nd)) = top.next() {
+                            feed.push(nd)?;
+                        }
+                    }
+                }
             }
-        }
-        written += 1;
-        if written.is_multiple_of(BLOCK as u64) {
-            progress.inc(BLOCK as u64);
-        }
-    }
+            Ok(())
+        },
+    )?;
     let index = w.finish(levels)?;
     progress.finish();
     Ok(Listed {

@@ -14,6 +14,7 @@ use scenes::PointCloud;
 use super::samples::{EMPTY_BOX, SampleLayout, f32_at, grow, index_of, pos_of};
 use super::{BLOCK_BYTES, Spill, SpillDir};
 use crate::MethodError;
+use crate::overlap::overlapped;
 use crate::sortkey::f32_total_order;
 
 /// Calls `f` with every record of `src`, or, for `None`, of the whole cloud in input order
@@ -117,7 +118,8 @@ pub type Part = (u64, Spill, (Vec3, Vec3));
 
 /// Streams the records of `src` (the cloud for `None`) into `parts` new files of `spill`,
 /// record `r` into part `which(r)` (< `parts`), in order; returns each part's count, file
-/// and the bounding box of its positions.
+/// and the bounding box of its positions. Reading and routing run on this thread, writing
+/// on a second one ([`crate::overlap`]): the same files as one loop.
 pub fn route(
     src: Option<&Spill>,
     cloud: &PointCloud,
@@ -129,21 +131,68 @@ pub fn route(
     let rb = layout.bytes();
     // Many parts share a bounded amount of buffer.
     let block = (BLOCK_BYTES * 2 / parts.max(1)).clamp(1 << 16, BLOCK_BYTES);
-    let mut w = (0..parts)
+    let w = (0..parts)
         .map(|_| spill.writer_with_block("samples", rb, block))
         .collect::<Result<Vec<_>, _>>()?;
-    let mut n = vec![0u64; parts];
-    let mut b = vec![EMPTY_BOX; parts];
-    scan(src, cloud, layout, |rec| {
-        let k = which(rec);
-        n[k] += 1;
-        grow(&mut b[k], pos_of(rec));
-        w[k].push(rec)
-    })?;
+    let state = (w, vec![0u64; parts], vec![EMPTY_BOX; parts]);
+    let (w, n, b) = overlapped(
+        state,
+        1,
+        |(w, n, b), routed: Vec<Routed>| {
+            for r in routed {
+                for (rec, &k) in r.records.chunks_exact(rb).zip(&r.parts) {
+                    let k = k as usize;
+                    n[k] += 1;
+                    grow(&mut b[k], pos_of(rec));
+                    w[k].push(rec)?;
+                }
+            }
+            Ok::<(), MethodError>(())
+        },
+        |feed| {
+            let mut cur = Routed::with_capacity(rb);
+            scan(src, cloud, layout, |rec| {
+                let k = which(rec);
+                if k >= parts {
+                    return Err(MethodError::Limit(format!(
+                        "split: a record routed to part {k} of {parts}"
+                    )));
+                }
+                cur.parts.push(k as u32);
+                cur.records.extend_from_slice(rec);
+                if cur.parts.len() == ROUTE_BATCH {
+                    feed.push(std::mem::replace(&mut cur, Routed::with_capacity(rb)))?;
+                }
+                Ok(())
+            })?;
+            if !cur.parts.is_empty() {
+                feed.push(cur)?;
+            }
+            Ok(())
+        },
+    )?;
     w.into_iter()
         .zip(n.into_iter().zip(b))
         .map(|(w, (n, b))| Ok((n, w.finish()?, b)))
         .collect()
+}
+
+/// Records per batch handed from [`route`]'s reader to its writer.
+const ROUTE_BATCH: usize = 1 << 14;
+
+/// A batch of [`route`]: records and the part of each.
+struct Routed {
+    records: Vec<u8>,
+    parts: Vec<u32>,
+}
+
+impl Routed {
+    fn with_capacity(record_bytes: usize) -> Self {
+        Routed {
+            records: Vec::with_capacity(ROUTE_BATCH * record_bytes),
+            parts: Vec::with_capacity(ROUTE_BATCH),
+        }
+    }
 }
 
 #[cfg(test)]

@@ -57,6 +57,8 @@ const FIRST_DEPTH: u32 = 6;
 const STEP: u32 = 3;
 /// Samples per block when streaming the cloud.
 const BLOCK: usize = 1 << 16;
+/// Samples per parallel piece of the routing pass.
+const ROUTE_PIECE: usize = 1 << 12;
 /// Nodes per batch handed from the merge to the list's writer.
 const WRITE_BATCH: usize = 1 << 12;
 /// Bytes of a node record: key `u128`, centre, normal, colour + pad, radius, `lod`.
@@ -260,14 +262,28 @@ fn route(
         writers.push(dir.writer_with_block("samples", layout.bytes(), 1 << 16)?);
     }
     let mut boxes = vec![EMPTY_BOX; cells.len()];
-    let mut rec = Vec::with_capacity(layout.bytes());
+    let rb = layout.bytes();
     for_codes(cloud, grid, |start, codes| {
-        for (j, &c) in codes.iter().enumerate() {
-            let u = starts.partition_point(|&s| s <= c) - 1;
-            rec.clear();
-            layout.encode(cloud, start + j, &mut rec);
-            writers[u].push(&rec)?;
-            grow(&mut boxes[u], pos_of(&rec));
+        // Each sample's unit and record, found in parallel pieces, then written in order.
+        let pieces: Vec<(Vec<u32>, Vec<u8>)> = codes
+            .par_chunks(ROUTE_PIECE)
+            .enumerate()
+            .map(|(c, piece)| {
+                let mut to = Vec::with_capacity(piece.len());
+                let mut recs = Vec::with_capacity(piece.len() * rb);
+                for (j, &code) in piece.iter().enumerate() {
+                    to.push((starts.partition_point(|&s| s <= code) - 1) as u32);
+                    layout.encode(cloud, start + c * ROUTE_PIECE + j, &mut recs);
+                }
+                (to, recs)
+            })
+            .collect();
+        for (to, recs) in &pieces {
+            for (&u, rec) in to.iter().zip(recs.chunks_exact(rb)) {
+                let u = u as usize;
+                writers[u].push(rec)?;
+                grow(&mut boxes[u], pos_of(rec));
+            }
         }
         Ok(())
     })?;

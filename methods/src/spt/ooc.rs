@@ -57,6 +57,8 @@ const FIRST_DEPTH: u32 = 6;
 const STEP: u32 = 3;
 /// Samples per block when streaming the cloud.
 const BLOCK: usize = 1 << 16;
+/// Run records encoded at a time (in parallel) by [`Walk::unit`].
+const ENCODE_SLICE: usize = 1 << 15;
 /// Samples per parallel piece of the routing pass.
 const ROUTE_PIECE: usize = 1 << 12;
 /// Nodes per batch handed from the merge to the list's writer.
@@ -450,8 +452,7 @@ impl Walk<'_> {
             })
             .collect();
         keyed.par_sort_unstable();
-        // The first node in list order with a non-finite `lod` entry is the error; the
-        // records are then encoded in parallel and written in one go.
+        // The first node in list order with a non-finite `lod` entry is the error.
         if let Some(&(_, i)) = keyed
             .par_iter()
             .find_first(|&&(_, i)| !lods[i as usize].iter().all(|v| v.is_finite()))
@@ -462,18 +463,22 @@ impl Walk<'_> {
                 &nodes[i as usize],
             ));
         }
-        let mut recs = vec![0u8; keyed.len() * RECORD];
-        recs.par_chunks_mut(RECORD)
-            .zip(&keyed)
-            .for_each(|(out, &(key, i))| {
-                let (nd, lod) = (&nodes[i as usize], lods[i as usize]);
-                encode_record(key, &ListNode::of(nd, lod, (key >> 96) as u32), out);
-            });
-        drop(keyed);
         // Small blocks: every run has a reader open during the merge.
         let mut w = self.dir.writer_with_block("run", RECORD, 1 << 16)?;
-        for rec in recs.chunks_exact(RECORD) {
-            w.push(rec)?;
+        // Encoded in parallel a slice of keys at a time (a buffer for the whole unit would
+        // add 64 bytes per node to the unit's peak).
+        let mut recs = vec![0u8; ENCODE_SLICE.min(keyed.len()) * RECORD];
+        for slice in keyed.chunks(ENCODE_SLICE) {
+            let recs = &mut recs[..slice.len() * RECORD];
+            recs.par_chunks_mut(RECORD)
+                .zip(slice)
+                .for_each(|(out, &(key, i))| {
+                    let (nd, lod) = (&nodes[i as usize], lods[i as usize]);
+                    encode_record(key, &ListNode::of(nd, lod, (key >> 96) as u32), out);
+                });
+            for rec in recs.chunks_exact(RECORD) {
+                w.push(rec)?;
+            }
         }
         self.runs.push(w.finish()?);
         self.inner += nodes.iter().filter(|n| !n.leaf).count() as u64;

@@ -7,7 +7,8 @@
 //!    `⌊c/N⌋·i + min(i, c mod N)` onwards in (coordinate, input index) order — by streaming
 //!    its sample records ([`crate::spill::samples`]; the root's straight from the cloud's
 //!    columns, releasing their pages behind the cursor): the `N − 1` boundary keys come from
-//!    one radix selection ([`split::select_keys`], 4 passes for all of them), and one more
+//!    one selection ([`split::select_keys`], 2 passes for all of them: counts per slice of
+//!    the node's box, then the keys of the slices holding a boundary), and one more
 //!    pass routes every record into its child's spill file ([`split::route`], stable, so
 //!    each file keeps input order). A node of at most the capacity is a **unit**.
 //! 2. **Units, bottom-up.** In post-order over the nodes above the units, a unit is loaded
@@ -232,7 +233,8 @@ impl Builder<'_> {
             let starts: Vec<u64> = (0..=nf as u64).map(|i| i * q + i.min(rem)).collect();
             let axis = self.nodes[r.id].bounds.longest_axis();
             let (cloud, layout) = (self.cloud, self.layout);
-            let pivots = split::select_keys(&starts[1..nf], |f| {
+            let range = split::key_range(r.bbox.0[axis], r.bbox.1[axis]);
+            let pivots = split::select_keys(&starts[1..nf], range, |f| {
                 split::scan(r.src.as_ref(), cloud, layout, |rec| {
                     f(split::rank_key(rec, axis));
                     Ok(())

@@ -8,8 +8,8 @@
 //!    boxes, axis, midpoint cut, median fallback; [`Split`]), but by streaming: the root's
 //!    samples are read from the cloud's columns in input order, every larger range from its
 //!    spill file, into two child spill files (stable, so each file keeps input order). A
-//!    median is found by a radix selection over the 64-bit keys (coordinate in
-//!    total order, then sample index; [`split::select_keys`]), the same order as the
+//!    median is found by a selection over the 64-bit keys (coordinate in total order,
+//!    then sample index; [`split::select_keys`]), the same order as the
 //!    in-memory `select_nth_unstable_by`. A range of at most the capacity is a unit.
 //! 2. **Costs.** Each unit is partitioned in memory; its root's split costs go into the
 //!    top tree's dynamic programme ([`Combine`]), which decides the top nodes' combining. A
@@ -364,7 +364,8 @@ fn partition_top(
             let ((nl, left, lbox), (nr, right, rbox)) = match halves {
                 Some(h) => h,
                 None => {
-                    let pivot = split::select_keys(&[r.n / 2], |f| {
+                    let range = split::key_range(lo[axis], hi[axis]);
+                    let pivot = split::select_keys(&[r.n / 2], range, |f| {
                         split::scan(r.src.as_ref(), cloud, layout, |rec| {
                             f(split::rank_key(rec, axis));
                             Ok(())

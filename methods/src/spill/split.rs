@@ -59,22 +59,130 @@ pub fn rank_key(r: &[u8], axis: usize) -> u64 {
     ((f32_total_order(f32_at(r, 4 + 4 * axis)) as u64) << 32) | index_of(r) as u64
 }
 
-/// Passes of [`select_keys`] (16 bits each, from the top of the 64-bit key).
+/// Passes of [`radix_select`] (16 bits each, from the top of the 64-bit key).
 pub const SELECT_PASSES: u32 = 4;
 
+/// Buckets of [`select_keys`]' first pass (a histogram of 512 KiB, as one radix pass).
+const BUCKET_BITS: u32 = 16;
+
+/// Most keys [`select_keys`] collects in its second pass (32 MiB); beyond, it selects by
+/// radix instead.
+pub const COLLECT_MAX: u64 = 1 << 22;
+
+/// The range of [`rank_key`]s of records whose coordinate lies in `lo..=hi`.
+pub fn key_range(lo: f32, hi: f32) -> (u64, u64) {
+    (
+        u64::from(f32_total_order(lo)) << 32,
+        (u64::from(f32_total_order(hi)) << 32) | u64::from(u32::MAX),
+    )
+}
+
 /// The keys of ranks `ranks` (non-decreasing) among the keys that `scan` hands to its
-/// argument: a radix selection, 16 bits per pass from the top, all ranks in the same
-/// [`SELECT_PASSES`] scans (one histogram per distinct prefix still in play). `scan` must
-/// yield the same keys on every call. A rank at or beyond the number of keys is an error.
+/// argument, in two scans when the keys lie in `range` (inclusive; a key outside still
+/// counts, in the first or last bucket): the first counts the keys per bucket of `range`
+/// ([`BUCKET_BITS`] bits of buckets, each an equal slice of the range), the second collects
+/// the keys of the buckets holding a wanted rank and selects among them. When those buckets
+/// hold more than [`COLLECT_MAX`] keys (a range given too wide, or piles of equal
+/// coordinates), the selection is [`radix_select`]'s instead. `scan` must yield the same
+/// keys on every call. A rank at or beyond the number of keys is an error.
 pub fn select_keys(
     ranks: &[u64],
+    range: (u64, u64),
+    scan: impl FnMut(&mut dyn FnMut(u64)) -> Result<(), MethodError>,
+) -> Result<Vec<u64>, MethodError> {
+    select_keys_capped(ranks, range, COLLECT_MAX, scan)
+}
+
+/// [`select_keys`] with the collection capped at `cap` keys.
+fn select_keys_capped(
+    ranks: &[u64],
+    range: (u64, u64),
+    cap: u64,
     mut scan: impl FnMut(&mut dyn FnMut(u64)) -> Result<(), MethodError>,
 ) -> Result<Vec<u64>, MethodError> {
+    check_ranks(ranks)?;
+    if ranks.is_empty() {
+        return Ok(Vec::new());
+    }
+    let (lo, hi) = (range.0.min(range.1), range.0.max(range.1));
+    // The smallest shift that maps the range onto at most 2^BUCKET_BITS buckets.
+    let shift = (64 - (hi - lo).leading_zeros()).saturating_sub(BUCKET_BITS);
+    let last = ((hi - lo) >> shift) as usize;
+    let bucket = |k: u64| (k.clamp(lo, hi) - lo) >> shift;
+    let mut hist = vec![0u64; last + 1];
+    scan(&mut |k| hist[bucket(k) as usize] += 1)?;
+    // Each rank's bucket and its rank among that bucket's keys (one sweep: ranks ascend).
+    let mut wanted: Vec<(usize, u64)> = Vec::with_capacity(ranks.len());
+    let (mut b, mut below) = (0usize, 0u64);
+    for &r in ranks {
+        while b < hist.len() && below + hist[b] <= r {
+            below += hist[b];
+            b += 1;
+        }
+        if b == hist.len() {
+            return Err(beyond(ranks));
+        }
+        wanted.push((b, r - below));
+    }
+    let mut buckets: Vec<usize> = wanted.iter().map(|w| w.0).collect();
+    buckets.dedup();
+    if buckets.iter().map(|&b| hist[b]).sum::<u64>() > cap {
+        return radix_select(ranks, scan);
+    }
+    let mut held: Vec<Vec<u64>> = buckets
+        .iter()
+        .map(|&b| Vec::with_capacity(hist[b] as usize))
+        .collect();
+    let (first, end) = (buckets[0] as u64, buckets[buckets.len() - 1] as u64);
+    scan(&mut |k| {
+        let b = bucket(k);
+        if (first..=end).contains(&b)
+            && let Ok(i) = buckets.binary_search(&(b as usize))
+        {
+            held[i].push(k);
+        }
+    })?;
+    wanted
+        .iter()
+        .map(|&(b, r)| {
+            let i = buckets.binary_search(&b).unwrap_or(0);
+            let keys = &mut held[i];
+            if keys.len() as u64 != hist[b] {
+                return Err(MethodError::Limit(format!(
+                    "select_keys: a second scan gave {} keys in bucket {b}, the first {}",
+                    keys.len(),
+                    hist[b]
+                )));
+            }
+            let (_, k, _) = keys.select_nth_unstable(r as usize);
+            Ok(*k)
+        })
+        .collect()
+}
+
+fn check_ranks(ranks: &[u64]) -> Result<(), MethodError> {
     if ranks.windows(2).any(|w| w[0] > w[1]) {
         return Err(MethodError::Limit(format!(
             "select_keys: ranks {ranks:?} not in order"
         )));
     }
+    Ok(())
+}
+
+fn beyond(ranks: &[u64]) -> MethodError {
+    MethodError::Limit(format!(
+        "select_keys: rank beyond the keys scanned (ranks {ranks:?})"
+    ))
+}
+
+/// The keys of ranks `ranks` (non-decreasing) by a radix selection, 16 bits per pass from
+/// the top, all ranks in the same [`SELECT_PASSES`] scans (one histogram per distinct prefix
+/// still in play); needs no range and no memory beyond the histograms.
+pub fn radix_select(
+    ranks: &[u64],
+    mut scan: impl FnMut(&mut dyn FnMut(u64)) -> Result<(), MethodError>,
+) -> Result<Vec<u64>, MethodError> {
+    check_ranks(ranks)?;
     let mut prefix = vec![0u64; ranks.len()];
     let mut rest = ranks.to_vec();
     for pass in 0..SELECT_PASSES {
@@ -102,9 +210,7 @@ pub fn select_keys(
                 *r -= h[digit];
                 digit += 1;
                 if digit == h.len() {
-                    return Err(MethodError::Limit(format!(
-                        "select_keys: rank beyond the keys scanned (ranks {ranks:?})"
-                    )));
+                    return Err(beyond(ranks));
                 }
             }
             *p |= (digit as u64) << shift;
@@ -208,31 +314,59 @@ mod tests {
         k
     }
 
-    #[test]
-    fn select_keys_matches_a_sort_for_many_ranks_at_once() {
-        let k = keys(50_000);
-        let mut sorted = k.clone();
+    /// The keys of `ranks` by a sort, and the number of scans `select` took.
+    fn check(
+        k: &[u64],
+        ranks: &[u64],
+        select: impl FnOnce(&mut dyn FnMut(&mut dyn FnMut(u64)) -> Result<(), MethodError>) -> Vec<u64>,
+    ) -> u32 {
+        let mut sorted = k.to_vec();
         sorted.sort_unstable();
-        let ranks = [
-            0,
-            1,
-            17,
-            12_500,
-            12_500,
-            25_000,
-            49_999,
-            sorted.len() as u64 - 1,
-        ];
         let mut calls = 0;
-        let got = select_keys(&ranks, |f| {
+        let got = select(&mut |f| {
             calls += 1;
             k.iter().for_each(|&v| f(v));
             Ok(())
-        })
-        .unwrap();
+        });
         let want: Vec<u64> = ranks.iter().map(|&r| sorted[r as usize]).collect();
-        assert_eq!(got, want);
+        assert_eq!(got, want, "ranks {ranks:?}");
+        calls
+    }
+
+    const RANKS: [u64; 8] = [0, 1, 17, 12_500, 12_500, 25_000, 49_999, 50_002];
+
+    #[test]
+    fn select_keys_matches_a_sort_in_two_scans_for_many_ranks_at_once() {
+        let k = keys(50_000);
+        let tight = (*k.iter().min().unwrap(), *k.iter().max().unwrap());
+        // A tight range, the whole u64 range, and one narrower than the keys (keys outside
+        // count in the end buckets): all exact, in two scans.
+        for range in [tight, (0, u64::MAX), (1 << 40, 1 << 44), (7, 7)] {
+            let calls = check(&k, &RANKS, |scan| {
+                select_keys(&RANKS, range, |f| scan(f)).unwrap()
+            });
+            assert_eq!(calls, 2, "range {range:?}");
+        }
+    }
+
+    #[test]
+    fn select_keys_selects_by_radix_when_the_wanted_buckets_exceed_the_cap() {
+        let k = keys(50_000);
+        // One bucket holds everything (a range of one key): 50 003 keys > a cap of 1000.
+        let calls = check(&k, &RANKS, |scan| {
+            select_keys_capped(&RANKS, (5, 5), 1000, |f| scan(f)).unwrap()
+        });
+        assert_eq!(calls, 1 + SELECT_PASSES);
+        let calls = check(&k, &RANKS, |scan| {
+            radix_select(&RANKS, |f| scan(f)).unwrap()
+        });
         assert_eq!(calls, SELECT_PASSES);
+        // Equal keys: any rank among them is that key.
+        let same = vec![42u64; 3000];
+        let calls = check(&same, &[0, 1500, 2999], |scan| {
+            select_keys_capped(&[0, 1500, 2999], (0, u64::MAX), 100, |f| scan(f)).unwrap()
+        });
+        assert_eq!(calls, 1 + SELECT_PASSES);
     }
 
     #[test]
@@ -242,9 +376,49 @@ mod tests {
             k.iter().for_each(|&v| f(v));
             Ok(())
         };
-        let e = select_keys(&[103], scan).unwrap_err().to_string();
+        for cap in [COLLECT_MAX, 0] {
+            let e = select_keys_capped(&[103], (0, u64::MAX), cap, scan)
+                .unwrap_err()
+                .to_string();
+            assert!(e.contains("rank beyond"), "{e}");
+            let e = select_keys_capped(&[5, 3], (0, u64::MAX), cap, scan)
+                .unwrap_err()
+                .to_string();
+            assert!(e.contains("not in order"), "{e}");
+        }
+        let e = radix_select(&[103], scan).unwrap_err().to_string();
         assert!(e.contains("rank beyond"), "{e}");
-        let e = select_keys(&[5, 3], scan).unwrap_err().to_string();
-        assert!(e.contains("not in order"), "{e}");
+        // No rank: no scan.
+        let got = select_keys(&[], (0, 1), |_| panic!("scanned")).unwrap();
+        assert!(got.is_empty());
+    }
+
+    #[test]
+    fn a_second_scan_that_differs_is_an_error() {
+        let k = keys(1000);
+        let mut calls = 0;
+        let e = select_keys(&[500], (0, u64::MAX), |f| {
+            calls += 1;
+            // The second scan drops a key.
+            k.iter().skip(calls - 1).for_each(|&v| f(v));
+            Ok(())
+        })
+        .unwrap_err()
+        .to_string();
+        assert!(e.contains("second scan"), "{e}");
+    }
+
+    #[test]
+    fn key_range_bounds_the_rank_keys_of_its_coordinates() {
+        let (lo, hi) = key_range(-2.5, 7.0);
+        for x in [-2.5f32, -0.0, 0.0, 3.25, 7.0] {
+            for index in [0u32, 1, u32::MAX] {
+                let k = (u64::from(f32_total_order(x)) << 32) | u64::from(index);
+                assert!((lo..=hi).contains(&k), "{x} {index}");
+            }
+        }
+        let below = u64::from(f32_total_order(-2.6)) << 32 | u64::from(u32::MAX);
+        let above = u64::from(f32_total_order(7.01)) << 32;
+        assert!(below < lo && above > hi);
     }
 }

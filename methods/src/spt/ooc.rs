@@ -37,13 +37,14 @@ use super::quant::{Extent, LodScale};
 use super::{Listed, SptMode, SptParams, cluster_of, list_key, lod_entry, non_finite};
 use crate::MethodError;
 use crate::overlap::overlapped;
-use crate::spill::samples::{self, EMPTY_BOX, SampleLayout, f32_at, grow, pos_of};
+use crate::spill::samples::{self, EMPTY_BOX, SampleLayout, f32_at, grow, pos_of, u32_at};
 use crate::spill::{Budget, Spill, SpillDir};
 use crate::unit_knn::{UnitBox, unit_radii};
 
 /// Working bytes per sample of a unit built in memory: samples (≤ 35 with the index),
 /// Morton keys (16), and per node (≈ 1.33–1.5 per sample) the node (52), its `lod` entry
-/// (16), its sort key and record (16 + 64 while the unit's run is sorted and written).
+/// (16) and its sort key (32 with padding, while the unit's run is sorted and written; the
+/// run's records are encoded [`ENCODE_SLICE`] at a time).
 pub const UNIT_BYTES_PER_SAMPLE: u64 = 256;
 
 /// Samples of the largest unit built in memory under `mem_bytes`.
@@ -63,8 +64,6 @@ const ENCODE_SLICE: usize = 1 << 15;
 const ROUTE_PIECE: usize = 1 << 12;
 /// Nodes per batch handed from the merge to the list's writer.
 const WRITE_BATCH: usize = 1 << 12;
-/// Bytes of a node record: key `u128`, centre, normal, colour + pad, radius, `lod`.
-const RECORD: usize = 64;
 
 /// An octree cell: depth below the root and Morton prefix (`3·depth` bits).
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Hash)]
@@ -308,42 +307,72 @@ fn route(
     Ok(units)
 }
 
-/// A node record of a sorted run.
-fn encode_record(key: u128, nd: &ListNode, out: &mut [u8]) {
-    let mut at = 0;
-    let mut put = |b: &[u8]| {
-        out[at..at + b.len()].copy_from_slice(b);
-        at += b.len();
-    };
-    put(&key.to_le_bytes());
-    for v in nd.p.to_array().into_iter().chain(nd.n.to_array()) {
-        put(&v.to_le_bytes());
-    }
-    put(&nd.color);
-    put(&[0]);
-    put(&nd.r.to_le_bytes());
-    for v in nd.lod {
-        put(&v.to_le_bytes());
-    }
-    debug_assert_eq!(at, RECORD);
+/// A node record of a sorted run, holding only what the scene has: list id (`u32`),
+/// centre, radius and `lod` entry (36 bytes), then the normal and its cluster (16) when the
+/// scene has normals, the colour and a pad byte (4) when it has colours. The list key is
+/// not stored: [`list_key`] of the cluster, `lod` and id gives it back (without normals the
+/// normal is `Vec3::Z`, the cluster 0 and, without colours, the colour black, as the tree
+/// holds them). 40 bytes on a coloured scene without normals (64 with a stored key, every
+/// attribute and padding).
+#[derive(Debug, Clone, Copy)]
+struct RunRecord {
+    normals: bool,
+    colors: bool,
 }
 
-fn decode_record(r: &[u8]) -> (u128, ListNode) {
-    let mut k = [0u8; 16];
-    k.copy_from_slice(&r[..16]);
-    let key = u128::from_le_bytes(k);
-    let v = |i: usize| f32_at(r, 16 + 4 * i);
-    (
-        key,
-        ListNode {
+impl RunRecord {
+    fn bytes(self) -> usize {
+        36 + if self.normals { 16 } else { 0 } + if self.colors { 4 } else { 0 }
+    }
+
+    /// Node `nd` with list id `id` into `out` (exactly [`Self::bytes`] long).
+    fn encode(self, id: u32, nd: &ListNode, out: &mut [u8]) {
+        let mut at = 0;
+        let mut put = |b: &[u8]| {
+            out[at..at + b.len()].copy_from_slice(b);
+            at += b.len();
+        };
+        put(&id.to_le_bytes());
+        for v in nd.p.to_array().into_iter().chain([nd.r]).chain(nd.lod) {
+            put(&v.to_le_bytes());
+        }
+        if self.normals {
+            for v in nd.n.to_array() {
+                put(&v.to_le_bytes());
+            }
+            put(&nd.cluster.to_le_bytes());
+        }
+        if self.colors {
+            put(&nd.color);
+            put(&[0]);
+        }
+        debug_assert_eq!(at, self.bytes());
+    }
+
+    /// The list key and node of record `r`.
+    fn decode(self, r: &[u8]) -> (u128, ListNode) {
+        let v = |i: usize| f32_at(r, 4 + 4 * i);
+        let lod = [v(4), v(5), v(6), v(7)];
+        let (n, cluster, c) = if self.normals {
+            (Vec3::new(v(8), v(9), v(10)), u32_at(r, 48), 52)
+        } else {
+            (Vec3::Z, 0, 36)
+        };
+        let color = if self.colors {
+            [r[c], r[c + 1], r[c + 2]]
+        } else {
+            [0; 3]
+        };
+        let nd = ListNode {
             p: Vec3::new(v(0), v(1), v(2)),
-            n: Vec3::new(v(3), v(4), v(5)),
-            color: [r[40], r[41], r[42]],
-            r: f32_at(r, 44),
-            lod: [v(8), v(9), v(10), v(11)],
-            cluster: (key >> 96) as u32,
-        },
-    )
+            n,
+            color,
+            r: v(3),
+            lod,
+            cluster,
+        };
+        (list_key(cluster, &lod, u32_at(r, 0)), nd)
+    }
 }
 
 /// The walk of step 3.
@@ -464,19 +493,24 @@ impl Walk<'_> {
             ));
         }
         // Small blocks: every run has a reader open during the merge.
-        let mut w = self.dir.writer_with_block("run", RECORD, 1 << 16)?;
+        let rr = RunRecord {
+            normals: self.has_normals,
+            colors: self.has_colors,
+        };
+        let rb = rr.bytes();
+        let mut w = self.dir.writer_with_block("run", rb, 1 << 16)?;
         // Encoded in parallel a slice of keys at a time (a buffer for the whole unit would
         // add 64 bytes per node to the unit's peak).
-        let mut recs = vec![0u8; ENCODE_SLICE.min(keyed.len()) * RECORD];
+        let mut recs = vec![0u8; ENCODE_SLICE.min(keyed.len()) * rb];
         for slice in keyed.chunks(ENCODE_SLICE) {
-            let recs = &mut recs[..slice.len() * RECORD];
-            recs.par_chunks_mut(RECORD)
+            let recs = &mut recs[..slice.len() * rb];
+            recs.par_chunks_mut(rb)
                 .zip(slice)
                 .for_each(|(out, &(key, i))| {
                     let (nd, lod) = (&nodes[i as usize], lods[i as usize]);
-                    encode_record(key, &ListNode::of(nd, lod, (key >> 96) as u32), out);
+                    rr.encode(key as u32, &ListNode::of(nd, lod, (key >> 96) as u32), out);
                 });
-            for rec in recs.chunks_exact(RECORD) {
+            for rec in recs.chunks_exact(rb) {
                 w.push(rec)?;
             }
         }
@@ -602,6 +636,10 @@ pub(crate) fn list_in_units(
         p.mode == SptMode::Split,
     )?;
     progress.start("spt: writing", total);
+    let rr = RunRecord {
+        normals: layout.normals,
+        colors: layout.colors,
+    };
     let mut readers = runs
         .iter()
         .map(Spill::reader)
@@ -622,7 +660,7 @@ pub(crate) fn list_in_units(
             let mut heads: Vec<Option<ListNode>> = vec![None; readers.len()];
             for (i, r) in readers.iter_mut().enumerate() {
                 if let Some(rec) = r.next_record()? {
-                    let (k, nd) = decode_record(rec);
+                    let (k, nd) = rr.decode(rec);
                     heads[i] = Some(nd);
                     heap.push(Reverse((k, i)));
                 }
@@ -641,7 +679,7 @@ pub(crate) fn list_in_units(
                             feed.push(nd)?;
                         }
                         if let Some(rec) = readers[i].next_record()? {
-                            let (k, nd) = decode_record(rec);
+                            let (k, nd) = rr.decode(rec);
                             heads[i] = Some(nd);
                             heap.push(Reverse((k, i)));
                         }
@@ -665,4 +703,36 @@ pub(crate) fn list_in_units(
         tree_seconds,
         units: runs.len() as u64,
     })
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn run_records_give_back_the_node_and_its_list_key_with_every_attribute_set() {
+        for (normals, colors) in [(false, false), (false, true), (true, false), (true, true)] {
+            let rr = RunRecord { normals, colors };
+            let nd = ListNode {
+                p: Vec3::new(1.5, -2.25, 1e-30),
+                n: if normals {
+                    Vec3::new(0.6, 0.0, -0.8)
+                } else {
+                    Vec3::Z
+                },
+                color: if colors { [255, 7, 0] } else { [0; 3] },
+                r: 0.125,
+                lod: [3.0, f32::MIN_POSITIVE, 0.0, -0.0],
+                cluster: if normals { 41 } else { 0 },
+            };
+            let id = 0xDEAD_BEEF;
+            let mut rec = vec![0u8; rr.bytes()];
+            rr.encode(id, &nd, &mut rec);
+            let (key, back) = rr.decode(&rec);
+            assert_eq!(back, nd, "normals {normals} colors {colors}");
+            assert_eq!(key, list_key(nd.cluster, &nd.lod, id));
+            // Only what the scene has: 36 bytes, + 16 with normals, + 4 with colours.
+            assert_eq!(rr.bytes(), 36 + 16 * normals as usize + 4 * colors as usize);
+        }
+    }
 }

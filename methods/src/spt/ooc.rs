@@ -500,7 +500,7 @@ impl Walk<'_> {
         let rb = rr.bytes();
         let mut w = self.dir.writer_with_block("run", rb, 1 << 16)?;
         // Encoded in parallel a slice of keys at a time (a buffer for the whole unit would
-        // add 64 bytes per node to the unit's peak).
+        // add a record per node to the unit's peak).
         let mut recs = vec![0u8; ENCODE_SLICE.min(keyed.len()) * rb];
         for slice in keyed.chunks(ENCODE_SLICE) {
             let recs = &mut recs[..slice.len() * rb];

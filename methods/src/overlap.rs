@@ -61,6 +61,25 @@ impl<T> Feed<T> {
 pub fn overlapped<T, S, E>(
     state: S,
     batch: usize,
+    consume: impl FnMut(&mut S, Vec<T>) -> Result<(), E> + Send,
+    produce: impl FnOnce(&mut Feed<T>) -> Result<(), E>,
+) -> Result<S, E>
+where
+    T: Send,
+    S: Send,
+    E: Send + From<Stopped>,
+{
+    overlapped_with(state, batch, IN_FLIGHT, consume, produce)
+}
+
+/// [`overlapped`] with at most `waiting` full batches between the stages instead of
+/// [`IN_FLIGHT`]. With `waiting = 0` a batch is handed over only when the consumer takes it:
+/// at most two batches exist at once (the one consumed and the one produced, which waits in
+/// [`Feed::push`]), for stages whose batches are large (a whole unit of a build).
+pub fn overlapped_with<T, S, E>(
+    state: S,
+    batch: usize,
+    waiting: usize,
     mut consume: impl FnMut(&mut S, Vec<T>) -> Result<(), E> + Send,
     produce: impl FnOnce(&mut Feed<T>) -> Result<(), E>,
 ) -> Result<S, E>
@@ -70,7 +89,7 @@ where
     E: Send + From<Stopped>,
 {
     let batch = batch.max(1);
-    let (tx, rx): (SyncSender<Vec<T>>, Receiver<Vec<T>>) = sync_channel(IN_FLIGHT);
+    let (tx, rx): (SyncSender<Vec<T>>, Receiver<Vec<T>>) = sync_channel(waiting);
     std::thread::scope(|scope| {
         let consumer = scope.spawn(move || -> Result<S, E> {
             let mut state = state;
@@ -150,6 +169,38 @@ mod tests {
         // The producer stopped: at most the failing batch, the batches in flight and the one
         // being filled were produced past the 30 consumed.
         assert!(produced <= 30 + 10 * (IN_FLIGHT + 2), "produced {produced}");
+    }
+
+    #[test]
+    fn with_nothing_waiting_at_most_two_batches_exist_at_once() {
+        use std::sync::atomic::{AtomicUsize, Ordering};
+        // Batches alive: counted up when one is produced, down when the consumer drops it.
+        let alive = AtomicUsize::new(0);
+        let most = AtomicUsize::new(0);
+        let seen = overlapped_with(
+            Vec::new(),
+            1,
+            0,
+            |s: &mut Vec<usize>, items: Vec<usize>| {
+                std::thread::sleep(std::time::Duration::from_millis(2));
+                s.extend(items);
+                alive.fetch_sub(1, Ordering::SeqCst);
+                Ok::<(), MethodError>(())
+            },
+            |feed| {
+                for i in 0..20 {
+                    let now = alive.fetch_add(1, Ordering::SeqCst) + 1;
+                    most.fetch_max(now, Ordering::SeqCst);
+                    feed.push(i)?;
+                }
+                Ok(())
+            },
+        )
+        .unwrap();
+        assert_eq!(seen, (0..20).collect::<Vec<_>>());
+        assert_eq!(alive.load(Ordering::SeqCst), 0);
+        // One being consumed, one produced and waiting to be taken; never a third.
+        assert_eq!(most.load(Ordering::SeqCst), 2);
     }
 
     #[test]

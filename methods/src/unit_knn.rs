@@ -30,6 +30,7 @@ use scenes::{Aabb, Progress};
 
 use crate::MethodError;
 use crate::leaf::{LEAF_K, isolation_cap, quantile_stride};
+use crate::overlap::overlapped_with;
 use crate::spill::samples::{f32_at, f32s, u32_at};
 use crate::spill::{Spill, SpillDir, SpillWriter};
 
@@ -202,6 +203,71 @@ impl<'a> Writers<'a> {
     }
 }
 
+/// A unit searched in pass 1 of [`unit_radii`]: its sample indices, positions and the
+/// `k` smallest squared distances of each within the unit.
+struct Searched {
+    u: usize,
+    idx: Vec<u32>,
+    pos: Vec<[f32; 3]>,
+    lists: Vec<f32>,
+}
+
+/// What pass 1 of [`unit_radii`] writes: the queries to other units, each unit's raw
+/// radii and own lists (of the samples that sent queries), and the strided samples of the
+/// cap's quantile as (unit, position in unit).
+struct Pass1<'a> {
+    queries: Writers<'a>,
+    raw: Vec<Spill>,
+    own: Vec<Spill>,
+    strided: Vec<(u32, u32)>,
+}
+
+impl Pass1<'_> {
+    /// Writes a searched unit's records, in the unit's order.
+    fn write(
+        &mut self,
+        s: Searched,
+        k: usize,
+        stride: usize,
+        boxes: &BoxTree,
+        dir: &SpillDir,
+    ) -> Result<(), MethodError> {
+        let list_bytes = 4 + 4 * k;
+        let u = s.u;
+        let (mut near, mut stack) = (Vec::new(), Vec::new());
+        let mut r = dir.writer("knn-raw", 4)?;
+        let mut o = dir.writer_with_block("knn-own", list_bytes, SMALL_BLOCK)?;
+        let mut rec = Vec::with_capacity(list_bytes.max(QUERY_BYTES));
+        for (i, (p, l)) in s.pos.iter().zip(s.lists.chunks_exact(k)).enumerate() {
+            r.push(&l[k - 1].sqrt().to_le_bytes())?;
+            if (s.idx[i] as usize).is_multiple_of(stride) {
+                self.strided.push((u as u32, i as u32));
+            }
+            boxes.near(*p, l[k - 1], u, &mut near, &mut stack);
+            if near.is_empty() {
+                continue;
+            }
+            rec.clear();
+            rec.extend_from_slice(&(i as u32).to_le_bytes());
+            l.iter()
+                .for_each(|d| rec.extend_from_slice(&d.to_le_bytes()));
+            o.push(&rec)?;
+            rec.clear();
+            rec.extend_from_slice(&(u as u32).to_le_bytes());
+            rec.extend_from_slice(&(i as u32).to_le_bytes());
+            p.iter()
+                .for_each(|c| rec.extend_from_slice(&c.to_le_bytes()));
+            rec.extend_from_slice(&l[k - 1].to_le_bytes());
+            for &v in &near {
+                self.queries.get(v)?.push(&rec)?;
+            }
+        }
+        self.raw.push(r.finish()?);
+        self.own.push(o.finish()?);
+        Ok(())
+    }
+}
+
 /// The leaf radii of a cloud of `total` samples (bounds `bounds`) held as `units`, whose
 /// positions `load` reads; spill files go in `dir`. Each pass is a `progress` phase of its
 /// own, named after `method` ("qsplat: leaf radii 1/3, own", …).
@@ -223,55 +289,51 @@ pub fn unit_radii(
     let stride = quantile_stride(total);
     let list_bytes = 4 + 4 * k;
 
-    // Pass 1: own lists, queries to other units.
+    // Pass 1: own lists, queries to other units. This thread loads units and searches them
+    // (in parallel); a second thread writes each searched unit's spill records, which is
+    // serial, while the next unit is searched. At most two units are held: the one written
+    // and the one searched, which waits to be handed over (`overlapped_with`, nothing
+    // waiting between them).
     phase(1, "own");
-    let mut queries = Writers::new(dir, "knn-query", QUERY_BYTES, units.len());
-    let mut raw: Vec<Spill> = Vec::with_capacity(units.len());
-    let mut own: Vec<Spill> = Vec::with_capacity(units.len());
-    // (unit, position in unit) of the samples the quantile is estimated from.
-    let mut strided: Vec<(u32, u32)> = Vec::new();
-    let (mut near, mut stack) = (Vec::new(), Vec::new());
-    for (u, unit) in units.iter().enumerate() {
-        let (idx, pos) = load(u)?;
-        if idx.len() as u64 != unit.n {
-            return Err(MethodError::Limit(format!(
-                "leaf radii: unit {u} loaded {} samples, {} expected",
-                idx.len(),
-                unit.n
-            )));
-        }
-        let lists = KnnIndex::new(&pos).self_lists(k);
-        let mut r = dir.writer("knn-raw", 4)?;
-        let mut o = dir.writer_with_block("knn-own", list_bytes, SMALL_BLOCK)?;
-        let mut rec = Vec::with_capacity(list_bytes.max(QUERY_BYTES));
-        for (i, (p, l)) in pos.iter().zip(lists.chunks_exact(k)).enumerate() {
-            r.push(&l[k - 1].sqrt().to_le_bytes())?;
-            if (idx[i] as usize).is_multiple_of(stride) {
-                strided.push((u as u32, i as u32));
+    let pass1 = Pass1 {
+        queries: Writers::new(dir, "knn-query", QUERY_BYTES, units.len()),
+        raw: Vec::with_capacity(units.len()),
+        own: Vec::with_capacity(units.len()),
+        strided: Vec::new(),
+    };
+    let pass1 = overlapped_with(
+        pass1,
+        1,
+        0,
+        |state, searched: Vec<Searched>| {
+            for unit in searched {
+                state.write(unit, k, stride, &boxes, dir)?;
             }
-            boxes.near(*p, l[k - 1], u, &mut near, &mut stack);
-            if near.is_empty() {
-                continue;
+            Ok(())
+        },
+        |feed| {
+            for (u, unit) in units.iter().enumerate() {
+                let (idx, pos) = load(u)?;
+                if idx.len() as u64 != unit.n {
+                    return Err(MethodError::Limit(format!(
+                        "leaf radii: unit {u} loaded {} samples, {} expected",
+                        idx.len(),
+                        unit.n
+                    )));
+                }
+                let lists = KnnIndex::new(&pos).self_lists(k);
+                feed.push(Searched { u, idx, pos, lists })?;
+                progress.inc(unit.n);
             }
-            rec.clear();
-            rec.extend_from_slice(&(i as u32).to_le_bytes());
-            l.iter()
-                .for_each(|d| rec.extend_from_slice(&d.to_le_bytes()));
-            o.push(&rec)?;
-            rec.clear();
-            rec.extend_from_slice(&(u as u32).to_le_bytes());
-            rec.extend_from_slice(&(i as u32).to_le_bytes());
-            p.iter()
-                .for_each(|c| rec.extend_from_slice(&c.to_le_bytes()));
-            rec.extend_from_slice(&l[k - 1].to_le_bytes());
-            for &v in &near {
-                queries.get(v)?.push(&rec)?;
-            }
-        }
-        raw.push(r.finish()?);
-        own.push(o.finish()?);
-        progress.inc(unit.n);
-    }
+            Ok(())
+        },
+    )?;
+    let Pass1 {
+        queries,
+        raw,
+        own,
+        strided,
+    } = pass1;
     let queries = queries.finish()?;
 
     // Pass 2: answers.

@@ -20,6 +20,7 @@ mod plan;
 mod plot;
 mod reproduce;
 mod run;
+mod serve;
 mod shared;
 mod sweep;
 mod tune;
@@ -75,6 +76,9 @@ enum Command {
     /// one run per setting and target, tune.csv, the Pareto front over (FLIP, cost), a
     /// recommendation per target (recommendation.md) and its plot.
     Tune(tune::TuneArgs),
+    /// Serve a build directory over HTTP/1.1 with byte ranges (remote runs, and experiments
+    /// with --bandwidth, --latency and --fail-after), until interrupted.
+    Serve(serve::ServeArgs),
     /// Assemble the parts written by jobs that `--emit-jobs` listed into the output a local
     /// run writes.
     Merge(merge::MergeArgs),
@@ -107,6 +111,7 @@ fn real_main(command: Command) -> anyhow::Result<()> {
         Command::Reproduce(a) => reproduce::main(&a),
         Command::Tune(a) => tune::main(&a),
         Command::Merge(a) => merge::main(&a),
+        Command::Serve(a) => serve::main(&a),
         Command::Check(_) => unreachable!("handled in main"),
     }
 }

@@ -16,5 +16,6 @@ pub mod reproduce;
 pub mod results;
 pub mod rss;
 pub mod runner;
+pub mod serve;
 pub mod sweep;
 pub mod tune;

@@ -23,6 +23,14 @@ pub enum MethodError {
         /// What failed, naming the node/chunk.
         msg: String,
     },
+    /// A remote file that could not be fetched (connection, status, length), with its URL.
+    #[error("{url}: {msg}")]
+    Remote {
+        /// The URL asked.
+        url: String,
+        /// What went wrong.
+        msg: String,
+    },
     /// A `--param` that is unknown or has a bad value.
     #[error("--param: {0}")]
     Param(String),

@@ -12,6 +12,7 @@
 //! available now" and "get it", and a local implementation that decodes on a loader thread.
 
 pub mod access;
+pub mod http;
 pub mod records;
 
 use std::fs::File;
@@ -297,22 +298,23 @@ impl Repository {
             ));
         };
         let stored = &self.map[start..end];
-        let sum = checksum(stored);
-        let out = if sum != r.checksum {
-            Err(MethodError::corrupt(
-                &self.path,
-                format!(
-                    "{what}: checksum mismatch (stored {:016x}, computed {sum:016x})",
-                    r.checksum
-                ),
-            ))
-        } else {
-            decompress(stored, r.raw as usize, what)
-                .map_err(|msg| MethodError::corrupt(&self.path, msg))
-        };
+        let out = unpack(stored, r, what).map_err(|msg| MethodError::corrupt(&self.path, msg));
         release(&self.map, start, end);
         out
     }
+}
+
+/// Verifies the stored bytes of chunk `r` against its checksum and decompresses them; the
+/// error names the chunk (`what`), the caller adds the file or URL.
+pub fn unpack(stored: &[u8], r: &ChunkRef, what: &str) -> Result<Vec<u8>, String> {
+    let sum = checksum(stored);
+    if sum != r.checksum {
+        return Err(format!(
+            "{what}: checksum mismatch (stored {:016x}, computed {sum:016x})",
+            r.checksum
+        ));
+    }
+    decompress(stored, r.raw as usize, what)
 }
 
 #[cfg(test)]

@@ -1,0 +1,184 @@
+//! `methods::store::http` against `harness::serve` over loopback: chunks read over HTTP
+//! ranges equal the local reads, over one kept-alive connection, and every fault is an
+//! error naming the URL (and the chunk), within the timeout.
+#![allow(clippy::unwrap_used)]
+
+use std::io::Write;
+use std::path::Path;
+use std::sync::{Arc, Mutex};
+use std::time::{Duration, Instant};
+
+use harness::serve::{ServeOptions, Server};
+use methods::MethodError;
+use methods::store::access::{ChunkSource, LocalSource};
+use methods::store::http::{HttpSource, RemoteFile};
+use methods::store::{ChunkRef, RepoWriter, Repository};
+
+/// A log the tests can read.
+#[derive(Clone, Default)]
+struct SharedLog(Arc<Mutex<Vec<u8>>>);
+
+impl Write for SharedLog {
+    fn write(&mut self, b: &[u8]) -> std::io::Result<usize> {
+        self.0.lock().unwrap().extend_from_slice(b);
+        Ok(b.len())
+    }
+    fn flush(&mut self) -> std::io::Result<()> {
+        Ok(())
+    }
+}
+
+/// A repository of 12 chunks of different sizes and contents in `dir/repo.bin`.
+fn repository(dir: &Path) -> Vec<ChunkRef> {
+    let mut w = RepoWriter::create(&dir.join("repo.bin")).unwrap();
+    let refs = (0..12u32)
+        .map(|c| {
+            let raw: Vec<u8> = (0..(c as usize + 1) * 3000)
+                .map(|i| ((i as u32 * (c + 3)) % 97) as u8)
+                .collect();
+            w.append(&raw).unwrap()
+        })
+        .collect();
+    w.finish().unwrap();
+    refs
+}
+
+fn serve(dir: &Path, f: impl FnOnce(&mut ServeOptions)) -> (Server, SharedLog) {
+    let mut opt = ServeOptions::new(dir, "127.0.0.1:0".parse().unwrap());
+    f(&mut opt);
+    let log = SharedLog::default();
+    (Server::start(&opt, Box::new(log.clone())).unwrap(), log)
+}
+
+fn remote(server: &Server, name: &str) -> RemoteFile {
+    RemoteFile::new(format!("{}{name}", server.url()), Duration::from_secs(10))
+}
+
+#[test]
+fn chunks_over_http_equal_the_local_reads_over_one_connection() {
+    let dir = tempfile::tempdir().unwrap();
+    let refs = repository(dir.path());
+    let local = LocalSource::new(
+        Repository::open(&dir.path().join("repo.bin")).unwrap(),
+        refs.clone(),
+        "node",
+    );
+    let (server, log) = serve(dir.path(), |_| {});
+    let source = HttpSource::open(remote(&server, "repo.bin"), refs, "node").unwrap();
+    assert_eq!(source.len(), 12);
+    for id in (0..12).rev() {
+        assert_eq!(
+            source.fetch(id).unwrap(),
+            local.fetch(id).unwrap(),
+            "chunk {id}"
+        );
+    }
+    assert!(matches!(source.fetch(12), Err(MethodError::NoChunk(12))));
+    drop(server);
+    // The magic and the 12 chunks: 13 range requests from one client port (kept alive).
+    let log = String::from_utf8(log.0.lock().unwrap().clone()).unwrap();
+    let peers: std::collections::BTreeSet<&str> =
+        log.lines().filter_map(|l| l.split(' ').nth(1)).collect();
+    assert_eq!(log.lines().count(), 13, "{log}");
+    assert_eq!(peers.len(), 1, "{log}");
+    assert!(log.lines().all(|l| l.contains(" 206 ")), "{log}");
+}
+
+#[test]
+fn whole_files_and_missing_ones() {
+    let dir = tempfile::tempdir().unwrap();
+    std::fs::write(dir.path().join("index.json"), b"{\"nodes\": 3}").unwrap();
+    let (server, _) = serve(dir.path(), |_| {});
+    assert_eq!(
+        remote(&server, "index.json").get().unwrap(),
+        b"{\"nodes\": 3}"
+    );
+    let err = remote(&server, "nope.json").get().unwrap_err().to_string();
+    assert!(
+        err.contains("/nope.json") && err.contains("HTTP 404"),
+        "{err}"
+    );
+    let err = HttpSource::open(remote(&server, "nope.bin"), Vec::new(), "node")
+        .err()
+        .unwrap()
+        .to_string();
+    assert!(
+        err.contains("/nope.bin") && err.contains("HTTP 404"),
+        "{err}"
+    );
+    let err = HttpSource::open(remote(&server, "index.json"), Vec::new(), "node")
+        .err()
+        .unwrap()
+        .to_string();
+    assert!(err.contains("bad magic"), "{err}");
+}
+
+#[test]
+fn a_corrupted_chunk_is_an_error_naming_the_url_and_the_chunk() {
+    let dir = tempfile::tempdir().unwrap();
+    let refs = repository(dir.path());
+    let path = dir.path().join("repo.bin");
+    let mut bytes = std::fs::read(&path).unwrap();
+    bytes[refs[5].offset as usize + 10] ^= 0x40;
+    std::fs::write(&path, &bytes).unwrap();
+    let (server, _) = serve(dir.path(), |_| {});
+    let source = HttpSource::open(remote(&server, "repo.bin"), refs, "node").unwrap();
+    assert!(source.fetch(4).is_ok());
+    let err = source.fetch(5).unwrap_err();
+    assert!(matches!(err, MethodError::Corrupt { .. }), "{err}");
+    let err = err.to_string();
+    assert!(
+        err.contains("/repo.bin") && err.contains("node 5") && err.contains("checksum"),
+        "{err}"
+    );
+}
+
+#[test]
+fn a_truncated_repository_and_server_errors_are_named() {
+    let dir = tempfile::tempdir().unwrap();
+    let refs = repository(dir.path());
+    let path = dir.path().join("repo.bin");
+    let (server, _) = serve(dir.path(), |o| o.fail_after = Some(3));
+    let source = HttpSource::open(remote(&server, "repo.bin"), refs.clone(), "node").unwrap();
+    assert!(source.fetch(0).is_ok());
+    // Cut the file inside chunk 11: its range now runs past the end.
+    let len = std::fs::metadata(&path).unwrap().len();
+    std::fs::OpenOptions::new()
+        .write(true)
+        .open(&path)
+        .unwrap()
+        .set_len(len - 100)
+        .unwrap();
+    let err = source.fetch(11).unwrap_err().to_string();
+    assert!(
+        err.contains("/repo.bin") && err.contains("Content-Range"),
+        "{err}"
+    );
+    // The server now fails every request (--fail-after 3: magic, chunk 0, chunk 11).
+    let err = source.fetch(1).unwrap_err().to_string();
+    assert!(err.contains("HTTP 500"), "{err}");
+    // And when it is gone, the connection is refused.
+    let url = source.url().to_string();
+    server.stop();
+    let err = source.fetch(1).unwrap_err().to_string();
+    assert!(err.starts_with(&url) && err.contains("failed"), "{err}");
+}
+
+#[test]
+fn a_server_that_does_not_answer_is_an_error_within_the_timeout() {
+    let dir = tempfile::tempdir().unwrap();
+    let refs = repository(dir.path());
+    let (server, _) = serve(dir.path(), |o| o.latency = Duration::from_secs(2));
+    let file = RemoteFile::new(
+        format!("{}repo.bin", server.url()),
+        Duration::from_millis(300),
+    );
+    let t = Instant::now();
+    let err = HttpSource::open(file, refs, "node")
+        .err()
+        .unwrap()
+        .to_string();
+    // The 300 ms timeout, with margin for a loaded machine; far below the server's 2 s.
+    assert!(t.elapsed() < Duration::from_secs(3), "{:?}", t.elapsed());
+    assert!(err.contains("/repo.bin"), "{err}");
+}

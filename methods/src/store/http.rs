@@ -1,0 +1,190 @@
+//! A repository read over HTTP/1.1 range requests (LPC §3: "over HTTP/1.1 range requests
+//! with persistent connections"): [`RemoteFile`] fetches a whole small file (an index, a
+//! manifest) or one byte range of a large one; [`HttpSource`] is the [`ChunkSource`] of a
+//! remote repository file, each chunk one range request, verified by the same checksum and
+//! decompression as a local read ([`super::unpack`]).
+//!
+//! The client is [`ureq`] without TLS (builds are served on loopback or a lab network; see
+//! `splatbench serve`): its agent keeps connections alive and reuses them, so consecutive
+//! chunks travel over one connection. Every answer is checked before its bytes are used: a
+//! range must come back `206` with the `Content-Range` asked for and exactly that many
+//! bytes (a server that ignores `Range` and sends the whole file is an error, not a
+//! download of the whole repository); a whole file must come back `200`. Any other status,
+//! a connection refused or reset, a short body, or no answer within the timeout is a
+//! [`MethodError::Remote`] naming the URL; a checksum mismatch is [`MethodError::Corrupt`]
+//! naming the URL and the chunk. Retrying is the loader's business, not this layer's.
+
+use std::time::Duration;
+
+use super::access::ChunkSource;
+use super::{ChunkRef, REPO_MAGIC, unpack};
+use crate::MethodError;
+
+/// How long one request may take, connection to last byte, unless set otherwise.
+pub const DEFAULT_TIMEOUT: Duration = Duration::from_secs(30);
+
+/// The largest whole file [`RemoteFile::get`] reads (indices and manifests are far smaller;
+/// a larger answer is refused before it fills memory).
+pub const WHOLE_FILE_MAX: u64 = 1 << 30;
+
+/// One file at a URL, read through a keep-alive agent.
+#[derive(Clone)]
+pub struct RemoteFile {
+    agent: ureq::Agent,
+    url: String,
+}
+
+impl RemoteFile {
+    /// The file at `url`; each request may take at most `timeout`.
+    pub fn new(url: impl Into<String>, timeout: Duration) -> Self {
+        let config = ureq::Agent::config_builder()
+            .http_status_as_error(false)
+            .timeout_global(Some(timeout))
+            .build();
+        Self {
+            agent: ureq::Agent::new_with_config(config),
+            url: url.into(),
+        }
+    }
+
+    /// The same agent (and its open connections) reading another URL.
+    pub fn sibling(&self, url: impl Into<String>) -> Self {
+        Self {
+            agent: self.agent.clone(),
+            url: url.into(),
+        }
+    }
+
+    /// The URL.
+    pub fn url(&self) -> &str {
+        &self.url
+    }
+
+    fn error(&self, msg: impl Into<String>) -> MethodError {
+        MethodError::Remote {
+            url: self.url.clone(),
+            msg: msg.into(),
+        }
+    }
+
+    /// The whole file (`200 OK`, at most [`WHOLE_FILE_MAX`] bytes).
+    pub fn get(&self) -> Result<Vec<u8>, MethodError> {
+        let mut resp = self
+            .agent
+            .get(&self.url)
+            .call()
+            .map_err(|e| self.error(format!("request failed: {e}")))?;
+        let status = resp.status().as_u16();
+        if status != 200 {
+            return Err(self.error(format!("HTTP {status}, expected 200")));
+        }
+        resp.body_mut()
+            .with_config()
+            .limit(WHOLE_FILE_MAX)
+            .read_to_vec()
+            .map_err(|e| self.error(format!("reading the body: {e}")))
+    }
+
+    /// Bytes `start..start + len` (`len ≥ 1`): a `206` answer with exactly that range.
+    pub fn get_range(&self, start: u64, len: u64) -> Result<Vec<u8>, MethodError> {
+        if len == 0 {
+            return Ok(Vec::new());
+        }
+        let last = start
+            .checked_add(len - 1)
+            .ok_or_else(|| self.error(format!("range {start}..+{len} overflows")))?;
+        let mut resp = self
+            .agent
+            .get(&self.url)
+            .header("Range", format!("bytes={start}-{last}"))
+            .call()
+            .map_err(|e| self.error(format!("request for bytes {start}-{last} failed: {e}")))?;
+        let status = resp.status().as_u16();
+        if status != 206 {
+            return Err(self.error(format!(
+                "HTTP {status} for bytes {start}-{last}, expected 206 Partial Content"
+            )));
+        }
+        let range = resp
+            .headers()
+            .get("content-range")
+            .and_then(|v| v.to_str().ok())
+            .unwrap_or("")
+            .to_string();
+        let want = format!("bytes {start}-{last}/");
+        if !range.starts_with(&want) {
+            return Err(self.error(format!(
+                "Content-Range {range:?} for bytes {start}-{last}, expected \"{want}…\""
+            )));
+        }
+        let body = resp
+            .body_mut()
+            .with_config()
+            .limit(len + 1)
+            .read_to_vec()
+            .map_err(|e| self.error(format!("reading bytes {start}-{last}: {e}")))?;
+        if body.len() as u64 != len {
+            return Err(self.error(format!(
+                "bytes {start}-{last}: {} bytes received, {len} expected",
+                body.len()
+            )));
+        }
+        Ok(body)
+    }
+}
+
+/// The chunks of a repository file served over HTTP.
+pub struct HttpSource {
+    file: RemoteFile,
+    refs: Vec<ChunkRef>,
+    noun: &'static str,
+}
+
+impl HttpSource {
+    /// Chunks `refs` of the repository file `file`, whose magic is checked now; `noun` names
+    /// a chunk in errors ("cloud", "node").
+    pub fn open(
+        file: RemoteFile,
+        refs: Vec<ChunkRef>,
+        noun: &'static str,
+    ) -> Result<Self, MethodError> {
+        let magic = file.get_range(0, REPO_MAGIC.len() as u64)?;
+        if magic != REPO_MAGIC {
+            return Err(MethodError::corrupt(
+                file.url(),
+                "not a splatbench repository (bad magic)",
+            ));
+        }
+        Ok(Self { file, refs, noun })
+    }
+
+    /// The repository's URL.
+    pub fn url(&self) -> &str {
+        self.file.url()
+    }
+}
+
+impl ChunkSource for HttpSource {
+    fn len(&self) -> usize {
+        self.refs.len()
+    }
+
+    fn fetch(&self, id: u32) -> Result<Vec<u8>, MethodError> {
+        let r = self
+            .refs
+            .get(id as usize)
+            .ok_or(MethodError::NoChunk(id as u64))?;
+        let what = format!("{} {id}", self.noun);
+        if r.offset < REPO_MAGIC.len() as u64 || r.stored == 0 {
+            return Err(MethodError::corrupt(
+                self.file.url(),
+                format!(
+                    "{what}: bytes {}..+{} lie outside the chunks",
+                    r.offset, r.stored
+                ),
+            ));
+        }
+        let stored = self.file.get_range(r.offset, u64::from(r.stored))?;
+        unpack(&stored, r, &what).map_err(|msg| MethodError::corrupt(self.file.url(), msg))
+    }
+}

@@ -54,6 +54,7 @@ fn demo(out: &std::path::Path, frames: usize) -> anyhow::Result<()> {
             out: dir.clone(),
             cache: out.join("cache"),
             build_dir: None,
+            build_url: None,
             allow_missing_chunks: false,
         };
         let s = harness::runner::run(&cfg, &gpu, &bar)?;

@@ -46,6 +46,12 @@ pub struct RunArgs {
     /// occlusion, occlusion_threshold).
     #[arg(long)]
     pub build_dir: Option<PathBuf>,
+    /// Run the LPC or MWKD build served at this URL (`splatbench serve DIR`) instead of
+    /// building: its index and manifest are fetched once into OUT/remote-build/, its chunks
+    /// by HTTP range requests over kept-alive connections, checksums verified as for a local
+    /// build. The same checks and `--param` rule as --build-dir.
+    #[arg(long, value_name = "URL", conflicts_with = "build_dir")]
+    pub build_url: Option<String>,
     /// Exit 0 although chunks of an LPC or MWKD repository failed to load (a corrupted or
     /// truncated repo.bin). They are reported either way: on stderr, in frames.csv
     /// (`chunks_failed`) and in summary.json (`failed_chunks`); without this flag the run
@@ -86,6 +92,7 @@ pub fn run_config(a: &RunArgs) -> anyhow::Result<RunConfig> {
         out: a.out.clone(),
         cache: a.cache.dir.clone(),
         build_dir: a.build_dir.clone(),
+        build_url: a.build_url.clone(),
         allow_missing_chunks: a.allow_missing_chunks,
     })
 }

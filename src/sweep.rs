@@ -160,6 +160,7 @@ fn base_config(
         out: a.out.clone(),
         cache: a.cache.clone(),
         build_dir: Some(build_dir.clone()),
+        build_url: None,
         allow_missing_chunks: false,
     })?;
     Ok((base, build_dir))

@@ -46,6 +46,7 @@ fn config(
         out: dir.join(name),
         cache: dir.join("cache"),
         build_dir: None,
+        build_url: None,
         allow_missing_chunks: false,
     }
 }

@@ -102,3 +102,84 @@ fn serve_refuses_a_missing_directory_and_bad_flags() {
         "--threads",
     );
 }
+
+fn have_gpu(test: &str) -> bool {
+    harness::gpu::gpu_for_test(test).is_some()
+}
+
+/// `run --build-url` runs an LPC build served over HTTP: complete, nothing built, the small
+/// files copied and the repository not; a served build of another method, or nothing
+/// served, is refused naming the flag. (That the frames equal the local build's is checked
+/// at the method level in `harness/tests/remote_build.rs`, without a GPU.)
+#[test]
+fn run_opens_a_build_served_over_http() {
+    if !have_gpu("run_opens_a_build_served_over_http") {
+        return;
+    }
+    let tmp = tempfile::tempdir().unwrap();
+    let cache = tmp.path().join("cache");
+    let build = tmp.path().join("b");
+    let scene = "statue:20000:3";
+    bin()
+        .args([
+            "build", "--method", "lpc", "--param", "m=512", "--scene", scene,
+        ])
+        .arg("--out")
+        .arg(&build)
+        .arg("--cache")
+        .arg(&cache)
+        .assert()
+        .success();
+    let server = harness::serve::Server::start(
+        &harness::serve::ServeOptions::new(&build, "127.0.0.1:0".parse().unwrap()),
+        Box::new(std::io::sink()),
+    )
+    .unwrap();
+    let run = |method: &str, url: &str, out: &std::path::Path| {
+        let mut c = bin();
+        c.args(["run", "--method", method, "--scene", scene, "--frames", "3"])
+            .args(["--width", "64", "--height", "64", "--no-metrics"])
+            .args(["--build-url", url])
+            .arg("--cache")
+            .arg(&cache)
+            .arg("--out")
+            .arg(out);
+        c
+    };
+    let out = tmp.path().join("r");
+    run("lpc", &server.url(), &out).assert().success();
+    assert!(!out.join("build").exists(), "nothing built");
+    assert!(out.join("remote-build/index.bin").is_file());
+    assert!(!out.join("remote-build/repo.bin").exists());
+    let summary: serde_json::Value =
+        serde_json::from_str(&std::fs::read_to_string(out.join("summary.json")).unwrap()).unwrap();
+    assert_eq!(summary["complete"], true);
+    assert_eq!(summary["params"]["m"], "512");
+    common::fails(
+        &mut run("qsplat", &server.url(), &tmp.path().join("x")),
+        "--build-url",
+    );
+    common::fails(
+        &mut run(
+            "lpc",
+            &format!("{}nothing/", server.url()),
+            &tmp.path().join("y"),
+        ),
+        "404",
+    );
+    common::fails(
+        bin()
+            .args([
+                "run",
+                "--method",
+                "lpc",
+                "--scene",
+                scene,
+                "--build-url",
+                "http://x/",
+            ])
+            .arg("--build-dir")
+            .arg(&build),
+        "--build-dir",
+    );
+}

@@ -162,10 +162,17 @@ pub struct RunConfig {
     /// measure the method alone, without the build's memory, and compare runtime settings
     /// (e.g. LPC's `occlusion`, `core_mb`) on one build.
     pub build_dir: Option<PathBuf>,
+    /// Open the build served at this URL (`splatbench serve`) instead: its small files are
+    /// copied once into `out/remote-build/`, its chunks read by HTTP range requests
+    /// ([`MethodKind::fetch_remote`]; LPC and MWKD only). The same checks as `build_dir`.
+    pub build_url: Option<String>,
     /// Finish with exit status 0 although chunks failed to load (`--allow-missing-chunks`);
     /// they are reported either way.
     pub allow_missing_chunks: bool,
 }
+
+/// How long one HTTP request of a remote build may take (`--build-url`).
+pub const REMOTE_TIMEOUT: std::time::Duration = std::time::Duration::from_secs(30);
 
 /// A chunk that failed to load during a run.
 #[derive(Debug, Clone, serde::Serialize)]
@@ -517,7 +524,26 @@ pub fn run(cfg: &RunConfig, gpu: &Gpu, progress: &dyn Progress) -> anyhow::Resul
         },
         ..cfg.render
     };
-    let (build_dir, build, params) = match &cfg.build_dir {
+    anyhow::ensure!(
+        cfg.build_dir.is_none() || cfg.build_url.is_none(),
+        "--build-dir and --build-url name two builds: give one"
+    );
+    // A remote build: its small files copied here, its repository read over HTTP.
+    let remote = match &cfg.build_url {
+        Some(url) => {
+            let dir = cfg.out.join("remote-build");
+            let repo = MethodKind::fetch_remote(url, &dir, REMOTE_TIMEOUT)
+                .with_context(|| format!("--build-url {url}"))?;
+            Some((dir, repo, url.clone()))
+        }
+        None => None,
+    };
+    let given = match (&cfg.build_dir, &remote) {
+        (Some(dir), _) => Some((dir.clone(), format!("--build-dir {}", dir.display()))),
+        (None, Some((dir, _, url))) => Some((dir.clone(), format!("--build-url {url}"))),
+        (None, None) => None,
+    };
+    let (build_dir, build, params) = match &given {
         None => {
             let dir = cfg.out.join("build");
             let build = cfg
@@ -526,13 +552,11 @@ pub fn run(cfg: &RunConfig, gpu: &Gpu, progress: &dyn Progress) -> anyhow::Resul
                 .with_context(|| format!("building {} on {label}", cfg.method))?;
             (dir, build, cfg.params.clone())
         }
-        Some(dir) => {
-            let m = methods::Manifest::read(dir)
-                .with_context(|| format!("--build-dir {}", dir.display()))?;
+        Some((dir, flag)) => {
+            let m = methods::Manifest::read(dir).with_context(|| flag.clone())?;
             anyhow::ensure!(
                 m.method == cfg.method.name() && m.scene == label && m.points == cloud.len() as u64,
-                "--build-dir {}: holds {} on '{}' ({} points), not {} on '{label}' ({} points)",
-                dir.display(),
+                "{flag}: holds {} on '{}' ({} points), not {} on '{label}' ({} points)",
                 m.method,
                 m.scene,
                 m.points,
@@ -542,20 +566,25 @@ pub fn run(cfg: &RunConfig, gpu: &Gpu, progress: &dyn Progress) -> anyhow::Resul
             // `--param` may only change runtime parameters (checked by `open_with` below).
             let mut params = m.params.clone();
             params.0.extend(cfg.params.0.clone());
-            let build =
-                BuildStats::read(dir).with_context(|| format!("--build-dir {}", dir.display()))?;
+            let build = BuildStats::read(dir).with_context(|| flag.clone())?;
             (dir.clone(), build, params)
         }
     };
-    let mut method = match &cfg.build_dir {
+    let mut method = match &given {
         None => MethodKind::open(&build_dir)?,
-        Some(dir) => MethodKind::open_with(dir, &cfg.params).with_context(|| {
-            if cfg.params.0.is_empty() {
-                format!("--build-dir {}", dir.display())
-            } else {
-                format!("--build-dir {} with --param", dir.display())
-            }
-        })?,
+        Some((dir, flag)) => {
+            let opened = match &remote {
+                Some((_, repo, _)) => MethodKind::open_remote(dir, repo, &cfg.params),
+                None => MethodKind::open_with(dir, &cfg.params),
+            };
+            opened.with_context(|| {
+                if cfg.params.0.is_empty() {
+                    flag.clone()
+                } else {
+                    format!("{flag} with --param")
+                }
+            })?
+        }
     };
     if let Some(need) = method.gpu_resident_bytes()
         && need > cfg.render.cache_bytes

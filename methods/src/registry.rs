@@ -2,9 +2,12 @@
 //! `match`; nothing registers itself.
 
 use std::path::Path;
+use std::time::Duration;
 
 use scenes::{PointCloud, Progress};
 
+use crate::store::access::RepoAt;
+use crate::store::http::RemoteFile;
 use crate::strays::{self, Strays};
 use crate::{BuildStats, LodMethod, Manifest, MethodError, Params, full, lpc, mwkd, qsplat, spt};
 
@@ -178,8 +181,93 @@ impl MethodKind {
     /// Opens a build directory with some of its runtime parameters replaced
     /// ([`MethodKind::runtime_params`]); any other key is an error naming it.
     pub fn open_with(dir: &Path, runtime: &Params) -> Result<Box<dyn LodMethod>, MethodError> {
+        Self::open_from(dir, None, runtime)
+    }
+
+    /// The small files of a build that a remote open copies besides the manifest and
+    /// `build.json` (its repository is read by range requests); `None` for the methods
+    /// that read their build from a local directory only.
+    pub fn remote_files(self) -> Option<&'static [&'static str]> {
+        match self {
+            MethodKind::Lpc => Some(&[lpc::INDEX_FILE, lpc::INFO_FILE]),
+            MethodKind::Mwkd => Some(&[mwkd::INDEX_FILE, mwkd::INFO_FILE]),
+            MethodKind::Full | MethodKind::Qsplat | MethodKind::Spt => None,
+        }
+    }
+
+    /// Copies the small files of the build served at `url` (its manifest, `build.json` and
+    /// [`MethodKind::remote_files`]) into the directory `into`, each fetched once, and
+    /// returns where its repository is read: the same URL's `repo.bin`, by range requests.
+    /// Each request may take `timeout`. Methods other than LPC and MWKD, and builds with
+    /// `strays=apart` (a second build inside), are refused with an error saying so.
+    pub fn fetch_remote(url: &str, into: &Path, timeout: Duration) -> Result<RepoAt, MethodError> {
+        let base = if url.ends_with('/') {
+            url.to_string()
+        } else {
+            format!("{url}/")
+        };
+        std::fs::create_dir_all(into).map_err(|e| MethodError::io(into, e))?;
+        let agent = RemoteFile::new(format!("{base}{}", Manifest::FILE), timeout);
+        let copy = |name: &str| -> Result<(), MethodError> {
+            let bytes = agent.sibling(format!("{base}{name}")).get()?;
+            let path = into.join(name);
+            std::fs::write(&path, bytes).map_err(|e| MethodError::io(&path, e))
+        };
+        copy(Manifest::FILE)?;
+        let manifest = Manifest::read(into)?;
+        let kind = Self::from_name(&manifest.method)?;
+        let Some(files) = kind.remote_files() else {
+            return Err(MethodError::Remote {
+                url: base,
+                msg: format!(
+                    "a {kind} build is read from a local directory (its files are not \
+                     chunked for range requests): copy it and use --build-dir; remote builds \
+                     are LPC's and MWKD's"
+                ),
+            });
+        };
+        if strays::split_params(&manifest.params)?.0 != Strays::In {
+            return Err(MethodError::Remote {
+                url: base,
+                msg: "a strays=apart build holds a second build inside: open it from a local \
+                      directory (--build-dir)"
+                    .into(),
+            });
+        }
+        copy(BuildStats::FILE)?;
+        for name in files {
+            copy(name)?;
+        }
+        let repo = match kind {
+            MethodKind::Mwkd => mwkd::codec::REPO_FILE,
+            _ => lpc::REPO_FILE,
+        };
+        Ok(RepoAt::Remote(agent.sibling(format!("{base}{repo}"))))
+    }
+
+    /// Opens a remote build whose small files [`MethodKind::fetch_remote`] copied into
+    /// `dir`, its chunks read at `repo`; `runtime` as for [`MethodKind::open_with`].
+    pub fn open_remote(
+        dir: &Path,
+        repo: &RepoAt,
+        runtime: &Params,
+    ) -> Result<Box<dyn LodMethod>, MethodError> {
+        Self::open_from(dir, Some(repo), runtime)
+    }
+
+    /// [`MethodKind::open_with`], the repository at `repo` when given.
+    fn open_from(
+        dir: &Path,
+        repo: Option<&RepoAt>,
+        runtime: &Params,
+    ) -> Result<Box<dyn LodMethod>, MethodError> {
         let mut manifest = Manifest::read(dir)?;
         let kind = Self::from_name(&manifest.method)?;
+        if repo.is_some() && kind.remote_files().is_none() {
+            return Err(MethodError::Param(format!(
+                "a {kind} build is read from a local directory only"
+            )));
+        }
         for (k, v) in &runtime.0 {
             if !kind.runtime_params().contains(&k.as_str()) {
                 return Err(MethodError::Param(format!(
@@ -201,9 +289,16 @@ impl MethodKind {
             MethodKind::Full => Box::new(full::Full::open(dir, manifest)?),
             MethodKind::Qsplat => Box::new(qsplat::Qsplat::open(dir, manifest)?),
             MethodKind::Spt => Box::new(spt::Spt::open(dir, manifest)?),
-            MethodKind::Lpc => Box::new(lpc::Lpc::open(dir, manifest)?),
-            MethodKind::Mwkd => Box::new(mwkd::Mwkd::open(dir, manifest)?),
+            MethodKind::Lpc => Box::new(match repo {
+                Some(r) => lpc::Lpc::open_at(dir, manifest, r)?,
+                None => lpc::Lpc::open(dir, manifest)?,
+            }),
+            MethodKind::Mwkd => Box::new(match repo {
+                Some(r) => mwkd::Mwkd::open_at(dir, manifest, r)?,
+                None => mwkd::Mwkd::open(dir, manifest)?,
+            }),
         };
+
         match rule {
             Strays::In => Ok(inner),
             Strays::Apart => strays::Apart::open(dir, inner),

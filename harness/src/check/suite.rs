@@ -292,6 +292,7 @@ pub fn run(
                         out: dir.clone(),
                         cache: cache.to_path_buf(),
                         build_dir: Some(build_dir(*method)),
+                        build_url: None,
                         allow_missing_chunks: false,
                     };
                     crate::sweep::run_targets(&base, targets, &dir, gpu, progress, |_| {})

@@ -308,6 +308,7 @@ impl<'a> Context<'a> {
             out: out.to_path_buf(),
             cache: self.cache.clone(),
             build_dir: Some(build_dir.to_path_buf()),
+            build_url: None,
             allow_missing_chunks: false,
         })
     }

@@ -32,7 +32,7 @@ use std::sync::Arc;
 
 use scenes::{Attributes, PointCloud, Progress, View};
 
-use crate::store::access::{DataAccess, Loader, LoaderOptions};
+use crate::store::access::{DataAccess, Loader, LoaderOptions, RepoAt};
 use crate::{
     BuildStats, ChunkId, DrawItem, DrawList, Feedback, LodMethod, Manifest, MethodError,
     MethodStats, OcclusionCandidate, OcclusionPass, Params, SplatBatch, SplatSize, Target,
@@ -243,10 +243,16 @@ pub struct Mwkd {
 impl Mwkd {
     /// Opens a build directory with the local data-access layer (loader thread).
     pub fn open(dir: &Path, manifest: Manifest) -> Result<Self, MethodError> {
+        Self::open_at(dir, manifest, &RepoAt::Local(dir.join(codec::REPO_FILE)))
+    }
+
+    /// Opens the index and figures of `dir` with the repository at `repo`, local or served
+    /// over HTTP (a remote build: `dir` holds copies of its small files).
+    pub fn open_at(dir: &Path, manifest: Manifest, repo: &RepoAt) -> Result<Self, MethodError> {
         let params = MwkdParams::from_params(&manifest.params)?;
         let nodes = index::read(&dir.join(INDEX_FILE))?;
-        let access = Loader::local(
-            &dir.join(codec::REPO_FILE),
+        let access = Loader::at(
+            repo,
             nodes.iter().map(|n| n.chunk).collect(),
             "node",
             Arc::new(codec::decode),

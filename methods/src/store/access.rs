@@ -70,6 +70,15 @@ impl ChunkSource for LocalSource {
     }
 }
 
+/// Where a build's repository file is read from.
+#[derive(Clone)]
+pub enum RepoAt {
+    /// A local file, memory-mapped.
+    Local(std::path::PathBuf),
+    /// A file served over HTTP, read by range requests ([`super::http`]).
+    Remote(super::http::RemoteFile),
+}
+
 /// The data-access layer seen by a method. Implementations are internally synchronised:
 /// every call takes `&self`.
 pub trait DataAccess: Send + Sync {
@@ -374,6 +383,25 @@ impl Loader {
         let mut loader = Self::spawn(Arc::new(source), decode, options);
         loader.origin = repo.display().to_string();
         Ok(loader)
+    }
+
+    /// A loader thread over the repository at `repo`, local or remote (see [`Loader::local`]).
+    pub fn at(
+        repo: &RepoAt,
+        refs: Vec<ChunkRef>,
+        noun: &'static str,
+        decode: Decoder,
+        options: LoaderOptions,
+    ) -> Result<Self, MethodError> {
+        match repo {
+            RepoAt::Local(path) => Self::local(path, refs, noun, decode, options),
+            RepoAt::Remote(file) => {
+                let source = super::http::HttpSource::open(file.clone(), refs, noun)?;
+                let mut loader = Self::spawn(Arc::new(source), decode, options);
+                loader.origin = file.url().to_string();
+                Ok(loader)
+            }
+        }
     }
 
     /// Starts a loader thread over `source`, decoding with `decode`.

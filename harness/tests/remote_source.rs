@@ -58,6 +58,7 @@ fn remote(server: &Server, name: &str) -> RemoteFile {
 fn chunks_over_http_equal_the_local_reads_over_one_connection() {
     let dir = tempfile::tempdir().unwrap();
     let refs = repository(dir.path());
+    let local_refs = refs.clone();
     let local = LocalSource::new(
         Repository::open(&dir.path().join("repo.bin")).unwrap(),
         refs.clone(),
@@ -74,6 +75,10 @@ fn chunks_over_http_equal_the_local_reads_over_one_connection() {
         );
     }
     assert!(matches!(source.fetch(12), Err(MethodError::NoChunk(12))));
+    // Both count the stored bytes of the chunks they read.
+    let stored: u64 = (0..12).map(|i| u64::from(local_refs[i].stored)).sum();
+    assert_eq!(source.bytes_read(), stored);
+    assert_eq!(local.bytes_read(), stored);
     drop(server);
     // The magic and the 12 chunks: 13 range requests from one client port (kept alive).
     let log = String::from_utf8(log.0.lock().unwrap().clone()).unwrap();

@@ -196,6 +196,75 @@ fn requests_return_at_once_and_are_served_in_order() {
 }
 
 #[test]
+fn a_newer_frames_requests_go_first() {
+    let src = Arc::new(MemSource::uniform(10, 20).closed());
+    let l = loader(&src, u64::MAX, 0);
+    l.begin_frame();
+    l.request(0);
+    wait_until("the first fetch", || src.fetches() == 1);
+    for id in [1, 2, 3] {
+        l.request(id);
+    }
+    // The next frame still wants 3 and 2, in that order: they move ahead of 1.
+    l.begin_frame();
+    l.request(3);
+    l.request(2);
+    l.request(3); // twice in one frame: keeps its place
+    src.open();
+    drain(&l);
+    assert_eq!(src.log(), [0, 3, 2, 1]);
+    let t = l.traffic();
+    assert_eq!((t.issued, t.cancelled, t.stale, t.failed), (4, 0, 0, 0));
+}
+
+#[test]
+fn requests_no_frame_wants_any_more_are_cancelled() {
+    let src = Arc::new(MemSource::uniform(10, 20).closed());
+    let l = loader(&src, u64::MAX, 0);
+    l.begin_frame(); // frame 1
+    l.request(0);
+    wait_until("the first fetch", || src.fetches() == 1);
+    l.request(1);
+    l.request(2);
+    l.begin_frame(); // frame 2: only 2 is still wanted
+    l.request(2);
+    l.begin_frame(); // frame 3: 1 was last wanted in frame 1, two frames ago
+    src.open();
+    drain(&l);
+    assert_eq!(src.log(), [0, 2], "1 was dropped unserved");
+    assert!(!l.available(1) && l.available(2));
+    let t = l.traffic();
+    assert_eq!(t.cancelled, 1);
+    // 0 arrived in frame 3, wanted last in frame 1: stale (and kept, it may be used).
+    assert_eq!(t.stale, 1);
+    assert!(l.available(0));
+    // Wanted again, 1 is fetched.
+    l.request(1);
+    drain(&l);
+    assert_eq!(src.log(), [0, 2, 1]);
+    assert!(l.available(1));
+    assert_eq!(l.traffic().issued, 4);
+}
+
+#[test]
+fn with_a_simulated_delay_nothing_is_cancelled() {
+    // A delay of d frames serves every request (so a run's counts repeat exactly): 1 would
+    // be stale in frame 2 without it.
+    let src = Arc::new(MemSource::uniform(4, 10).closed());
+    let l = loader(&src, u64::MAX, 3);
+    l.request(0);
+    wait_until("the first fetch", || src.fetches() == 1);
+    l.request(1);
+    l.begin_frame();
+    l.begin_frame();
+    src.open();
+    l.begin_frame(); // frame 3: both due, waited for
+    assert!(l.available(0) && l.available(1));
+    assert_eq!(src.log(), [0, 1]);
+    assert_eq!(l.traffic().cancelled, 0);
+}
+
+#[test]
 fn delay_counts_frames_from_the_request() {
     let src = Arc::new(MemSource::uniform(4, 10));
     let l = loader(&src, u64::MAX, 3);

@@ -10,10 +10,10 @@
 //!   [`Loader`] is the local implementation; its documentation gives the design, the delay
 //!   semantics, the core budget and the error handling.
 
+use std::cmp::Reverse;
 use std::collections::{BTreeMap, HashMap};
 use std::panic::AssertUnwindSafe;
-use std::sync::atomic::{AtomicBool, Ordering};
-use std::sync::mpsc::{self, Receiver, Sender};
+use std::sync::atomic::{AtomicBool, AtomicU64, Ordering};
 use std::sync::{Arc, Condvar, Mutex, MutexGuard};
 use std::thread::JoinHandle;
 use std::time::{Duration, Instant};
@@ -37,6 +37,10 @@ pub trait ChunkSource: Send + Sync {
     }
     /// Verified, decompressed bytes of chunk `id`.
     fn fetch(&self, id: u32) -> Result<Vec<u8>, MethodError>;
+    /// Stored (compressed) bytes read so far, over all fetches that returned their bytes.
+    fn bytes_read(&self) -> u64 {
+        0
+    }
 }
 
 /// Chunks of a local repository file.
@@ -44,12 +48,18 @@ pub struct LocalSource {
     repo: Repository,
     refs: Vec<ChunkRef>,
     noun: &'static str,
+    read: AtomicU64,
 }
 
 impl LocalSource {
     /// Chunks `refs` of `repo`; `noun` names a chunk in errors ("cloud", "node").
     pub fn new(repo: Repository, refs: Vec<ChunkRef>, noun: &'static str) -> Self {
-        Self { repo, refs, noun }
+        Self {
+            repo,
+            refs,
+            noun,
+            read: AtomicU64::new(0),
+        }
     }
     /// The repository file.
     pub fn repository(&self) -> &Repository {
@@ -66,7 +76,12 @@ impl ChunkSource for LocalSource {
             .refs
             .get(id as usize)
             .ok_or(MethodError::NoChunk(id as u64))?;
-        self.repo.read(r, &format!("{} {id}", self.noun))
+        let bytes = self.repo.read(r, &format!("{} {id}", self.noun))?;
+        self.read.fetch_add(u64::from(r.stored), Ordering::Relaxed);
+        Ok(bytes)
+    }
+    fn bytes_read(&self) -> u64 {
+        self.read.load(Ordering::Relaxed)
     }
 }
 
@@ -82,8 +97,9 @@ pub enum RepoAt {
 /// The data-access layer seen by a method. Implementations are internally synchronised:
 /// every call takes `&self`.
 pub trait DataAccess: Send + Sync {
-    /// Asks for chunk `id` to be brought in core; returns at once. Repeated requests for a
-    /// chunk already queued, loading or in core are ignored.
+    /// Asks for chunk `id` to be brought in core; returns at once. A method asks each frame,
+    /// best first, for what it still wants: a chunk still queued from an earlier frame is
+    /// moved up among this frame's requests; one loading or in core is not fetched again.
     fn request(&self, id: u32);
     /// True if chunk `id` is in core now (a [`DataAccess::get`] will not block).
     fn available(&self, id: u32) -> bool;
@@ -100,6 +116,25 @@ pub trait DataAccess: Send + Sync {
     fn failures(&self) -> Vec<(u32, String)> {
         Vec::new()
     }
+    /// What has travelled so far (see [`Traffic`]); zeros by default.
+    fn traffic(&self) -> Traffic {
+        Traffic::default()
+    }
+}
+
+/// A loader's traffic since it was opened.
+#[derive(Debug, Clone, Copy, Default, PartialEq, Eq)]
+pub struct Traffic {
+    /// Requests queued (a re-request of a queued chunk re-prioritises it, not counted).
+    pub issued: u64,
+    /// Queued requests dropped unserved because no frame asked for them any more.
+    pub cancelled: u64,
+    /// Chunks delivered after every frame that wanted them had passed.
+    pub stale: u64,
+    /// Chunks that failed to load.
+    pub failed: u64,
+    /// Stored (compressed) bytes the source read ([`ChunkSource::bytes_read`]).
+    pub bytes: u64,
 }
 
 /// Options of the local [`Loader`].
@@ -123,6 +158,10 @@ enum Entry {
     Loading {
         /// First frame in which the chunk may count as available.
         ready: u64,
+        /// Its place in [`State::queue`]; `None` once the loader thread has taken it.
+        queued: Option<QueueKey>,
+        /// The last frame that requested it.
+        wanted: u64,
     },
     /// Decoded and held in core.
     Core {
@@ -140,6 +179,15 @@ enum Entry {
     Failed(String),
 }
 
+/// A place in the loader's queue: the frame of the request (newest first), then the order
+/// of requests (first first).
+type QueueKey = (Reverse<u64>, u64);
+
+/// A queued request not asked for again in this frame or the one before is stale (with no
+/// simulated delay): it is dropped unserved when its turn comes. One frame of grace, because
+/// a method re-requests what it still wants only at the end of its frame's selection.
+const STALE_AFTER: u64 = 1;
+
 /// Everything behind the loader's mutex.
 struct State {
     /// Frame counter, advanced by [`DataAccess::begin_frame`].
@@ -151,9 +199,17 @@ struct State {
     tick: u64,
     /// Sum of the `bytes` of core entries.
     resident: u64,
-    /// Ids sent to the loader thread and not yet finished by it.
+    /// Requests queued or in flight on the loader thread.
     pending: usize,
     core_bytes: u64,
+    /// Requests waiting for the loader thread, best first ([`QueueKey`]).
+    queue: BTreeMap<QueueKey, u32>,
+    /// Number of the last request (orders the requests of one frame).
+    seq: u64,
+    /// Counters of [`Traffic`] kept here (`failed` and `bytes` are read elsewhere).
+    issued: u64,
+    cancelled: u64,
+    stale: u64,
 }
 
 impl State {
@@ -236,6 +292,8 @@ struct Shared {
     state: Mutex<State>,
     /// Notified whenever the loader thread finishes a request (installed or failed).
     served: Condvar,
+    /// Notified when a request is queued, and at stop.
+    work: Condvar,
     /// Set by [`Loader`]'s `Drop`: the thread stops before its next request.
     stop: AtomicBool,
 }
@@ -285,7 +343,10 @@ impl Shared {
         let result = self.load(id);
         let mut st = self.state();
         st.pending -= 1;
-        if let Some(&Entry::Loading { ready }) = st.entries.get(&id) {
+        if let Some(&Entry::Loading { ready, wanted, .. }) = st.entries.get(&id) {
+            if wanted + STALE_AFTER < st.frame {
+                st.stale += 1;
+            }
             match result {
                 Ok(batch) => st.install(id, batch, ready),
                 Err(e) => {
@@ -297,14 +358,41 @@ impl Shared {
         self.served.notify_all();
     }
 
-    /// The loader thread: serves requests in the order they were sent until the sender is
-    /// dropped or `stop` is set.
-    fn run(&self, rx: &Receiver<u32>) {
-        while let Ok(id) = rx.recv() {
+    /// The loader thread: takes the best queued request ([`QueueKey`]) until `stop` is set;
+    /// with no simulated delay, a stale one ([`STALE_AFTER`]) is dropped unserved.
+    fn run(&self) {
+        let mut st = self.state();
+        loop {
             if self.stop.load(Ordering::Acquire) {
-                break;
+                return;
             }
+            let Some((key, id)) = st.queue.pop_first() else {
+                st = self.work.wait(st).unwrap_or_else(|e| e.into_inner());
+                continue;
+            };
+            let mine = matches!(
+                st.entries.get(&id),
+                Some(Entry::Loading { queued: Some(k), .. }) if *k == key
+            );
+            if !mine {
+                // Read meanwhile by a synchronous `get`: nothing left to do.
+                st.pending -= 1;
+                self.served.notify_all();
+                continue;
+            }
+            if self.delay_frames == 0 && key.0.0 + STALE_AFTER < st.frame {
+                st.entries.remove(&id);
+                st.pending -= 1;
+                st.cancelled += 1;
+                self.served.notify_all();
+                continue;
+            }
+            if let Some(Entry::Loading { queued, .. }) = st.entries.get_mut(&id) {
+                *queued = None;
+            }
+            drop(st);
             self.serve(id);
+            st = self.state();
         }
     }
 }
@@ -314,13 +402,20 @@ impl Shared {
 ///
 /// # Design
 ///
-/// A [`Loader`] is a handle on a mutex-protected cache shared with its thread, plus the
-/// sending end of a channel of chunk ids. [`DataAccess::request`] records the chunk as
-/// loading and sends its id; the thread takes ids in the order they were sent (the caller
-/// sends them in priority order), fetches the bytes from the source, decodes them with the
-/// [`Decoder`] and puts the [`Decoded`] chunk in core. The mutex is never held while
-/// fetching or decoding, so [`DataAccess::available`] and the other queries only ever wait
-/// for short bookkeeping.
+/// A [`Loader`] is a handle on a mutex-protected cache shared with its thread, which holds
+/// a queue of requests. [`DataAccess::request`] records the chunk as loading and queues it,
+/// stamped with the frame of the request; the thread takes the newest frame's requests
+/// first, each frame's in the order they were made (the caller's priority order), fetches
+/// the bytes from the source, decodes them with the [`Decoder`] and puts the [`Decoded`]
+/// chunk in core. A request repeated in a later frame moves up with that frame's requests
+/// (re-prioritised); with no simulated delay, a request that neither this frame nor the one
+/// before asked for is dropped unserved when its turn comes (cancelled: the camera has moved
+/// on, as in the MWKD 100 M flythrough where most requests were stale before they were
+/// served), and asked again later it is queued anew. With a delay every request is served,
+/// so that the delay's frame counts stay exact. [`DataAccess::traffic`] counts requests
+/// issued, cancelled, delivered stale and failed, and the source's bytes. The mutex is never
+/// held while fetching or decoding, so [`DataAccess::available`] and the other queries only
+/// ever wait for short bookkeeping.
 ///
 /// # Delay
 ///
@@ -361,9 +456,9 @@ impl Shared {
 /// [`resident_bytes`]: DataAccess::resident_bytes
 pub struct Loader {
     shared: Arc<Shared>,
-    /// `None` once dropped, or if the thread could not be started (then requests are
-    /// served on the caller's thread).
-    tx: Option<Sender<u32>>,
+    /// False if the thread could not be started (then requests are served on the caller's
+    /// thread).
+    threaded: bool,
     worker: Option<JoinHandle<()>>,
     /// What the chunks come from, for messages (the repository file).
     origin: String,
@@ -411,6 +506,7 @@ impl Loader {
             decode,
             delay_frames: options.delay_frames,
             served: Condvar::new(),
+            work: Condvar::new(),
             state: Mutex::new(State {
                 frame: 0,
                 entries: HashMap::new(),
@@ -419,18 +515,22 @@ impl Loader {
                 resident: 0,
                 pending: 0,
                 core_bytes: options.core_bytes,
+                queue: BTreeMap::new(),
+                seq: 0,
+                issued: 0,
+                cancelled: 0,
+                stale: 0,
             }),
             stop: AtomicBool::new(false),
         });
-        let (tx, rx) = mpsc::channel::<u32>();
         let thread_shared = Arc::clone(&shared);
         let worker = std::thread::Builder::new()
             .name("splatbench-loader".into())
-            .spawn(move || thread_shared.run(&rx))
+            .spawn(move || thread_shared.run())
             .ok();
         Self {
             shared,
-            tx: worker.as_ref().map(|_| tx),
+            threaded: worker.is_some(),
             worker,
             origin: "the chunk source".into(),
         }
@@ -452,26 +552,80 @@ impl Loader {
 
 impl DataAccess for Loader {
     fn request(&self, id: u32) {
-        {
-            let mut st = self.shared.state();
-            if st.entries.contains_key(&id) {
+        let mut st = self.shared.state();
+        let frame = st.frame;
+        match st.entries.get(&id) {
+            // Queued by an earlier frame: asked again, it moves up with this frame's requests.
+            Some(&Entry::Loading {
+                queued: Some(old), ..
+            }) => {
+                if old.0.0 < frame {
+                    st.seq += 1;
+                    let key = (Reverse(frame), st.seq);
+                    st.queue.remove(&old);
+                    st.queue.insert(key, id);
+                    if let Some(Entry::Loading { queued, wanted, .. }) = st.entries.get_mut(&id) {
+                        *queued = Some(key);
+                        *wanted = frame;
+                    }
+                }
                 return;
             }
-            let ready = st.frame + u64::from(self.shared.delay_frames);
-            st.entries.insert(id, Entry::Loading { ready });
-            if let Some(tx) = &self.tx {
-                // Sent under the lock, so the channel order is the order of the requests.
-                if tx.send(id).is_ok() {
-                    st.pending += 1;
-                    return;
+            Some(Entry::Loading { .. }) => {
+                if let Some(Entry::Loading { wanted, .. }) = st.entries.get_mut(&id) {
+                    *wanted = frame;
                 }
+                return;
             }
+            Some(_) => return,
+            None => {}
+        }
+        let ready = frame + u64::from(self.shared.delay_frames);
+        st.issued += 1;
+        st.pending += 1;
+        if self.threaded {
+            st.seq += 1;
+            let key = (Reverse(frame), st.seq);
+            st.queue.insert(key, id);
+            st.entries.insert(
+                id,
+                Entry::Loading {
+                    ready,
+                    queued: Some(key),
+                    wanted: frame,
+                },
+            );
+            drop(st);
+            self.shared.work.notify_one();
+            return;
         }
         // No loader thread: serve the request here.
-        let mut st = self.shared.state();
-        st.pending += 1;
+        st.entries.insert(
+            id,
+            Entry::Loading {
+                ready,
+                queued: None,
+                wanted: frame,
+            },
+        );
         drop(st);
         self.shared.serve(id);
+    }
+
+    fn traffic(&self) -> Traffic {
+        let bytes = self.shared.source.bytes_read();
+        let st = self.shared.state();
+        Traffic {
+            issued: st.issued,
+            cancelled: st.cancelled,
+            stale: st.stale,
+            failed: st
+                .entries
+                .values()
+                .filter(|e| matches!(e, Entry::Failed(_)))
+                .count() as u64,
+            bytes,
+        }
     }
 
     fn failures(&self) -> Vec<(u32, String)> {
@@ -522,7 +676,7 @@ impl DataAccess for Loader {
                         st.touch(id);
                         return Ok(batch);
                     }
-                    Some(Entry::Loading { ready }) => *ready,
+                    Some(Entry::Loading { ready, .. }) => *ready,
                     _ => st.frame,
                 };
                 st.install(id, Arc::clone(&batch), ready);
@@ -541,7 +695,7 @@ impl DataAccess for Loader {
     fn begin_frame(&self) {
         let mut st = self.shared.state();
         st.frame += 1;
-        if self.shared.delay_frames == 0 || self.tx.is_none() {
+        if self.shared.delay_frames == 0 || !self.threaded {
             return;
         }
         // A simulated latency of exactly d frames: wait for the chunks due now.
@@ -549,7 +703,7 @@ impl DataAccess for Loader {
         let due = |st: &State| {
             st.entries
                 .values()
-                .any(|e| matches!(e, Entry::Loading { ready } if *ready <= frame))
+                .any(|e| matches!(e, Entry::Loading { ready, .. } if *ready <= frame))
         };
         let deadline = Instant::now() + DUE_WAIT;
         while due(&st) {
@@ -575,8 +729,12 @@ impl DataAccess for Loader {
 
 impl Drop for Loader {
     fn drop(&mut self) {
-        self.shared.stop.store(true, Ordering::Release);
-        self.tx = None;
+        {
+            // Set under the lock: the thread either sees it before waiting or is woken.
+            let _st = self.shared.state();
+            self.shared.stop.store(true, Ordering::Release);
+        }
+        self.shared.work.notify_all();
         if let Some(worker) = self.worker.take() {
             // The thread catches panics of the source and decoder; an error here would be a
             // bug in the loader itself, and a destructor must not panic.

@@ -14,6 +14,7 @@
 //! [`MethodError::Remote`] naming the URL; a checksum mismatch is [`MethodError::Corrupt`]
 //! naming the URL and the chunk. Retrying is the loader's business, not this layer's.
 
+use std::sync::atomic::{AtomicU64, Ordering};
 use std::time::Duration;
 
 use super::access::ChunkSource;
@@ -138,6 +139,7 @@ pub struct HttpSource {
     file: RemoteFile,
     refs: Vec<ChunkRef>,
     noun: &'static str,
+    read: AtomicU64,
 }
 
 impl HttpSource {
@@ -155,7 +157,12 @@ impl HttpSource {
                 "not a splatbench repository (bad magic)",
             ));
         }
-        Ok(Self { file, refs, noun })
+        Ok(Self {
+            file,
+            refs,
+            noun,
+            read: AtomicU64::new(0),
+        })
     }
 
     /// The repository's URL.
@@ -185,6 +192,11 @@ impl ChunkSource for HttpSource {
             ));
         }
         let stored = self.file.get_range(r.offset, u64::from(r.stored))?;
+        self.read.fetch_add(stored.len() as u64, Ordering::Relaxed);
         unpack(&stored, r, &what).map_err(|msg| MethodError::corrupt(self.file.url(), msg))
+    }
+
+    fn bytes_read(&self) -> u64 {
+        self.read.load(Ordering::Relaxed)
     }
 }

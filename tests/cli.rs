@@ -601,12 +601,10 @@ fn run_reuses_an_existing_build() {
     assert_eq!(summary["params"]["m"], "512");
     assert_eq!(summary["params"]["occlusion"], "true");
     let csv = std::fs::read_to_string(out.join("frames.csv")).unwrap();
-    assert!(
-        csv.lines()
-            .next()
-            .unwrap()
-            .ends_with("clouds_queried,clouds_occluded,chunks_failed")
-    );
+    assert!(csv.lines().next().unwrap().ends_with(
+        "clouds_queried,clouds_occluded,chunks_failed,bytes_fetched,requests_issued,\
+                 requests_cancelled,stale_deliveries"
+    ));
 }
 
 /// `sweep` builds once and runs the path at every budget (`sweep.csv`: one row per target,

@@ -155,6 +155,26 @@ fn run_opens_a_build_served_over_http() {
         serde_json::from_str(&std::fs::read_to_string(out.join("summary.json")).unwrap()).unwrap();
     assert_eq!(summary["complete"], true);
     assert_eq!(summary["params"]["m"], "512");
+    // The chunks travelled over HTTP: frames.csv counts their bytes and requests.
+    let mut csv = csv::Reader::from_path(out.join("frames.csv")).unwrap();
+    let header = csv.headers().unwrap().clone();
+    let col = |name: &str| header.iter().position(|c| c == name).unwrap();
+    let (bytes, issued) = (col("bytes_fetched"), col("requests_issued"));
+    let (mut total_bytes, mut total_issued) = (0.0, 0.0);
+    for row in csv.records() {
+        let row = row.unwrap();
+        total_bytes += row[bytes].parse::<f64>().unwrap();
+        total_issued += row[issued].parse::<f64>().unwrap();
+    }
+    assert!(
+        total_bytes > 0.0 && total_issued > 0.0,
+        "{total_bytes} {total_issued}"
+    );
+    let repo = std::fs::metadata(build.join("repo.bin")).unwrap().len() as f64;
+    // Nothing is evicted (20 K points fit the default core budget many times), so a chunk
+    // is read at most twice: by the loader thread, and once more by a synchronous `get`
+    // racing it (`Loader::get`). The root read at open counts in frame 0.
+    assert!(total_bytes <= 2.0 * repo, "{total_bytes} > 2 × {repo}");
     common::fails(
         &mut run("qsplat", &server.url(), &tmp.path().join("x")),
         "--build-url",

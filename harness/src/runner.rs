@@ -14,7 +14,8 @@
 //!
 //! `frames.csv` columns after [`FrameRow::COLUMNS`] ([`frame_columns`]): the method's
 //! [`LodMethod::extra_columns`], then [`INTERVAL_COLUMNS`] for interval-tested methods (SPT),
-//! then [`OCCLUSION_COLUMNS`] for occlusion-culled methods (LPC with `occlusion=true`).
+//! then [`OCCLUSION_COLUMNS`] for occlusion-culled methods (LPC with `occlusion=true`), then
+//! for methods that load chunks (LPC, MWKD) `chunks_failed` and [`TRAFFIC_COLUMNS`].
 //!
 //! Occlusion culling: the renderer runs the list's [`methods::OcclusionPass`] (see
 //! [`crate::render`]); [`next_feedback`] hands the candidates it found visible and occluded
@@ -48,6 +49,17 @@ pub const INTERVAL_COLUMNS: [&str; 3] = ["prefix_points", "gpu_passed", "gpu_cul
 /// plane) count in neither.
 pub const OCCLUSION_COLUMNS: [&str; 2] = ["clouds_queried", "clouds_occluded"];
 
+/// Columns appended for methods that load chunks, after `chunks_failed`: what their
+/// data-access layer did during the frame ([`methods::store::access::Traffic`]): stored
+/// bytes its source read, requests queued, queued requests dropped because no frame wanted
+/// them any more, and chunks delivered after every frame that wanted them had passed.
+pub const TRAFFIC_COLUMNS: [&str; 4] = [
+    "bytes_fetched",
+    "requests_issued",
+    "requests_cancelled",
+    "stale_deliveries",
+];
+
 /// The extra `frames.csv` columns for `method`, in order: its own, then the interval columns
 /// (interval-tested methods), then the occlusion columns (occlusion-culled methods).
 pub fn frame_columns(method: &dyn LodMethod) -> Vec<&'static str> {
@@ -60,17 +72,21 @@ pub fn frame_columns(method: &dyn LodMethod) -> Vec<&'static str> {
     }
     if method.loads_chunks() {
         columns.push("chunks_failed");
+        columns.extend(TRAFFIC_COLUMNS);
     }
     columns
 }
 
 /// The values of [`frame_columns`] for one frame: the list's counters, then what the
-/// renderer counted, then the chunks that have failed to load so far (`failed`).
+/// renderer counted, then the chunks that have failed to load so far (`failed`) and the
+/// frame's traffic (`traffic`: [`Traffic::since`](methods::store::access::Traffic::since)
+/// the previous frame).
 pub fn frame_counters(
     method: &dyn LodMethod,
     list: &DrawList,
     stats: &FrameStats,
     failed: usize,
+    traffic: methods::store::access::Traffic,
 ) -> Vec<f64> {
     let mut counters = list.counters.clone();
     if method.interval_tested() {
@@ -94,6 +110,15 @@ pub fn frame_counters(
     }
     if method.loads_chunks() {
         counters.push(failed as f64);
+        counters.extend(
+            [
+                traffic.bytes,
+                traffic.issued,
+                traffic.cancelled,
+                traffic.stale,
+            ]
+            .map(|v| v as f64),
+        );
     }
     counters
 }
@@ -657,6 +682,8 @@ pub fn run(cfg: &RunConfig, gpu: &Gpu, progress: &dyn Progress) -> anyhow::Resul
     renderer.clear_cache();
 
     let mut rows = Vec::with_capacity(cfg.frames);
+    // Frame 0's traffic includes the warm-up frame's (the root and first requests).
+    let mut traffic = methods::store::access::Traffic::default();
     let mut last: Option<(FrameStats, View)> = None;
     let mut path_metrics = PathMetrics::new();
     progress.start(&format!("{} on {label}", cfg.method), cfg.frames as u64);
@@ -699,7 +726,15 @@ pub fn run(cfg: &RunConfig, gpu: &Gpu, progress: &dyn Progress) -> anyhow::Resul
                 });
             }
         }
-        let counters = frame_counters(method.as_ref(), &list, &stats, summary.failed_chunks.len());
+        let now = method.traffic();
+        let counters = frame_counters(
+            method.as_ref(),
+            &list,
+            &stats,
+            summary.failed_chunks.len(),
+            now.since(&traffic),
+        );
+        traffic = now;
         let row = FrameRow {
             frame: i as u64,
             method: cfg.method.name().into(),

@@ -455,7 +455,7 @@ fn feedback_carries_visibility_to_the_next_frame() {
             .filter_map(|it| it.cached().map(|c| c.0))
             .collect();
         let (stats, _) = draw_both(&mut r, &v, &list, &m);
-        let counters = runner::frame_counters(&m, &list, &stats, 0);
+        let counters = runner::frame_counters(&m, &list, &stats, 0, Default::default());
         let o = stats.occlusion.clone().unwrap();
         frames.push((
             phase1,
@@ -512,7 +512,7 @@ fn occlusion_columns_only_for_occlusion_culled_methods() {
         .unwrap();
     assert!(list.occlusion.is_none());
     assert_eq!(
-        runner::frame_counters(&m, &list, &FrameStats::default(), 0),
+        runner::frame_counters(&m, &list, &FrameStats::default(), 0, Default::default()),
         vec![3.0]
     );
 }

@@ -71,6 +71,11 @@ pub trait LodMethod: Send {
     fn loads_chunks(&self) -> bool {
         false
     }
+    /// What its data-access layer has fetched so far (methods that load chunks; zeros for
+    /// the others): the runner writes each frame's share in `frames.csv`.
+    fn traffic(&self) -> crate::store::access::Traffic {
+        crate::store::access::Traffic::default()
+    }
 }
 
 /// [`LodMethod::drawn_points`] computed from the chunks: every item's

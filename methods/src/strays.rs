@@ -276,4 +276,7 @@ impl LodMethod for Apart {
     fn loads_chunks(&self) -> bool {
         self.inner.loads_chunks()
     }
+    fn traffic(&self) -> crate::store::access::Traffic {
+        self.inner.traffic()
+    }
 }

@@ -332,6 +332,9 @@ impl LodMethod for Lpc {
     fn loads_chunks(&self) -> bool {
         true
     }
+    fn traffic(&self) -> crate::store::access::Traffic {
+        self.access.traffic()
+    }
     fn failed_chunks(&self) -> Vec<(ChunkId, String)> {
         self.access
             .failures()

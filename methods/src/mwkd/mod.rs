@@ -495,6 +495,9 @@ impl LodMethod for Mwkd {
     fn loads_chunks(&self) -> bool {
         true
     }
+    fn traffic(&self) -> crate::store::access::Traffic {
+        self.access.traffic()
+    }
     fn failed_chunks(&self) -> Vec<(ChunkId, String)> {
         self.access
             .failures()

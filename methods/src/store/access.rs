@@ -137,6 +137,19 @@ pub struct Traffic {
     pub bytes: u64,
 }
 
+impl Traffic {
+    /// What happened since `earlier` (a reading of the same loader).
+    pub fn since(&self, earlier: &Traffic) -> Traffic {
+        Traffic {
+            issued: self.issued.saturating_sub(earlier.issued),
+            cancelled: self.cancelled.saturating_sub(earlier.cancelled),
+            stale: self.stale.saturating_sub(earlier.stale),
+            failed: self.failed.saturating_sub(earlier.failed),
+            bytes: self.bytes.saturating_sub(earlier.bytes),
+        }
+    }
+}
+
 /// Options of the local [`Loader`].
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
 pub struct LoaderOptions {

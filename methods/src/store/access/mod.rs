@@ -1,0 +1,150 @@
+//! The data-access layer (LPC §3 "Data layout and data access"): it hides whether chunks
+//! come from a local memory-mapped repository or, later, from a remote one over HTTP range
+//! requests. A method asks for a chunk asynchronously ([`DataAccess::request`]), tests
+//! whether it is in core now ([`DataAccess::available`]) and takes it ([`DataAccess::get`]).
+//!
+//! Two layers:
+//! - [`ChunkSource`]: verified, decompressed bytes of chunk `id` (blocking). [`LocalSource`]
+//!   reads a [`Repository`]; an HTTP source implements the same trait.
+//! - [`DataAccess`]: decoded chunks in core, filled by a loader thread from a source.
+//!   [`Loader`] (`loader.rs`) is the implementation; its documentation gives the design, the
+//!   delay semantics, the core budget and the error handling.
+
+mod loader;
+
+use std::sync::Arc;
+use std::sync::atomic::{AtomicU64, Ordering};
+
+use crate::store::{ChunkRef, Repository};
+use crate::{MethodError, SplatBatch};
+
+pub use loader::{DUE_WAIT, Loader, LoaderOptions};
+
+/// A decoded chunk, shared between the loader, the in-core cache and the caller.
+pub type Decoded = Arc<SplatBatch>;
+
+/// Turns a chunk's bytes into splats (the method's format); `id` names it in errors.
+pub type Decoder = Arc<dyn Fn(u32, &[u8]) -> Result<SplatBatch, MethodError> + Send + Sync>;
+
+/// Where the bytes of chunks come from (blocking reads).
+pub trait ChunkSource: Send + Sync {
+    /// Number of chunks.
+    fn len(&self) -> usize;
+    /// True if there are no chunks.
+    fn is_empty(&self) -> bool {
+        self.len() == 0
+    }
+    /// Verified, decompressed bytes of chunk `id`.
+    fn fetch(&self, id: u32) -> Result<Vec<u8>, MethodError>;
+    /// Stored (compressed) bytes read so far, over all fetches that returned their bytes.
+    fn bytes_read(&self) -> u64 {
+        0
+    }
+}
+
+/// Chunks of a local repository file.
+pub struct LocalSource {
+    repo: Repository,
+    refs: Vec<ChunkRef>,
+    noun: &'static str,
+    read: AtomicU64,
+}
+
+impl LocalSource {
+    /// Chunks `refs` of `repo`; `noun` names a chunk in errors ("cloud", "node").
+    pub fn new(repo: Repository, refs: Vec<ChunkRef>, noun: &'static str) -> Self {
+        Self {
+            repo,
+            refs,
+            noun,
+            read: AtomicU64::new(0),
+        }
+    }
+    /// The repository file.
+    pub fn repository(&self) -> &Repository {
+        &self.repo
+    }
+}
+
+impl ChunkSource for LocalSource {
+    fn len(&self) -> usize {
+        self.refs.len()
+    }
+    fn fetch(&self, id: u32) -> Result<Vec<u8>, MethodError> {
+        let r = self
+            .refs
+            .get(id as usize)
+            .ok_or(MethodError::NoChunk(id as u64))?;
+        let bytes = self.repo.read(r, &format!("{} {id}", self.noun))?;
+        self.read.fetch_add(u64::from(r.stored), Ordering::Relaxed);
+        Ok(bytes)
+    }
+    fn bytes_read(&self) -> u64 {
+        self.read.load(Ordering::Relaxed)
+    }
+}
+
+/// Where a build's repository file is read from.
+#[derive(Clone)]
+pub enum RepoAt {
+    /// A local file, memory-mapped.
+    Local(std::path::PathBuf),
+    /// A file served over HTTP, read by range requests ([`super::http`]).
+    Remote(super::http::RemoteFile),
+}
+
+/// The data-access layer seen by a method. Implementations are internally synchronised:
+/// every call takes `&self`.
+pub trait DataAccess: Send + Sync {
+    /// Asks for chunk `id` to be brought in core; returns at once. A method asks each frame,
+    /// best first, for what it still wants: a chunk still queued from an earlier frame is
+    /// moved up among this frame's requests; one loading or in core is not fetched again.
+    fn request(&self, id: u32);
+    /// True if chunk `id` is in core now (a [`DataAccess::get`] will not block).
+    fn available(&self, id: u32) -> bool;
+    /// The decoded chunk: from core if available, else read and decoded now (blocking).
+    fn get(&self, id: u32) -> Result<Decoded, MethodError>;
+    /// Marks the start of a frame (ages delayed deliveries, advances the LRU clock).
+    fn begin_frame(&self);
+    /// Bytes of decoded chunks held in core.
+    fn resident_bytes(&self) -> u64;
+    /// Requests queued or in flight.
+    fn pending(&self) -> usize;
+    /// Chunks that failed to load (read or decode), by id, each with its error naming the
+    /// source and the chunk; none by default.
+    fn failures(&self) -> Vec<(u32, String)> {
+        Vec::new()
+    }
+    /// What has travelled so far (see [`Traffic`]); zeros by default.
+    fn traffic(&self) -> Traffic {
+        Traffic::default()
+    }
+}
+
+/// A loader's traffic since it was opened.
+#[derive(Debug, Clone, Copy, Default, PartialEq, Eq)]
+pub struct Traffic {
+    /// Requests queued (a re-request of a queued chunk re-prioritises it, not counted).
+    pub issued: u64,
+    /// Queued requests dropped unserved because no frame asked for them any more.
+    pub cancelled: u64,
+    /// Chunks delivered after every frame that wanted them had passed.
+    pub stale: u64,
+    /// Chunks that failed to load.
+    pub failed: u64,
+    /// Stored (compressed) bytes the source read ([`ChunkSource::bytes_read`]).
+    pub bytes: u64,
+}
+
+impl Traffic {
+    /// What happened since `earlier` (a reading of the same loader).
+    pub fn since(&self, earlier: &Traffic) -> Traffic {
+        Traffic {
+            issued: self.issued.saturating_sub(earlier.issued),
+            cancelled: self.cancelled.saturating_sub(earlier.cancelled),
+            stale: self.stale.saturating_sub(earlier.stale),
+            failed: self.failed.saturating_sub(earlier.failed),
+            bytes: self.bytes.saturating_sub(earlier.bytes),
+        }
+    }
+}

@@ -144,7 +144,11 @@ impl Server {
         format!("http://{}/", self.addr)
     }
 
-    /// Stops accepting, finishes the requests being answered and closes the socket.
+    /// Stops accepting, finishes the requests being answered and closes the listening
+    /// socket. Connections kept alive stay open (tiny_http offers no way to close them) and
+    /// their next requests go unanswered: a client sees its timeout, as on a half-open
+    /// connection after a crash. A server killed as a process (`splatbench serve`) closes
+    /// them all.
     pub fn stop(mut self) {
         self.shutdown();
     }

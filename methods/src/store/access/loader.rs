@@ -24,6 +24,35 @@ pub struct LoaderOptions {
     pub delay_frames: u32,
 }
 
+/// How a loader retries a chunk whose fetch or decode failed: a network may fail for a
+/// moment (a reset connection, a server restarting), a local file does not heal.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub struct Retry {
+    /// Attempts in all (1: none repeated).
+    pub tries: u32,
+    /// Wait before the second attempt, doubled before each further one.
+    pub backoff: Duration,
+    /// A chunk given up on is fetched again when asked for this long after (the server came
+    /// back); `None`: never again.
+    pub cooldown: Option<Duration>,
+}
+
+impl Retry {
+    /// Local repositories: a failed read is final.
+    pub const NONE: Retry = Retry {
+        tries: 1,
+        backoff: Duration::ZERO,
+        cooldown: None,
+    };
+    /// Remote repositories: 4 attempts 0.25, 0.5 and 1 s apart; asked again 5 s after
+    /// giving up, a chunk is tried anew.
+    pub const REMOTE: Retry = Retry {
+        tries: 4,
+        backoff: Duration::from_millis(250),
+        cooldown: Some(Duration::from_secs(5)),
+    };
+}
+
 /// The longest [`DataAccess::begin_frame`] waits for the chunks due in its frame (delay ≥ 1)
 /// before the frame goes on without them: a source that hangs must not hang the run.
 pub const DUE_WAIT: Duration = Duration::from_secs(30);
@@ -38,6 +67,8 @@ enum Entry {
         queued: Option<QueueKey>,
         /// The last frame that requested it.
         wanted: u64,
+        /// Attempts that failed so far ([`Retry`]).
+        failed: u32,
     },
     /// Decoded and held in core.
     Core {
@@ -51,8 +82,8 @@ enum Entry {
         /// Frame of the last use, `None` if never used since it was loaded.
         used: Option<u64>,
     },
-    /// The loader thread failed to read or decode it (the error's text).
-    Failed(String),
+    /// The loader thread failed to read or decode it (the error's text), at `at`.
+    Failed { error: String, at: Instant },
 }
 
 /// A place in the loader's queue: the frame of the request (newest first), then the order
@@ -80,6 +111,8 @@ struct State {
     core_bytes: u64,
     /// Requests waiting for the loader thread, best first ([`QueueKey`]).
     queue: BTreeMap<QueueKey, u32>,
+    /// Failed requests waiting to be tried again, by when (then request number).
+    retry_at: BTreeMap<(Instant, u64), u32>,
     /// Number of the last request (orders the requests of one frame).
     seq: u64,
     /// Counters of [`Traffic`] kept here (`failed` and `bytes` are read elsewhere).
@@ -165,6 +198,7 @@ struct Shared {
     source: Arc<dyn ChunkSource>,
     decode: Decoder,
     delay_frames: u32,
+    retry: Retry,
     state: Mutex<State>,
     /// Notified whenever the loader thread finishes a request (installed or failed).
     served: Condvar,
@@ -203,7 +237,8 @@ impl Shared {
         }
     }
 
-    /// Serves one request on the loader thread.
+    /// Serves one request on the loader thread: installs the chunk, or schedules another
+    /// attempt ([`Retry`]), or records the failure.
     fn serve(&self, id: u32) {
         {
             let mut st = self.state();
@@ -218,15 +253,51 @@ impl Shared {
         }
         let result = self.load(id);
         let mut st = self.state();
-        st.pending -= 1;
-        if let Some(&Entry::Loading { ready, wanted, .. }) = st.entries.get(&id) {
-            if wanted + STALE_AFTER < st.frame {
-                st.stale += 1;
+        let Some(&Entry::Loading {
+            ready,
+            wanted,
+            failed,
+            ..
+        }) = st.entries.get(&id)
+        else {
+            st.pending -= 1;
+            drop(st);
+            self.served.notify_all();
+            return;
+        };
+        match result {
+            Ok(batch) => {
+                st.pending -= 1;
+                if wanted + STALE_AFTER < st.frame {
+                    st.stale += 1;
+                }
+                st.install(id, batch, ready);
             }
-            match result {
-                Ok(batch) => st.install(id, batch, ready),
-                Err(e) => {
-                    st.entries.insert(id, Entry::Failed(e.to_string()));
+            Err(e) => {
+                let tries = failed + 1;
+                if tries < self.retry.tries {
+                    // Still pending: back in the queue after the backoff.
+                    let wait = self.retry.backoff * 2u32.saturating_pow(tries - 1);
+                    st.seq += 1;
+                    let key = (Instant::now() + wait, st.seq);
+                    st.retry_at.insert(key, id);
+                    if let Some(Entry::Loading { failed, .. }) = st.entries.get_mut(&id) {
+                        *failed = tries;
+                    }
+                } else {
+                    st.pending -= 1;
+                    let error = if tries > 1 {
+                        format!("{e} (gave up after {tries} tries)")
+                    } else {
+                        e.to_string()
+                    };
+                    st.entries.insert(
+                        id,
+                        Entry::Failed {
+                            error,
+                            at: Instant::now(),
+                        },
+                    );
                 }
             }
         }
@@ -242,8 +313,37 @@ impl Shared {
             if self.stop.load(Ordering::Acquire) {
                 return;
             }
+            // Failed requests whose backoff is over go back in the queue, with the priority of
+            // the last frame that wanted them.
+            let now = Instant::now();
+            while let Some((&(when, _), &id)) = st.retry_at.first_key_value() {
+                if when > now {
+                    break;
+                }
+                st.retry_at.pop_first();
+                let Some(&Entry::Loading { wanted, .. }) = st.entries.get(&id) else {
+                    // Read meanwhile by a synchronous `get`.
+                    st.pending -= 1;
+                    continue;
+                };
+                st.seq += 1;
+                let key = (Reverse(wanted), st.seq);
+                st.queue.insert(key, id);
+                if let Some(Entry::Loading { queued, .. }) = st.entries.get_mut(&id) {
+                    *queued = Some(key);
+                }
+            }
             let Some((key, id)) = st.queue.pop_first() else {
-                st = self.work.wait(st).unwrap_or_else(|e| e.into_inner());
+                st = match st.retry_at.first_key_value() {
+                    Some((&(when, _), _)) => {
+                        let wait = when.saturating_duration_since(now);
+                        match self.work.wait_timeout(st, wait) {
+                            Ok((g, _)) => g,
+                            Err(e) => e.into_inner().0,
+                        }
+                    }
+                    None => self.work.wait(st).unwrap_or_else(|e| e.into_inner()),
+                };
                 continue;
             };
             let mine = matches!(
@@ -319,8 +419,12 @@ impl Shared {
 ///
 /// # Errors
 ///
-/// A chunk whose fetch or decode fails on the loader thread (or panics there) is remembered
-/// as failed: it is never available, further requests for it are ignored, and
+/// A chunk whose fetch or decode fails on the loader thread (or panics there) is tried again
+/// as the loader's [`Retry`] says (not at all for a local repository; a remote one,
+/// [`Loader::at`], tries 4 times with a doubling backoff), staying pending meanwhile. After
+/// its last try it is remembered as failed, the error saying how many tries: it is not
+/// available, requests for it are ignored until the retry's cooldown has passed (then it is
+/// fetched anew: a server that came back), and
 /// [`DataAccess::get`] reads it again on the caller's thread, returning the error (or the
 /// chunk, if the source has recovered). The thread goes on with the next request.
 /// [`DataAccess::failures`] lists the failed chunks, so that a method which renders on
@@ -368,19 +472,34 @@ impl Loader {
             RepoAt::Local(path) => Self::local(path, refs, noun, decode, options),
             RepoAt::Remote(file) => {
                 let source = crate::store::http::HttpSource::open(file.clone(), refs, noun)?;
-                let mut loader = Self::spawn(Arc::new(source), decode, options);
+                let mut loader = Self::spawn_with(Arc::new(source), decode, options, Retry::REMOTE);
                 loader.origin = file.url().to_string();
                 Ok(loader)
             }
         }
     }
 
-    /// Starts a loader thread over `source`, decoding with `decode`.
+    /// Starts a loader thread over `source`, decoding with `decode`; a failed chunk is not
+    /// tried again ([`Retry::NONE`]).
     pub fn spawn(source: Arc<dyn ChunkSource>, decode: Decoder, options: LoaderOptions) -> Self {
+        Self::spawn_with(source, decode, options, Retry::NONE)
+    }
+
+    /// [`Loader::spawn`] with failed chunks tried again as `retry` says.
+    pub fn spawn_with(
+        source: Arc<dyn ChunkSource>,
+        decode: Decoder,
+        options: LoaderOptions,
+        retry: Retry,
+    ) -> Self {
         let shared = Arc::new(Shared {
             source,
             decode,
             delay_frames: options.delay_frames,
+            retry: Retry {
+                tries: retry.tries.max(1),
+                ..retry
+            },
             served: Condvar::new(),
             work: Condvar::new(),
             state: Mutex::new(State {
@@ -392,6 +511,7 @@ impl Loader {
                 pending: 0,
                 core_bytes: options.core_bytes,
                 queue: BTreeMap::new(),
+                retry_at: BTreeMap::new(),
                 seq: 0,
                 issued: 0,
                 cancelled: 0,
@@ -415,7 +535,7 @@ impl Loader {
     /// The error that made the loader thread give up on chunk `id`, if it did.
     pub fn error(&self, id: u32) -> Option<String> {
         match self.shared.state().entries.get(&id) {
-            Some(Entry::Failed(msg)) => Some(msg.clone()),
+            Some(Entry::Failed { error, .. }) => Some(error.clone()),
             _ => None,
         }
     }
@@ -453,6 +573,17 @@ impl DataAccess for Loader {
                 }
                 return;
             }
+            // Given up on: tried anew once the cooldown has passed (a server that came back).
+            Some(Entry::Failed { at, .. }) => {
+                let again = self
+                    .shared
+                    .retry
+                    .cooldown
+                    .is_some_and(|c| at.elapsed() >= c);
+                if !again {
+                    return;
+                }
+            }
             Some(_) => return,
             None => {}
         }
@@ -469,6 +600,7 @@ impl DataAccess for Loader {
                     ready,
                     queued: Some(key),
                     wanted: frame,
+                    failed: 0,
                 },
             );
             drop(st);
@@ -482,6 +614,7 @@ impl DataAccess for Loader {
                 ready,
                 queued: None,
                 wanted: frame,
+                failed: 0,
             },
         );
         drop(st);
@@ -498,7 +631,7 @@ impl DataAccess for Loader {
             failed: st
                 .entries
                 .values()
-                .filter(|e| matches!(e, Entry::Failed(_)))
+                .filter(|e| matches!(e, Entry::Failed { .. }))
                 .count() as u64,
             bytes,
         }
@@ -510,7 +643,7 @@ impl DataAccess for Loader {
             .entries
             .iter()
             .filter_map(|(&id, e)| match e {
-                Entry::Failed(msg) => Some((id, format!("{}: {msg}", self.origin))),
+                Entry::Failed { error, .. } => Some((id, format!("{}: {error}", self.origin))),
                 _ => None,
             })
             .collect();
@@ -561,7 +694,13 @@ impl DataAccess for Loader {
             }
             Err(e) => {
                 if !matches!(st.entries.get(&id), Some(Entry::Loading { .. })) {
-                    st.entries.insert(id, Entry::Failed(e.to_string()));
+                    st.entries.insert(
+                        id,
+                        Entry::Failed {
+                            error: e.to_string(),
+                            at: Instant::now(),
+                        },
+                    );
                 }
                 Err(e)
             }

@@ -18,7 +18,7 @@ use std::sync::atomic::{AtomicU64, Ordering};
 use crate::store::{ChunkRef, Repository};
 use crate::{MethodError, SplatBatch};
 
-pub use loader::{DUE_WAIT, Loader, LoaderOptions};
+pub use loader::{DUE_WAIT, Loader, LoaderOptions, Retry};
 
 /// A decoded chunk, shared between the loader, the in-core cache and the caller.
 pub type Decoded = Arc<SplatBatch>;

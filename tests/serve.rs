@@ -175,6 +175,24 @@ fn run_opens_a_build_served_over_http() {
     // is read at most twice: by the loader thread, and once more by a synchronous `get`
     // racing it (`Loader::get`). The root read at open counts in frame 0.
     assert!(total_bytes <= 2.0 * repo, "{total_bytes} > 2 × {repo}");
+    // A sweep over the same served build: one run per budget, nothing built.
+    let sweep = tmp.path().join("sweep");
+    bin()
+        .args([
+            "sweep", "--method", "lpc", "--scene", scene, "--path", "orbit",
+        ])
+        .args(["--frames", "2", "--width", "64", "--height", "64"])
+        .args(["--budgets", "4000,8000", "--build-url", &server.url()])
+        .arg("--cache")
+        .arg(&cache)
+        .arg("--out")
+        .arg(&sweep)
+        .assert()
+        .success();
+    let rows = std::fs::read_to_string(sweep.join("sweep.csv")).unwrap();
+    assert_eq!(rows.lines().count(), 3, "{rows}");
+    assert!(!sweep.join("build").exists(), "nothing built");
+    assert!(sweep.join("budget-4000/remote-build/index.bin").is_file());
     common::fails(
         &mut run("qsplat", &server.url(), &tmp.path().join("x")),
         "--build-url",

@@ -104,8 +104,8 @@ pub fn remove_stale(dir: &Path) -> anyhow::Result<()> {
     Ok(())
 }
 
-/// Runs `base` once per target, each into `dir/<target name>` with `base`'s `build_dir`
-/// (which must be set: a sweep runs one build), calling `each` with every run's summary;
+/// Runs `base` once per target, each into `dir/<target name>` with `base`'s `build_dir` or
+/// `build_url` (one must be set: a sweep runs one build), calling `each` with every run's summary;
 /// then [`assemble`]s `dir/sweep.csv` and its plot. Returns the rows in target order.
 pub fn run_targets(
     base: &RunConfig,
@@ -116,8 +116,8 @@ pub fn run_targets(
     mut each: impl FnMut(&Summary),
 ) -> anyhow::Result<Vec<SweepRow>> {
     anyhow::ensure!(
-        base.build_dir.is_some(),
-        "a sweep runs every target on one build: its build directory must be given"
+        base.build_dir.is_some() || base.build_url.is_some(),
+        "a sweep runs every target on one build: its build directory or URL must be given"
     );
     anyhow::ensure!(!targets.is_empty(), "a sweep needs at least one target");
     std::fs::create_dir_all(dir).with_context(|| format!("creating {}", dir.display()))?;

@@ -177,10 +177,7 @@ impl ChunkSource for HttpSource {
     }
 
     fn fetch(&self, id: u32) -> Result<Vec<u8>, MethodError> {
-        let r = self
-            .refs
-            .get(id as usize)
-            .ok_or(MethodError::NoChunk(id as u64))?;
+        let r = crate::store::chunk_ref(&self.refs, id)?;
         let what = format!("{} {id}", self.noun);
         if r.offset < REPO_MAGIC.len() as u64 || r.stored == 0 {
             return Err(MethodError::corrupt(

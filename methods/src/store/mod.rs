@@ -304,6 +304,12 @@ impl Repository {
     }
 }
 
+/// Chunk `id`'s reference among `refs`, or [`MethodError::NoChunk`] (every source's first
+/// step).
+pub fn chunk_ref(refs: &[ChunkRef], id: u32) -> Result<&ChunkRef, MethodError> {
+    refs.get(id as usize).ok_or(MethodError::NoChunk(id.into()))
+}
+
 /// Verifies the stored bytes of chunk `r` against its checksum and decompresses them; the
 /// error names the chunk (`what`), the caller adds the file or URL.
 pub fn unpack(stored: &[u8], r: &ChunkRef, what: &str) -> Result<Vec<u8>, String> {

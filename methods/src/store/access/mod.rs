@@ -71,10 +71,7 @@ impl ChunkSource for LocalSource {
         self.refs.len()
     }
     fn fetch(&self, id: u32) -> Result<Vec<u8>, MethodError> {
-        let r = self
-            .refs
-            .get(id as usize)
-            .ok_or(MethodError::NoChunk(id as u64))?;
+        let r = crate::store::chunk_ref(&self.refs, id)?;
         let bytes = self.repo.read(r, &format!("{} {id}", self.noun))?;
         self.read.fetch_add(u64::from(r.stored), Ordering::Relaxed);
         Ok(bytes)

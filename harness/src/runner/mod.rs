@@ -29,124 +29,24 @@ use std::path::{Path, PathBuf};
 use std::time::Instant;
 
 use anyhow::Context as _;
-use methods::{BuildStats, DrawList, Feedback, LodMethod, MethodKind, Params, Target};
+use methods::{BuildStats, Feedback, LodMethod, MethodKind, Params, Target};
 use scenes::paths::PathSpec;
 use scenes::{Aabb, PointCloud, Progress, SceneSpec, View};
 
-use crate::gpu::{AdapterDesc, Gpu};
+use crate::gpu::Gpu;
 use crate::image::Image;
 use crate::metrics::{FrameMetrics, PathMetrics};
-use crate::render::{FrameStats, Kernel, RenderSettings, Renderer};
-use crate::results::{FrameRow, FramesWriter, median, write_json};
+use crate::render::{FrameStats, RenderSettings, Renderer};
+use crate::results::{FrameRow, FramesWriter, write_json};
 
-/// Columns appended for methods whose splats pass a vertex-stage interval test (SPT):
-/// splats sent, splats that passed (GPU counter), and the fraction culled on the GPU.
-pub const INTERVAL_COLUMNS: [&str; 3] = ["prefix_points", "gpu_passed", "gpu_culled_fraction"];
+mod columns;
+mod summary;
 
-/// Columns appended for occlusion-culled methods ([`LodMethod::occlusion_culled`]): the
-/// occlusion queries issued this frame and the candidates they found occluded (at most the
-/// threshold's fragments passed). Candidates visible without a query (sphere at the near
-/// plane) count in neither.
-pub const OCCLUSION_COLUMNS: [&str; 2] = ["clouds_queried", "clouds_occluded"];
-
-/// Columns appended for methods that load chunks, after `chunks_failed`: what their
-/// data-access layer did during the frame ([`methods::store::access::Traffic`]): stored
-/// bytes its source read, requests queued, queued requests dropped because no frame wanted
-/// them any more, and chunks delivered after every frame that wanted them had passed.
-pub const TRAFFIC_COLUMNS: [&str; 4] = [
-    "bytes_fetched",
-    "requests_issued",
-    "requests_cancelled",
-    "stale_deliveries",
-];
-
-/// The extra `frames.csv` columns for `method`, in order: its own, then the interval columns
-/// (interval-tested methods), then the occlusion columns (occlusion-culled methods).
-pub fn frame_columns(method: &dyn LodMethod) -> Vec<&'static str> {
-    let mut columns: Vec<&'static str> = method.extra_columns().to_vec();
-    if method.interval_tested() {
-        columns.extend(INTERVAL_COLUMNS);
-    }
-    if method.occlusion_culled() {
-        columns.extend(OCCLUSION_COLUMNS);
-    }
-    if method.loads_chunks() {
-        columns.push("chunks_failed");
-        columns.extend(TRAFFIC_COLUMNS);
-    }
-    columns
-}
-
-/// The values of [`frame_columns`] for one frame: the list's counters, then what the
-/// renderer counted, then the chunks that have failed to load so far (`failed`) and the
-/// frame's traffic (`traffic`: [`Traffic::since`](methods::store::access::Traffic::since)
-/// the previous frame).
-pub fn frame_counters(
-    method: &dyn LodMethod,
-    list: &DrawList,
-    stats: &FrameStats,
-    failed: usize,
-    traffic: methods::store::access::Traffic,
-) -> Vec<f64> {
-    let mut counters = list.counters.clone();
-    if method.interval_tested() {
-        let passed = stats.gpu_passed.unwrap_or(0);
-        counters.extend([
-            stats.points as f64,
-            passed as f64,
-            if stats.points > 0 {
-                1.0 - passed as f64 / stats.points as f64
-            } else {
-                0.0
-            },
-        ]);
-    }
-    if method.occlusion_culled() {
-        let o = stats.occlusion.as_ref();
-        counters.extend([
-            o.map_or(0, |o| o.clouds_queried) as f64,
-            o.map_or(0, |o| o.clouds_occluded) as f64,
-        ]);
-    }
-    if method.loads_chunks() {
-        counters.push(failed as f64);
-        counters.extend(
-            [
-                traffic.bytes,
-                traffic.issued,
-                traffic.cancelled,
-                traffic.stale,
-            ]
-            .map(|v| v as f64),
-        );
-    }
-    counters
-}
-
-/// The feedback for frame `frame` at `view`: the renderer's cache, and from the previous
-/// frame (`last`: its stats and view) its times, whether the camera moved, and the
-/// candidates its occlusion queries found visible (this frame's phase 1) and occluded.
-pub fn next_feedback(
-    frame: u64,
-    renderer: &Renderer<'_>,
-    last: Option<&(FrameStats, View)>,
-    view: &View,
-) -> Feedback {
-    let occ = last.and_then(|(s, _)| s.occlusion.as_ref());
-    Feedback {
-        frame,
-        cached: renderer.cached(),
-        occluded: occ
-            .map(|o| o.occluded.iter().copied().collect())
-            .unwrap_or_default(),
-        visible: occ
-            .map(|o| o.visible.iter().copied().collect())
-            .unwrap_or_default(),
-        last_gpu_ms: last.and_then(|(s, _)| s.gpu_ms),
-        last_wall_ms: last.map(|(s, _)| s.wall_ms),
-        camera_still: last.is_some_and(|(_, v)| v.camera == view.camera),
-    }
-}
+pub use columns::{
+    INTERVAL_COLUMNS, OCCLUSION_COLUMNS, TRAFFIC_COLUMNS, frame_columns, frame_counters,
+    next_feedback,
+};
+pub use summary::{FailedChunk, Medians, SceneStats, Summary};
 
 /// Bump when the renderer's output changes, to invalidate cached reference images.
 pub const REFERENCE_VERSION: u32 = 1;
@@ -198,147 +98,6 @@ pub struct RunConfig {
 
 /// How long one HTTP request of a remote build may take (`--build-url`).
 pub const REMOTE_TIMEOUT: std::time::Duration = std::time::Duration::from_secs(30);
-
-/// A chunk that failed to load during a run.
-#[derive(Debug, Clone, serde::Serialize)]
-pub struct FailedChunk {
-    /// Chunk (LPC cloud, MWKD node) id.
-    pub id: methods::ChunkId,
-    /// The first frame in which the failure was seen.
-    pub frame: u64,
-    /// The error, naming the file and the chunk.
-    pub error: String,
-}
-
-/// `summary.json`.
-#[derive(Debug, Clone, serde::Serialize)]
-pub struct Summary {
-    /// False until the run finished.
-    pub complete: bool,
-    /// Adapter.
-    pub adapter: AdapterDesc,
-    /// Git commit of the binary (`-dirty` when built from a modified tree).
-    pub git_commit: String,
-    /// The command line of the process that ran it ([`crate::results::invocation`]).
-    pub command: String,
-    /// Seed.
-    pub seed: u64,
-    /// Resolution.
-    pub width: u32,
-    /// Resolution.
-    pub height: u32,
-    /// Method.
-    pub method: String,
-    /// Method parameters as given.
-    pub params: Params,
-    /// Target.
-    pub target: Target,
-    /// Kernel.
-    pub kernel: Kernel,
-    /// Rasteriser (`quads` or `compute`).
-    pub raster: crate::render::Raster,
-    /// The shading drawn (`--shading`, with `auto` resolved for the scene).
-    pub shading: crate::render::Shading,
-    /// Camera path.
-    pub path: String,
-    /// Frames.
-    pub frames: usize,
-    /// GPU cache budget, bytes.
-    pub gpu_cache_budget_bytes: u64,
-    /// The scene.
-    pub scene: SceneStats,
-    /// The build.
-    pub build: BuildStats,
-    /// `gpu_ms` or `wall_ms`: what `splats_per_s` divides by.
-    pub splats_per_s_basis: &'static str,
-    /// Medians over the frames.
-    pub medians: Medians,
-    /// Chunks that failed to load: the frames drew without them, so they are not a
-    /// faithful measurement (the run fails unless `--allow-missing-chunks`).
-    pub failed_chunks: Vec<FailedChunk>,
-    /// Peak resident set size of the process.
-    pub peak_rss_bytes: u64,
-    /// Wall time of the whole run, s.
-    pub run_seconds: f64,
-}
-
-/// Scene facts in `summary.json`.
-#[derive(Debug, Clone, serde::Serialize)]
-pub struct SceneStats {
-    /// Label.
-    pub label: String,
-    /// Spec as given.
-    pub spec: String,
-    /// Samples.
-    pub points: u64,
-    /// Attributes.
-    pub attributes: String,
-    /// Local bounds of every sample.
-    pub bounds: Aabb,
-    /// What the camera paths frame: the bounds without far outliers ([`scenes::framing`]).
-    pub framed_bounds: Aabb,
-    /// Samples outside the framed box (still drawn, not framed).
-    pub outside_frame: u64,
-    /// Samples of the reference whose k-NN leaf radius was capped as isolated
-    /// ([`methods::leaf`]); `None` without metrics.
-    pub reference_radii_capped: Option<u64>,
-    /// World origin.
-    pub origin: [f64; 3],
-    /// Content hash (hex).
-    pub content_hash: String,
-    /// What the reader dropped or ignored (attributes, invalid points) and what the framing
-    /// left out, one sentence each (also printed as warnings).
-    pub warnings: Vec<String>,
-}
-
-/// Medians over a run's frames.
-#[derive(Debug, Clone, Default, serde::Serialize)]
-pub struct Medians {
-    /// Splats drawn.
-    pub points_drawn: Option<f64>,
-    /// GPU ms.
-    pub gpu_ms: Option<f64>,
-    /// Wall ms.
-    pub wall_ms: Option<f64>,
-    /// Selection ms.
-    pub cpu_select_ms: Option<f64>,
-    /// Splats/s.
-    pub splats_per_s: Option<f64>,
-    /// PSNR dB.
-    pub psnr_db: Option<f64>,
-    /// SSIM.
-    pub ssim: Option<f64>,
-    /// Mean FLIP.
-    pub flip_mean: Option<f64>,
-    /// Hole ratio.
-    pub hole_ratio: Option<f64>,
-    /// Extra coverage.
-    pub extra_coverage: Option<f64>,
-    /// Popping FLIP.
-    pub popping_flip: Option<f64>,
-    /// Image-metrics time per frame, ms.
-    pub metrics_ms: Option<f64>,
-}
-
-impl Medians {
-    fn of(rows: &[FrameRow]) -> Self {
-        let m = |f: fn(&FrameRow) -> Option<f64>| median(rows.iter().filter_map(f));
-        Self {
-            points_drawn: m(|r| Some(r.points_drawn as f64)),
-            gpu_ms: m(|r| r.gpu_ms),
-            wall_ms: m(|r| Some(r.wall_ms)),
-            cpu_select_ms: m(|r| Some(r.cpu_select_ms)),
-            splats_per_s: m(|r| Some(r.splats_per_s)),
-            psnr_db: m(|r| r.psnr_db),
-            ssim: m(|r| r.ssim),
-            flip_mean: m(|r| r.flip_mean),
-            hole_ratio: m(|r| r.hole_ratio),
-            extra_coverage: m(|r| r.extra_coverage),
-            popping_flip: m(|r| r.popping_flip),
-            metrics_ms: m(|r| r.metrics_ms),
-        }
-    }
-}
 
 /// The view of frame `i`.
 pub fn frame_view(

@@ -1,0 +1,149 @@
+//! `summary.json`: what a run reports once, beside `frames.csv`.
+
+use methods::{BuildStats, Params, Target};
+use scenes::Aabb;
+
+use crate::gpu::AdapterDesc;
+use crate::render::Kernel;
+use crate::results::{FrameRow, median};
+
+/// A chunk that failed to load during a run.
+#[derive(Debug, Clone, serde::Serialize)]
+pub struct FailedChunk {
+    /// Chunk (LPC cloud, MWKD node) id.
+    pub id: methods::ChunkId,
+    /// The first frame in which the failure was seen.
+    pub frame: u64,
+    /// The error, naming the file and the chunk.
+    pub error: String,
+}
+
+/// `summary.json`.
+#[derive(Debug, Clone, serde::Serialize)]
+pub struct Summary {
+    /// False until the run finished.
+    pub complete: bool,
+    /// Adapter.
+    pub adapter: AdapterDesc,
+    /// Git commit of the binary (`-dirty` when built from a modified tree).
+    pub git_commit: String,
+    /// The command line of the process that ran it ([`crate::results::invocation`]).
+    pub command: String,
+    /// Seed.
+    pub seed: u64,
+    /// Resolution.
+    pub width: u32,
+    /// Resolution.
+    pub height: u32,
+    /// Method.
+    pub method: String,
+    /// Method parameters as given.
+    pub params: Params,
+    /// Target.
+    pub target: Target,
+    /// Kernel.
+    pub kernel: Kernel,
+    /// Rasteriser (`quads` or `compute`).
+    pub raster: crate::render::Raster,
+    /// The shading drawn (`--shading`, with `auto` resolved for the scene).
+    pub shading: crate::render::Shading,
+    /// Camera path.
+    pub path: String,
+    /// Frames.
+    pub frames: usize,
+    /// GPU cache budget, bytes.
+    pub gpu_cache_budget_bytes: u64,
+    /// The scene.
+    pub scene: SceneStats,
+    /// The build.
+    pub build: BuildStats,
+    /// `gpu_ms` or `wall_ms`: what `splats_per_s` divides by.
+    pub splats_per_s_basis: &'static str,
+    /// Medians over the frames.
+    pub medians: Medians,
+    /// Chunks that failed to load: the frames drew without them, so they are not a
+    /// faithful measurement (the run fails unless `--allow-missing-chunks`).
+    pub failed_chunks: Vec<FailedChunk>,
+    /// Peak resident set size of the process.
+    pub peak_rss_bytes: u64,
+    /// Wall time of the whole run, s.
+    pub run_seconds: f64,
+}
+
+/// Scene facts in `summary.json`.
+#[derive(Debug, Clone, serde::Serialize)]
+pub struct SceneStats {
+    /// Label.
+    pub label: String,
+    /// Spec as given.
+    pub spec: String,
+    /// Samples.
+    pub points: u64,
+    /// Attributes.
+    pub attributes: String,
+    /// Local bounds of every sample.
+    pub bounds: Aabb,
+    /// What the camera paths frame: the bounds without far outliers ([`scenes::framing`]).
+    pub framed_bounds: Aabb,
+    /// Samples outside the framed box (still drawn, not framed).
+    pub outside_frame: u64,
+    /// Samples of the reference whose k-NN leaf radius was capped as isolated
+    /// ([`methods::leaf`]); `None` without metrics.
+    pub reference_radii_capped: Option<u64>,
+    /// World origin.
+    pub origin: [f64; 3],
+    /// Content hash (hex).
+    pub content_hash: String,
+    /// What the reader dropped or ignored (attributes, invalid points) and what the framing
+    /// left out, one sentence each (also printed as warnings).
+    pub warnings: Vec<String>,
+}
+
+/// Medians over a run's frames.
+#[derive(Debug, Clone, Default, serde::Serialize)]
+pub struct Medians {
+    /// Splats drawn.
+    pub points_drawn: Option<f64>,
+    /// GPU ms.
+    pub gpu_ms: Option<f64>,
+    /// Wall ms.
+    pub wall_ms: Option<f64>,
+    /// Selection ms.
+    pub cpu_select_ms: Option<f64>,
+    /// Splats/s.
+    pub splats_per_s: Option<f64>,
+    /// PSNR dB.
+    pub psnr_db: Option<f64>,
+    /// SSIM.
+    pub ssim: Option<f64>,
+    /// Mean FLIP.
+    pub flip_mean: Option<f64>,
+    /// Hole ratio.
+    pub hole_ratio: Option<f64>,
+    /// Extra coverage.
+    pub extra_coverage: Option<f64>,
+    /// Popping FLIP.
+    pub popping_flip: Option<f64>,
+    /// Image-metrics time per frame, ms.
+    pub metrics_ms: Option<f64>,
+}
+
+impl Medians {
+    pub(super) fn of(rows: &[FrameRow]) -> Self {
+        let m = |f: fn(&FrameRow) -> Option<f64>| median(rows.iter().filter_map(f));
+        Self {
+            points_drawn: m(|r| Some(r.points_drawn as f64)),
+            gpu_ms: m(|r| r.gpu_ms),
+            wall_ms: m(|r| Some(r.wall_ms)),
+            cpu_select_ms: m(|r| Some(r.cpu_select_ms)),
+            splats_per_s: m(|r| Some(r.splats_per_s)),
+            psnr_db: m(|r| r.psnr_db),
+            ssim: m(|r| r.ssim),
+            flip_mean: m(|r| r.flip_mean),
+            hole_ratio: m(|r| r.hole_ratio),
+            extra_coverage: m(|r| r.extra_coverage),
+            popping_flip: m(|r| r.popping_flip),
+            metrics_ms: m(|r| r.metrics_ms),
+        }
+    }
+}

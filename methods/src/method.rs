@@ -76,6 +76,11 @@ pub trait LodMethod: Send {
     fn traffic(&self) -> crate::store::access::Traffic {
         crate::store::access::Traffic::default()
     }
+    /// The rate its data-access layer measured over recent responses
+    /// ([`crate::store::access::DataAccess::throughput`]); `None` by default.
+    fn throughput(&self) -> Option<crate::store::access::Throughput> {
+        None
+    }
 }
 
 /// [`LodMethod::drawn_points`] computed from the chunks: every item's

@@ -279,4 +279,7 @@ impl LodMethod for Apart {
     fn traffic(&self) -> crate::store::access::Traffic {
         self.inner.traffic()
     }
+    fn throughput(&self) -> Option<crate::store::access::Throughput> {
+        self.inner.throughput()
+    }
 }

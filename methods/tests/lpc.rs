@@ -4,6 +4,9 @@
 mod common;
 
 use common::{settled, view};
+use std::sync::Arc;
+use std::time::{Duration, Instant};
+
 use methods::{Feedback, LodMethod, MethodKind, Params, Target};
 use scenes::PointCloud;
 use scenes::generators::Generator;
@@ -110,5 +113,141 @@ fn budget_below_the_root_is_an_error_naming_the_least() {
             "{kind}: {}",
             l.points()
         );
+    }
+}
+
+/// A data-access layer that delegates to LPC's own loader but reports a fixed throughput,
+/// so that the request count of a frame can be checked against the paper's rule.
+struct FixedRate {
+    inner: Box<dyn methods::store::access::DataAccess>,
+    chunks_per_s: Option<f64>,
+}
+
+impl methods::store::access::DataAccess for FixedRate {
+    fn request(&self, id: u32) {
+        self.inner.request(id)
+    }
+    fn available(&self, id: u32) -> bool {
+        self.inner.available(id)
+    }
+    fn get(&self, id: u32) -> Result<methods::store::access::Decoded, methods::MethodError> {
+        self.inner.get(id)
+    }
+    fn begin_frame(&self) {
+        self.inner.begin_frame()
+    }
+    fn resident_bytes(&self) -> u64 {
+        self.inner.resident_bytes()
+    }
+    fn pending(&self) -> usize {
+        self.inner.pending()
+    }
+    fn throughput(&self) -> Option<methods::store::access::Throughput> {
+        self.chunks_per_s
+            .map(|c| methods::store::access::Throughput {
+                bytes_per_s: c * 1000.0,
+                chunks_per_s: c,
+                responses: 1,
+            })
+    }
+}
+
+/// LPC over [`FixedRate`] with `runtime` parameters on the build in `dir`.
+fn lpc_at_rate(dir: &std::path::Path, runtime: &[&str], rate: Option<f64>) -> methods::lpc::Lpc {
+    use methods::store::access::{Loader, LoaderOptions};
+    let mut manifest = methods::Manifest::read(dir).unwrap();
+    for p in runtime {
+        let (k, v) = p.split_once('=').unwrap();
+        manifest.params.0.insert(k.into(), v.into());
+    }
+    let nodes = methods::lpc::index::read(&dir.join(methods::lpc::INDEX_FILE)).unwrap();
+    let inner = Loader::local(
+        &dir.join(methods::lpc::REPO_FILE),
+        nodes.iter().map(|n| n.chunk).collect(),
+        "cloud",
+        Arc::new(methods::lpc::cloud::decode),
+        LoaderOptions {
+            core_bytes: 64 << 20,
+            delay_frames: 0,
+            in_flight: 1,
+        },
+    )
+    .unwrap();
+    let access = FixedRate {
+        inner: Box::new(inner),
+        chunks_per_s: rate,
+    };
+    methods::lpc::Lpc::with_access(dir, manifest, nodes, Box::new(access)).unwrap()
+}
+
+/// The paper's rule, "only as many requests as the estimated bandwidth allows": chunks/s ×
+/// the last frame's duration, rounded up. Before any frame interval, or with no estimate,
+/// one request per request in flight; `fetch_per_frame` overrides the rule, and with a
+/// simulated latency the count is fixed ([`methods::lpc::SIMULATED_FETCH_PER_FRAME`]).
+#[test]
+fn requests_per_frame_follow_the_measured_rate() {
+    let cloud = Generator::Statue.generate(40_000, 6).unwrap();
+    let tmp = tempfile::tempdir().unwrap();
+    open(&cloud, &["m=128"], tmp.path());
+    let v = view(&cloud, 1.2);
+    let t = Target::Tolerance(0.5);
+    let issued = |l: &methods::DrawList| l.counters[2] as usize;
+    let rate = 400.0;
+    let nap = Duration::from_millis(50);
+
+    // No estimate yet: one request per request in flight, every frame.
+    let mut m = lpc_at_rate(tmp.path(), &["in_flight=3"], None);
+    let first = m.frame(&v, t, &Feedback::default()).unwrap();
+    assert_eq!(issued(&first), 3.min(first.fetch.len()));
+    std::thread::sleep(nap);
+    let second = m.frame(&v, t, &Feedback::default()).unwrap();
+    assert_eq!(issued(&second), 3.min(second.fetch.len()));
+
+    // 400 chunks/s and a frame of ≥ 50 ms: ⌈400 × dt⌉ requests, dt bounded by the clock.
+    // The first frame has no interval yet: the bootstrap request. Then a coarse tolerance
+    // settles, so that the fine one wants a whole frontier of clouds.
+    let mut m = lpc_at_rate(tmp.path(), &[], Some(rate));
+    let first = m.frame(&v, t, &Feedback::default()).unwrap();
+    assert_eq!(
+        issued(&first),
+        1,
+        "no frame interval yet: the bootstrap request"
+    );
+    common::settled(&mut m, &v, Target::Tolerance(4.0));
+    let before = Instant::now();
+    m.frame(&v, t, &Feedback::default()).unwrap();
+    std::thread::sleep(nap);
+    let second = m.frame(&v, t, &Feedback::default()).unwrap();
+    let longest = before.elapsed().as_secs_f64();
+    let wanted = second.fetch.len();
+    assert!(
+        wanted > 40,
+        "the view wants {wanted} clouds: too few to see the limit"
+    );
+    let n = issued(&second);
+    assert!(
+        n >= (rate * nap.as_secs_f64()).ceil() as usize && n <= (rate * longest).ceil() as usize,
+        "{n} requests at {rate} chunks/s over a frame of 50–{:.0} ms",
+        longest * 1e3
+    );
+    assert_eq!(
+        n + second.counters[3] as usize,
+        wanted,
+        "the rest are forgotten"
+    );
+
+    // The override, and the simulated latency's fixed count.
+    for (runtime, want) in [
+        (&["fetch_per_frame=5"][..], 5),
+        (
+            &["delay_frames=1"][..],
+            methods::lpc::SIMULATED_FETCH_PER_FRAME as usize,
+        ),
+    ] {
+        let mut m = lpc_at_rate(tmp.path(), runtime, Some(rate));
+        m.frame(&v, t, &Feedback::default()).unwrap();
+        std::thread::sleep(nap);
+        let l = m.frame(&v, t, &Feedback::default()).unwrap();
+        assert_eq!(issued(&l), want.min(l.fetch.len()), "{runtime:?}");
     }
 }

@@ -123,6 +123,7 @@ fn loader(source: &Arc<MemSource>, core_bytes: u64, delay_frames: u32) -> Loader
         LoaderOptions {
             core_bytes,
             delay_frames,
+            in_flight: 1,
         },
     )
 }
@@ -137,6 +138,7 @@ fn delivers_through_the_loader_thread() {
         LoaderOptions {
             core_bytes: u64::MAX,
             delay_frames: 0,
+            in_flight: 1,
         },
     );
     l.begin_frame();
@@ -505,6 +507,7 @@ fn corrupt_chunk_in_a_repository_is_an_error_naming_it() {
         LoaderOptions {
             core_bytes: 1 << 20,
             delay_frames: 0,
+            in_flight: 1,
         },
     );
     l.begin_frame();
@@ -565,6 +568,7 @@ fn panicking_decoder_is_an_error_and_the_thread_survives() {
         LoaderOptions {
             core_bytes: u64::MAX,
             delay_frames: 0,
+            in_flight: 1,
         },
     );
     l.begin_frame();

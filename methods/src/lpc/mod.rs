@@ -16,7 +16,9 @@
 //! the cloud with splat size = tolerance and stop. Above: refine into the (unculled) children
 //! if all of them are available now (GPU cache or in core), else draw this cloud with splat
 //! size = its projected spacing and queue fetch requests by node index; at the end of the
-//! frame at most `fetch_per_frame` requests go to the loader thread, the rest are forgotten.
+//! frame the first requests go to the loader, as many as the measured bandwidth delivers in
+//! a frame (the paper's rule, [`Lpc::requests_this_frame`]; `fetch_per_frame` overrides
+//! it), the rest are forgotten.
 //!
 //! Budget `B`: bisection of the tolerance with the same traversal counting points, then a
 //! fill step that refines single children while they fit (so the count is within one cloud
@@ -37,6 +39,7 @@ pub mod traverse;
 
 use std::path::Path;
 use std::sync::Arc;
+use std::time::Instant;
 
 use scenes::{Attributes, PointCloud, Progress, View};
 
@@ -65,6 +68,7 @@ pub const RUNTIME_PARAMS: &[&str] = &[
     "fetch_per_frame",
     "core_mb",
     "delay_frames",
+    "in_flight",
     "occlusion",
     "occlusion_threshold",
 ];
@@ -113,14 +117,18 @@ pub struct LpcParams {
     /// Average sample spacing (mean nearest-neighbour distance) that bounds the position
     /// quantisation error (< half of it); estimated when absent.
     pub nn_spacing: Option<f32>,
-    /// Fetch requests issued per frame (the paper's "estimated bandwidth").
-    pub fetch_per_frame: u32,
+    /// Fetch requests issued per frame, overriding the paper's rule (as many as the
+    /// measured bandwidth delivers in a frame; see [`Lpc::requests_this_frame`]).
+    pub fetch_per_frame: Option<u32>,
     /// Decoded clouds kept in core, MiB.
     pub core_mb: u64,
     /// Frames between a request and the moment its cloud counts as available: simulated
     /// latency, exact for d ≥ 1 (the frame waits for a late decode, so counts repeat); 0 = as
     /// soon as the loader thread has decoded it.
     pub delay_frames: u32,
+    /// Requests in flight at once (loader threads); 1 for a local repository, 4 for one
+    /// served over HTTP when absent ([`RepoAt::in_flight`]).
+    pub in_flight: Option<u32>,
     /// Three-phase occlusion culling with occlusion queries.
     pub occlusion: bool,
     /// Fragments a cloud's sphere must pass to count as visible.
@@ -137,9 +145,10 @@ impl Default for LpcParams {
             spacing: None,
             spacing_rule: SpacingRule::Mean,
             nn_spacing: None,
-            fetch_per_frame: 32,
+            fetch_per_frame: None,
             core_mb: 64,
             delay_frames: 0,
+            in_flight: None,
             occlusion: false,
             occlusion_threshold: 0,
         }
@@ -167,9 +176,10 @@ impl LpcParams {
                 return bad(format!("{name} must be a finite number > 0, got {r}"));
             }
         }
-        if p.fetch_per_frame < 1 {
+        if p.fetch_per_frame == Some(0) {
             return bad("fetch_per_frame must be ≥ 1".into());
         }
+        crate::store::access::check_in_flight(NAME, p.in_flight)?;
         if p.core_mb < 1 {
             return bad("core_mb must be ≥ 1".into());
         }
@@ -233,7 +243,18 @@ pub struct Lpc {
     attributes: Attributes,
     access: Box<dyn DataAccess>,
     traversal: Traversal,
+    /// Requests issued before the source has answered once: one per request in flight.
+    bootstrap: u32,
+    /// Start of the previous frame, and the interval from it to the current one.
+    last_frame: Option<Instant>,
+    frame_s: Option<f64>,
 }
+
+/// Requests per frame with a simulated latency (`delay_frames ≥ 1`) and no
+/// `fetch_per_frame`: the simulation has no link whose bandwidth could be measured, and a
+/// rate measured on the machine would make the counts differ between runs, which the
+/// simulation exists to prevent.
+pub const SIMULATED_FETCH_PER_FRAME: u32 = 32;
 
 impl Lpc {
     /// Opens a build directory with the local data-access layer (loader thread).
@@ -254,9 +275,12 @@ impl Lpc {
             LoaderOptions {
                 core_bytes: params.core_mb << 20,
                 delay_frames: params.delay_frames,
+                in_flight: repo.in_flight(params.in_flight),
             },
         )?;
-        Self::with_access(dir, manifest, nodes, Box::new(access))
+        let mut lpc = Self::with_access(dir, manifest, nodes, Box::new(access))?;
+        lpc.bootstrap = repo.in_flight(params.in_flight);
+        Ok(lpc)
     }
 
     /// Opens with a given data-access layer (the local loader from [`Lpc::open`], or another
@@ -288,10 +312,32 @@ impl Lpc {
             traversal: Traversal::new(nodes.len()),
             nodes,
             info,
+            bootstrap: params.in_flight.unwrap_or(1),
             params,
             attributes: manifest.attributes,
             access,
+            last_frame: None,
+            frame_s: None,
         })
+    }
+
+    /// Fetch requests the current frame may issue: `fetch_per_frame` if given; with a
+    /// simulated latency [`SIMULATED_FETCH_PER_FRAME`]; else the paper's rule, "only as many
+    /// requests as the estimated bandwidth allows": the chunks per second the source
+    /// delivered over its recent responses ([`DataAccess::throughput`]) times the last
+    /// frame's duration, rounded up, at least one. Before the first answer (or the first
+    /// frame interval) one request per request in flight.
+    pub fn requests_this_frame(&self) -> usize {
+        if let Some(n) = self.params.fetch_per_frame {
+            return n as usize;
+        }
+        if self.params.delay_frames > 0 {
+            return SIMULATED_FETCH_PER_FRAME as usize;
+        }
+        match (self.access.throughput(), self.frame_s) {
+            (Some(t), Some(dt)) => ((t.chunks_per_s * dt).ceil() as usize).max(1),
+            _ => self.bootstrap.max(1) as usize,
+        }
     }
 
     /// The index tree.
@@ -335,6 +381,9 @@ impl LodMethod for Lpc {
     fn traffic(&self) -> crate::store::access::Traffic {
         self.access.traffic()
     }
+    fn throughput(&self) -> Option<crate::store::access::Throughput> {
+        self.access.throughput()
+    }
     fn failed_chunks(&self) -> Vec<(ChunkId, String)> {
         self.access
             .failures()
@@ -359,11 +408,16 @@ impl LodMethod for Lpc {
             self.nodes.first().map(|n| n.points),
         )?;
         self.access.begin_frame();
+        let now = Instant::now();
+        self.frame_s = self
+            .last_frame
+            .replace(now)
+            .map(|t| now.duration_since(t).as_secs_f64());
         let cached = |id: u32| feedback.cached.contains(&(id as ChunkId));
         let sel = self.select(view, target, &cached);
-        // End of frame: the queue in priority order (node index), at most
-        // `fetch_per_frame` requests, the rest forgotten.
-        let issue = sel.fetch.len().min(self.params.fetch_per_frame as usize);
+        // End of frame: the queue in priority order (node index), as many requests as the
+        // bandwidth allows, the rest forgotten.
+        let issue = sel.fetch.len().min(self.requests_this_frame());
         for &id in &sel.fetch[..issue] {
             self.access.request(id);
         }

@@ -259,6 +259,7 @@ impl Mwkd {
             LoaderOptions {
                 core_bytes: params.core_mb << 20,
                 delay_frames: params.delay_frames,
+                in_flight: repo.in_flight(params.in_flight),
             },
         )?;
         Self::with_access(dir, manifest, nodes, Box::new(access))
@@ -497,6 +498,9 @@ impl LodMethod for Mwkd {
     }
     fn traffic(&self) -> crate::store::access::Traffic {
         self.access.traffic()
+    }
+    fn throughput(&self) -> Option<crate::store::access::Throughput> {
+        self.access.throughput()
     }
     fn failed_chunks(&self) -> Vec<(ChunkId, String)> {
         self.access

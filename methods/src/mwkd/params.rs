@@ -16,6 +16,7 @@ pub const RUNTIME_PARAMS: &[&str] = &[
     "c2",
     "core_mb",
     "delay_frames",
+    "in_flight",
     "occlusion",
     "occlusion_threshold",
     "load",
@@ -99,6 +100,9 @@ pub struct MwkdParams {
     /// latency, exact for d ≥ 1 (the frame waits for a late decode, so counts repeat); 0 = as
     /// soon as the loader thread has decoded it.
     pub delay_frames: u32,
+    /// Requests in flight at once (loader threads); 1 for a local repository, 4 for one
+    /// served over HTTP when absent ([`crate::store::access::RepoAt::in_flight`]).
+    pub in_flight: Option<u32>,
     /// Occlusion culling with occlusion queries (as LPC's three phases).
     pub occlusion: bool,
     /// Fragments a node's sphere must pass to count as visible.
@@ -124,6 +128,7 @@ impl Default for MwkdParams {
             c2: 0.0,
             core_mb: 256,
             delay_frames: 0,
+            in_flight: None,
             occlusion: false,
             occlusion_threshold: 0,
             load: LoadMode::Async,
@@ -194,6 +199,7 @@ impl MwkdParams {
         if self.core_mb < 1 {
             return bad("core_mb must be ≥ 1".into());
         }
+        crate::store::access::check_in_flight(NAME, self.in_flight)?;
         Ok(())
     }
 

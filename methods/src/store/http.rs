@@ -6,7 +6,8 @@
 //!
 //! The client is [`ureq`] without TLS (builds are served on loopback or a lab network; see
 //! `splatbench serve`): its agent keeps connections alive and reuses them, so consecutive
-//! chunks travel over one connection. Every answer is checked before its bytes are used: a
+//! chunks travel over one connection per request in flight (the loader's `in_flight`).
+//! Every answer is checked before its bytes are used: a
 //! range must come back `206` with the `Content-Range` asked for and exactly that many
 //! bytes (a server that ignores `Range` and sends the whole file is an error, not a
 //! download of the whole repository); a whole file must come back `200`. Any other status,
@@ -33,6 +34,7 @@ pub const WHOLE_FILE_MAX: u64 = 1 << 30;
 pub struct RemoteFile {
     agent: ureq::Agent,
     url: String,
+    timeout: Duration,
 }
 
 impl RemoteFile {
@@ -41,10 +43,15 @@ impl RemoteFile {
         let config = ureq::Agent::config_builder()
             .http_status_as_error(false)
             .timeout_global(Some(timeout))
+            // Every request in flight keeps its connection for the next (ureq keeps 3 per
+            // host by default, which would reconnect the fourth of four in flight each time).
+            .max_idle_connections_per_host(super::access::MAX_IN_FLIGHT as usize)
+            .max_idle_connections(super::access::MAX_IN_FLIGHT as usize)
             .build();
         Self {
             agent: ureq::Agent::new_with_config(config),
             url: url.into(),
+            timeout,
         }
     }
 
@@ -53,12 +60,24 @@ impl RemoteFile {
         Self {
             agent: self.agent.clone(),
             url: url.into(),
+            timeout: self.timeout,
         }
     }
 
     /// The URL.
     pub fn url(&self) -> &str {
         &self.url
+    }
+
+    /// What went wrong with a request, a timeout said in words with the time allowed.
+    fn failure(&self, e: &ureq::Error) -> String {
+        match e {
+            ureq::Error::Timeout(_) => format!(
+                "no answer within {:.1} s (timed out)",
+                self.timeout.as_secs_f64()
+            ),
+            e => e.to_string(),
+        }
     }
 
     fn error(&self, msg: impl Into<String>) -> MethodError {
@@ -74,7 +93,7 @@ impl RemoteFile {
             .agent
             .get(&self.url)
             .call()
-            .map_err(|e| self.error(format!("request failed: {e}")))?;
+            .map_err(|e| self.error(format!("request failed: {}", self.failure(&e))))?;
         let status = resp.status().as_u16();
         if status != 200 {
             return Err(self.error(format!("HTTP {status}, expected 200")));
@@ -83,7 +102,7 @@ impl RemoteFile {
             .with_config()
             .limit(WHOLE_FILE_MAX)
             .read_to_vec()
-            .map_err(|e| self.error(format!("reading the body: {e}")))
+            .map_err(|e| self.error(format!("reading the body: {}", self.failure(&e))))
     }
 
     /// Bytes `start..start + len` (`len ≥ 1`): a `206` answer with exactly that range.
@@ -99,7 +118,12 @@ impl RemoteFile {
             .get(&self.url)
             .header("Range", format!("bytes={start}-{last}"))
             .call()
-            .map_err(|e| self.error(format!("request for bytes {start}-{last} failed: {e}")))?;
+            .map_err(|e| {
+                self.error(format!(
+                    "request for bytes {start}-{last} failed: {}",
+                    self.failure(&e)
+                ))
+            })?;
         let status = resp.status().as_u16();
         if status != 206 {
             return Err(self.error(format!(
@@ -123,7 +147,12 @@ impl RemoteFile {
             .with_config()
             .limit(len + 1)
             .read_to_vec()
-            .map_err(|e| self.error(format!("reading bytes {start}-{last}: {e}")))?;
+            .map_err(|e| {
+                self.error(format!(
+                    "reading bytes {start}-{last}: {}",
+                    self.failure(&e)
+                ))
+            })?;
         if body.len() as u64 != len {
             return Err(self.error(format!(
                 "bytes {start}-{last}: {} bytes received, {len} expected",
@@ -195,5 +224,9 @@ impl ChunkSource for HttpSource {
 
     fn bytes_read(&self) -> u64 {
         self.read.load(Ordering::Relaxed)
+    }
+
+    fn stored_bytes(&self, id: u32) -> u64 {
+        crate::store::chunk_ref(&self.refs, id).map_or(0, |r| u64::from(r.stored))
     }
 }

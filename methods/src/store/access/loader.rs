@@ -2,14 +2,14 @@
 //! (see [`Loader`]).
 
 use std::cmp::Reverse;
-use std::collections::{BTreeMap, HashMap};
+use std::collections::{BTreeMap, HashMap, VecDeque};
 use std::panic::AssertUnwindSafe;
 use std::sync::atomic::{AtomicBool, Ordering};
 use std::sync::{Arc, Condvar, Mutex, MutexGuard};
 use std::thread::JoinHandle;
 use std::time::{Duration, Instant};
 
-use super::{ChunkSource, DataAccess, Decoded, Decoder, LocalSource, RepoAt, Traffic};
+use super::{ChunkSource, DataAccess, Decoded, Decoder, LocalSource, RepoAt, Throughput, Traffic};
 use crate::MethodError;
 use crate::store::{ChunkRef, Repository};
 
@@ -22,6 +22,8 @@ pub struct LoaderOptions {
     /// chunk counts as available: simulated latency, exactly d frames for d ≥ 1 (see
     /// [`Loader`], "Delay"); 0 = as soon as it is decoded.
     pub delay_frames: u32,
+    /// Requests fetched at once: loader threads, each with one request in flight (≥ 1).
+    pub in_flight: u32,
 }
 
 /// How a loader retries a chunk whose fetch or decode failed: a network may fail for a
@@ -115,10 +117,97 @@ struct State {
     retry_at: BTreeMap<(Instant, u64), u32>,
     /// Number of the last request (orders the requests of one frame).
     seq: u64,
-    /// Counters of [`Traffic`] kept here (`failed` and `bytes` are read elsewhere).
+    /// Counters of [`Traffic`] kept here (`bytes` is the source's).
     issued: u64,
     cancelled: u64,
     stale: u64,
+    /// Fetches or decodes that failed (every try).
+    failed: u64,
+    /// Time spent fetching and the bytes it brought ([`Meter`]).
+    meter: Meter,
+}
+
+/// Responses over which [`Throughput`] is measured.
+pub const METER_WINDOW: usize = 32;
+
+/// The loader's fetch time: the time during which at least one fetch was in flight ("busy"),
+/// and after each response the totals so far, for the last [`METER_WINDOW`] responses. Idle
+/// time (nothing asked) does not count, and parallel fetches count once, so bytes over busy
+/// time is the rate the source delivers at, whatever the number in flight.
+struct Meter {
+    /// Fetches in flight.
+    active: u32,
+    /// Start of the current busy stretch (while `active > 0`).
+    busy_since: Option<Instant>,
+    /// Busy time of the finished stretches.
+    busy: Duration,
+    /// Stored bytes and chunks received so far.
+    bytes: u64,
+    chunks: u64,
+    /// (bytes, chunks, busy seconds) after each of the last responses, and one before them.
+    recent: VecDeque<(u64, u64, f64)>,
+}
+
+impl Meter {
+    fn new() -> Self {
+        Self {
+            active: 0,
+            busy_since: None,
+            busy: Duration::ZERO,
+            bytes: 0,
+            chunks: 0,
+            recent: VecDeque::from([(0, 0, 0.0)]),
+        }
+    }
+
+    fn start(&mut self, now: Instant) {
+        if self.active == 0 {
+            self.busy_since = Some(now);
+        }
+        self.active += 1;
+    }
+
+    /// A fetch ended at `now`, bringing `stored` bytes (`None`: it failed).
+    fn end(&mut self, now: Instant, stored: Option<u64>) {
+        let since = self.busy_since.unwrap_or(now);
+        let busy = self.busy + now.saturating_duration_since(since);
+        if let Some(b) = stored {
+            self.bytes += b;
+            self.chunks += 1;
+        }
+        self.recent
+            .push_back((self.bytes, self.chunks, busy.as_secs_f64()));
+        if self.recent.len() > METER_WINDOW + 1 {
+            self.recent.pop_front();
+        }
+        self.active = self.active.saturating_sub(1);
+        if self.active == 0 {
+            self.busy = busy;
+            self.busy_since = None;
+        }
+    }
+
+    fn throughput(&self) -> Option<Throughput> {
+        let (&(b0, c0, t0), &(b1, c1, t1)) = (self.recent.front()?, self.recent.back()?);
+        let dt = t1 - t0;
+        (self.recent.len() > 1 && dt > 0.0).then(|| Throughput {
+            bytes_per_s: (b1 - b0) as f64 / dt,
+            chunks_per_s: (c1 - c0) as f64 / dt,
+            responses: self.recent.len() - 1,
+        })
+    }
+}
+
+/// Counts a fetch as in flight while alive (also if the source panics).
+struct Fetching<'a> {
+    shared: &'a Shared,
+    stored: Option<u64>,
+}
+
+impl Drop for Fetching<'_> {
+    fn drop(&mut self) {
+        self.shared.state().meter.end(Instant::now(), self.stored);
+    }
 }
 
 impl State {
@@ -219,7 +308,14 @@ impl Shared {
     /// panic of the source or the decoder becomes an error.
     fn load(&self, id: u32) -> Result<Decoded, MethodError> {
         let run = || -> Result<Decoded, MethodError> {
+            self.state().meter.start(Instant::now());
+            let mut fetching = Fetching {
+                shared: self,
+                stored: None,
+            };
             let bytes = self.source.fetch(id)?;
+            fetching.stored = Some(self.source.stored_bytes(id));
+            drop(fetching);
             Ok(Arc::new((self.decode)(id, &bytes)?))
         };
         match std::panic::catch_unwind(AssertUnwindSafe(run)) {
@@ -274,6 +370,7 @@ impl Shared {
                 st.install(id, batch, ready);
             }
             Err(e) => {
+                st.failed += 1;
                 let tries = failed + 1;
                 if tries < self.retry.tries {
                     // Still pending: back in the queue after the backoff.
@@ -373,8 +470,9 @@ impl Shared {
     }
 }
 
-/// The local data-access layer: decoded chunks in core, filled by a dedicated loader thread
-/// ("splatbench-loader") from a [`ChunkSource`].
+/// The data-access layer: decoded chunks in core, filled by loader threads
+/// ("splatbench-loader", [`LoaderOptions::in_flight`] of them, each with one request in
+/// flight) from a [`ChunkSource`].
 ///
 /// # Design
 ///
@@ -389,7 +487,10 @@ impl Shared {
 /// on, as in the MWKD 100 M flythrough where most requests were stale before they were
 /// served), and asked again later it is queued anew. With a delay every request is served,
 /// so that the delay's frame counts stay exact. [`DataAccess::traffic`] counts requests
-/// issued, cancelled, delivered stale and failed, and the source's bytes. The mutex is never
+/// issued, cancelled, delivered stale and failed, and the source's bytes;
+/// [`DataAccess::throughput`] is the rate the source delivered at over its recent
+/// responses (the time during which at least one fetch was in flight: idle time does not
+/// lower it, parallel fetches do not inflate it). The mutex is never
 /// held while fetching or decoding, so [`DataAccess::available`] and the other queries only
 /// ever wait for short bookkeeping.
 ///
@@ -436,10 +537,11 @@ impl Shared {
 /// [`resident_bytes`]: DataAccess::resident_bytes
 pub struct Loader {
     shared: Arc<Shared>,
-    /// False if the thread could not be started (then requests are served on the caller's
+    /// False if no thread could be started (then requests are served on the caller's
     /// thread).
     threaded: bool,
-    worker: Option<JoinHandle<()>>,
+    /// The loader threads ([`LoaderOptions::in_flight`]).
+    workers: Vec<JoinHandle<()>>,
     /// What the chunks come from, for messages (the repository file).
     origin: String,
 }
@@ -516,18 +618,24 @@ impl Loader {
                 issued: 0,
                 cancelled: 0,
                 stale: 0,
+                failed: 0,
+                meter: Meter::new(),
             }),
             stop: AtomicBool::new(false),
         });
-        let thread_shared = Arc::clone(&shared);
-        let worker = std::thread::Builder::new()
-            .name("splatbench-loader".into())
-            .spawn(move || thread_shared.run())
-            .ok();
+        let workers: Vec<JoinHandle<()>> = (0..options.in_flight.max(1))
+            .filter_map(|_| {
+                let thread_shared = Arc::clone(&shared);
+                std::thread::Builder::new()
+                    .name("splatbench-loader".into())
+                    .spawn(move || thread_shared.run())
+                    .ok()
+            })
+            .collect();
         Self {
             shared,
-            threaded: worker.is_some(),
-            worker,
+            threaded: !workers.is_empty(),
+            workers,
             origin: "the chunk source".into(),
         }
     }
@@ -628,13 +736,13 @@ impl DataAccess for Loader {
             issued: st.issued,
             cancelled: st.cancelled,
             stale: st.stale,
-            failed: st
-                .entries
-                .values()
-                .filter(|e| matches!(e, Entry::Failed { .. }))
-                .count() as u64,
+            failed: st.failed,
             bytes,
         }
+    }
+
+    fn throughput(&self) -> Option<Throughput> {
+        self.shared.state().meter.throughput()
     }
 
     fn failures(&self) -> Vec<(u32, String)> {
@@ -693,6 +801,7 @@ impl DataAccess for Loader {
                 Ok(batch)
             }
             Err(e) => {
+                st.failed += 1;
                 if !matches!(st.entries.get(&id), Some(Entry::Loading { .. })) {
                     st.entries.insert(
                         id,
@@ -750,8 +859,8 @@ impl Drop for Loader {
             self.shared.stop.store(true, Ordering::Release);
         }
         self.shared.work.notify_all();
-        if let Some(worker) = self.worker.take() {
-            // The thread catches panics of the source and decoder; an error here would be a
+        for worker in self.workers.drain(..) {
+            // The threads catch panics of the source and decoder; an error here would be a
             // bug in the loader itself, and a destructor must not panic.
             let _ = worker.join();
         }

@@ -18,7 +18,7 @@ use std::sync::atomic::{AtomicU64, Ordering};
 use crate::store::{ChunkRef, Repository};
 use crate::{MethodError, SplatBatch};
 
-pub use loader::{DUE_WAIT, Loader, LoaderOptions, Retry};
+pub use loader::{DUE_WAIT, Loader, LoaderOptions, METER_WINDOW, Retry};
 
 /// A decoded chunk, shared between the loader, the in-core cache and the caller.
 pub type Decoded = Arc<SplatBatch>;
@@ -38,6 +38,11 @@ pub trait ChunkSource: Send + Sync {
     fn fetch(&self, id: u32) -> Result<Vec<u8>, MethodError>;
     /// Stored (compressed) bytes read so far, over all fetches that returned their bytes.
     fn bytes_read(&self) -> u64 {
+        0
+    }
+    /// Stored (compressed) bytes of chunk `id`: what one fetch of it reads (0 if unknown).
+    fn stored_bytes(&self, id: u32) -> u64 {
+        let _ = id;
         0
     }
 }
@@ -79,7 +84,18 @@ impl ChunkSource for LocalSource {
     fn bytes_read(&self) -> u64 {
         self.read.load(Ordering::Relaxed)
     }
+    fn stored_bytes(&self, id: u32) -> u64 {
+        crate::store::chunk_ref(&self.refs, id).map_or(0, |r| u64::from(r.stored))
+    }
 }
+
+/// Requests a remote repository has in flight unless told otherwise: as many as Potree's
+/// viewer loads at once (`Potree.maxNodesLoading`, 4), so that a link's latency is paid once
+/// per four chunks rather than once per chunk.
+pub const REMOTE_IN_FLIGHT: u32 = 4;
+
+/// The most requests a loader may have in flight (`in_flight`): each is a thread.
+pub const MAX_IN_FLIGHT: u32 = 64;
 
 /// Where a build's repository file is read from.
 #[derive(Clone)]
@@ -88,6 +104,28 @@ pub enum RepoAt {
     Local(std::path::PathBuf),
     /// A file served over HTTP, read by range requests ([`super::http`]).
     Remote(super::http::RemoteFile),
+}
+
+impl RepoAt {
+    /// Requests in flight: `asked`, else one for a local file (the paper's one loader
+    /// thread; reads from a page cache gain nothing from more, and the renderer needs the
+    /// cores) and [`REMOTE_IN_FLIGHT`] for a remote one.
+    pub fn in_flight(&self, asked: Option<u32>) -> u32 {
+        asked.unwrap_or(match self {
+            RepoAt::Local(_) => 1,
+            RepoAt::Remote(_) => REMOTE_IN_FLIGHT,
+        })
+    }
+}
+
+/// Checks a method's `in_flight` parameter (1..=[`MAX_IN_FLIGHT`]); `method` names it.
+pub fn check_in_flight(method: &str, in_flight: Option<u32>) -> Result<(), MethodError> {
+    match in_flight {
+        Some(n) if !(1..=MAX_IN_FLIGHT).contains(&n) => Err(MethodError::Param(format!(
+            "method '{method}': in_flight must be in 1..={MAX_IN_FLIGHT}, got {n}"
+        ))),
+        _ => Ok(()),
+    }
 }
 
 /// The data-access layer seen by a method. Implementations are internally synchronised:
@@ -116,6 +154,25 @@ pub trait DataAccess: Send + Sync {
     fn traffic(&self) -> Traffic {
         Traffic::default()
     }
+    /// The rate the source delivered at over its recent responses; `None` before the first
+    /// response, or by default.
+    fn throughput(&self) -> Option<Throughput> {
+        None
+    }
+}
+
+/// The measured rate of a source: stored bytes and chunks over the time during which at
+/// least one fetch was in flight, over the last [`METER_WINDOW`] responses (failed ones
+/// count their time, no bytes). LPC issues as many requests per frame as this rate
+/// delivers in a frame (the paper's "estimated bandwidth").
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct Throughput {
+    /// Stored bytes per second.
+    pub bytes_per_s: f64,
+    /// Chunks delivered per second.
+    pub chunks_per_s: f64,
+    /// Responses it was measured over (≤ [`METER_WINDOW`]).
+    pub responses: usize,
 }
 
 /// A loader's traffic since it was opened.
@@ -127,7 +184,8 @@ pub struct Traffic {
     pub cancelled: u64,
     /// Chunks delivered after every frame that wanted them had passed.
     pub stale: u64,
-    /// Chunks that failed to load.
+    /// Fetches or decodes that failed, every try counted (a chunk given up on after 4
+    /// tries counts 4).
     pub failed: u64,
     /// Stored (compressed) bytes the source read ([`ChunkSource::bytes_read`]).
     pub bytes: u64,

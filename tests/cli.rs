@@ -603,7 +603,7 @@ fn run_reuses_an_existing_build() {
     let csv = std::fs::read_to_string(out.join("frames.csv")).unwrap();
     assert!(csv.lines().next().unwrap().ends_with(
         "clouds_queried,clouds_occluded,chunks_failed,bytes_fetched,requests_issued,\
-                 requests_cancelled,stale_deliveries"
+                 requests_cancelled,requests_failed,stale_deliveries,bandwidth_est_bytes_per_s"
     ));
 }
 

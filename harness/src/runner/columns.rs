@@ -18,12 +18,17 @@ pub const OCCLUSION_COLUMNS: [&str; 2] = ["clouds_queried", "clouds_occluded"];
 /// Columns appended for methods that load chunks, after `chunks_failed`: what their
 /// data-access layer did during the frame ([`methods::store::access::Traffic`]): stored
 /// bytes its source read, requests queued, queued requests dropped because no frame wanted
-/// them any more, and chunks delivered after every frame that wanted them had passed.
-pub const TRAFFIC_COLUMNS: [&str; 4] = [
+/// them any more, fetches that failed (every try), chunks delivered after every frame that
+/// wanted them had passed; then the bandwidth it measured over its recent responses at the
+/// end of the frame, bytes/s ([`methods::store::access::Throughput`]; 0 before the first
+/// response).
+pub const TRAFFIC_COLUMNS: [&str; 6] = [
     "bytes_fetched",
     "requests_issued",
     "requests_cancelled",
+    "requests_failed",
     "stale_deliveries",
+    "bandwidth_est_bytes_per_s",
 ];
 
 /// The extra `frames.csv` columns for `method`, in order: its own, then the interval columns
@@ -46,7 +51,7 @@ pub fn frame_columns(method: &dyn LodMethod) -> Vec<&'static str> {
 /// The values of [`frame_columns`] for one frame: the list's counters, then what the
 /// renderer counted, then the chunks that have failed to load so far (`failed`) and the
 /// frame's traffic (`traffic`: [`Traffic::since`](methods::store::access::Traffic::since)
-/// the previous frame).
+/// the previous frame) and the method's measured throughput.
 pub fn frame_counters(
     method: &dyn LodMethod,
     list: &DrawList,
@@ -81,10 +86,12 @@ pub fn frame_counters(
                 traffic.bytes,
                 traffic.issued,
                 traffic.cancelled,
+                traffic.failed,
                 traffic.stale,
             ]
             .map(|v| v as f64),
         );
+        counters.push(method.throughput().map_or(0.0, |t| t.bytes_per_s));
     }
     counters
 }

@@ -46,7 +46,7 @@ pub use columns::{
     INTERVAL_COLUMNS, OCCLUSION_COLUMNS, TRAFFIC_COLUMNS, frame_columns, frame_counters,
     next_feedback,
 };
-pub use summary::{FailedChunk, Medians, SceneStats, Summary};
+pub use summary::{FailedChunk, Medians, SceneStats, Summary, TrafficTotals};
 
 /// Bump when the renderer's output changes, to invalidate cached reference images.
 pub const REFERENCE_VERSION: u32 = 1;
@@ -90,14 +90,24 @@ pub struct RunConfig {
     /// Open the build served at this URL (`splatbench serve`) instead: its small files are
     /// copied once into `out/remote-build/`, its chunks read by HTTP range requests
     /// ([`MethodKind::fetch_remote`]; LPC and MWKD only). The same checks as `build_dir`.
-    pub build_url: Option<String>,
+    pub build_url: Option<RemoteBuild>,
     /// Finish with exit status 0 although chunks failed to load (`--allow-missing-chunks`);
     /// they are reported either way.
     pub allow_missing_chunks: bool,
 }
 
-/// How long one HTTP request of a remote build may take (`--build-url`).
+/// How long one HTTP request of a remote build may take unless told (`--remote-timeout`).
 pub const REMOTE_TIMEOUT: std::time::Duration = std::time::Duration::from_secs(30);
+
+/// A build served over HTTP (`--build-url`).
+#[derive(Debug, Clone, PartialEq)]
+pub struct RemoteBuild {
+    /// The URL of the build directory.
+    pub url: String,
+    /// How long one request may take, connection to last byte ([`REMOTE_TIMEOUT`] by
+    /// default): a server that never answers ends the run with an error after this long.
+    pub timeout: std::time::Duration,
+}
 
 /// The view of frame `i`.
 pub fn frame_view(
@@ -314,9 +324,9 @@ pub fn run(cfg: &RunConfig, gpu: &Gpu, progress: &dyn Progress) -> anyhow::Resul
     );
     // A remote build: its small files copied here, its repository read over HTTP.
     let remote = match &cfg.build_url {
-        Some(url) => {
+        Some(RemoteBuild { url, timeout }) => {
             let dir = cfg.out.join("remote-build");
-            let repo = MethodKind::fetch_remote(url, &dir, REMOTE_TIMEOUT)
+            let repo = MethodKind::fetch_remote(url, &dir, *timeout)
                 .with_context(|| format!("--build-url {url}"))?;
             Some((dir, repo, url.clone()))
         }
@@ -420,6 +430,7 @@ pub fn run(cfg: &RunConfig, gpu: &Gpu, progress: &dyn Progress) -> anyhow::Resul
         splats_per_s_basis: if gpu.timestamps { "gpu_ms" } else { "wall_ms" },
         medians: Medians::default(),
         failed_chunks: Vec::new(),
+        traffic: None,
         peak_rss_bytes: 0,
         run_seconds: 0.0,
     };
@@ -545,6 +556,9 @@ pub fn run(cfg: &RunConfig, gpu: &Gpu, progress: &dyn Progress) -> anyhow::Resul
         summary.scene.warnings.push(w);
     }
     summary.medians = Medians::of(&rows);
+    if method.loads_chunks() {
+        summary.traffic = Some(TrafficTotals::of(&traffic, method.throughput()));
+    }
     summary.peak_rss_bytes = crate::rss::peak_bytes();
     summary.run_seconds = t_run.elapsed().as_secs_f64();
     let failed = summary.failed_chunks.len();

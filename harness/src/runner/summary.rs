@@ -64,10 +64,48 @@ pub struct Summary {
     /// Chunks that failed to load: the frames drew without them, so they are not a
     /// faithful measurement (the run fails unless `--allow-missing-chunks`).
     pub failed_chunks: Vec<FailedChunk>,
+    /// Methods that load chunks: their data-access layer's totals over the frames (the
+    /// sums of the `frames.csv` traffic columns).
+    pub traffic: Option<TrafficTotals>,
     /// Peak resident set size of the process.
     pub peak_rss_bytes: u64,
     /// Wall time of the whole run, s.
     pub run_seconds: f64,
+}
+
+/// A run's data traffic in `summary.json` ([`methods::store::access::Traffic`] over the
+/// recorded frames; frame 0's share includes the untimed warm-up frame's).
+#[derive(Debug, Clone, Default, PartialEq, serde::Serialize)]
+pub struct TrafficTotals {
+    /// Stored bytes read from the repository.
+    pub bytes_fetched: u64,
+    /// Requests queued.
+    pub requests_issued: u64,
+    /// Queued requests dropped because no frame wanted them any more.
+    pub requests_cancelled: u64,
+    /// Fetches that failed, every try counted.
+    pub requests_failed: u64,
+    /// Chunks delivered after every frame that wanted them had passed.
+    pub stale_deliveries: u64,
+    /// The measured bandwidth at the end of the run, bytes/s (`None`: no response).
+    pub bandwidth_est_bytes_per_s: Option<f64>,
+}
+
+impl TrafficTotals {
+    /// Totals for `traffic` (since the method was opened) and its last `throughput`.
+    pub fn of(
+        traffic: &methods::store::access::Traffic,
+        throughput: Option<methods::store::access::Throughput>,
+    ) -> Self {
+        Self {
+            bytes_fetched: traffic.bytes,
+            requests_issued: traffic.issued,
+            requests_cancelled: traffic.cancelled,
+            requests_failed: traffic.failed,
+            stale_deliveries: traffic.stale,
+            bandwidth_est_bytes_per_s: throughput.map(|t| t.bytes_per_s),
+        }
+    }
 }
 
 /// Scene facts in `summary.json`.

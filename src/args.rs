@@ -16,6 +16,40 @@ pub struct MethodArgs {
     pub params: Vec<String>,
 }
 
+/// A build served over HTTP (`splatbench serve DIR`), for `run`, `sweep` and `tune`.
+#[derive(Args, Clone)]
+pub struct RemoteArgs {
+    /// Run on the LPC or MWKD build served at this URL (`splatbench serve DIR`) instead of
+    /// building: its index and manifest are fetched once into remote-build/ of each run, its
+    /// chunks by HTTP range requests over kept-alive connections, checksums verified as for
+    /// a local build. The same checks and `--param` rule as --build-dir.
+    #[arg(long, value_name = "URL", conflicts_with = "build_dir")]
+    pub build_url: Option<String>,
+    /// Seconds one HTTP request of --build-url may take, connection to last byte. A server
+    /// that never answers ends the run with an error naming the URL after this long; a chunk
+    /// is tried 4 times (0.25, 0.5, 1 s apart) before it counts as failed.
+    #[arg(long, value_name = "SECS", default_value_t = 30.0)]
+    pub remote_timeout: f64,
+}
+
+impl RemoteArgs {
+    /// The remote build, its timeout checked (finite, 0.1 s to 1 h).
+    pub fn remote(&self) -> anyhow::Result<Option<harness::runner::RemoteBuild>> {
+        let t = self.remote_timeout;
+        anyhow::ensure!(
+            t.is_finite() && (0.1..=3600.0).contains(&t),
+            "--remote-timeout {t}: give seconds from 0.1 to 3600"
+        );
+        Ok(self
+            .build_url
+            .as_ref()
+            .map(|url| harness::runner::RemoteBuild {
+                url: url.clone(),
+                timeout: std::time::Duration::from_secs_f64(t),
+            }))
+    }
+}
+
 #[derive(Args, Clone)]
 pub struct SceneArgs {
     /// Scene: `generator:points[:seed]` (e.g. statue:200000), or a

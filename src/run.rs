@@ -10,7 +10,7 @@ use harness::runner::RunConfig;
 use methods::Params;
 use scenes::paths::PathSpec;
 
-use crate::args::{CacheArgs, MethodArgs, RenderArgs, SceneArgs, TargetArgs};
+use crate::args::{CacheArgs, MethodArgs, RemoteArgs, RenderArgs, SceneArgs, TargetArgs};
 use crate::shared::{open_gpu, print_summary};
 
 #[derive(Args, Clone)]
@@ -43,15 +43,11 @@ pub struct RunArgs {
     /// Run an existing build (a `splatbench build --out` directory of the same method and
     /// scene) instead of building: the run's memory is then the method's alone. `--param`
     /// may change only runtime parameters (LPC: fetch_per_frame, core_mb, delay_frames,
-    /// occlusion, occlusion_threshold).
+    /// in_flight, occlusion, occlusion_threshold).
     #[arg(long)]
     pub build_dir: Option<PathBuf>,
-    /// Run the LPC or MWKD build served at this URL (`splatbench serve DIR`) instead of
-    /// building: its index and manifest are fetched once into OUT/remote-build/, its chunks
-    /// by HTTP range requests over kept-alive connections, checksums verified as for a local
-    /// build. The same checks and `--param` rule as --build-dir.
-    #[arg(long, value_name = "URL", conflicts_with = "build_dir")]
-    pub build_url: Option<String>,
+    #[command(flatten)]
+    pub remote: RemoteArgs,
     /// Exit 0 although chunks of an LPC or MWKD repository failed to load (a corrupted or
     /// truncated repo.bin). They are reported either way: on stderr, in frames.csv
     /// (`chunks_failed`) and in summary.json (`failed_chunks`); without this flag the run
@@ -92,7 +88,7 @@ pub fn run_config(a: &RunArgs) -> anyhow::Result<RunConfig> {
         out: a.out.clone(),
         cache: a.cache.dir.clone(),
         build_dir: a.build_dir.clone(),
-        build_url: a.build_url.clone(),
+        build_url: a.remote.remote()?,
         allow_missing_chunks: a.allow_missing_chunks,
     })
 }

@@ -7,7 +7,9 @@ use clap::Args;
 use harness::sweep::SweepTarget;
 use methods::Params;
 
-use crate::args::{CacheArgs, MethodArgs, RenderArgs, SceneArgs, SweepTargetArgs, TargetArgs};
+use crate::args::{
+    CacheArgs, MethodArgs, RemoteArgs, RenderArgs, SceneArgs, SweepTargetArgs, TargetArgs,
+};
 use crate::build::build;
 use crate::run::{RunArgs, run_config};
 use crate::shared::{open_gpu, print_summary};
@@ -32,11 +34,8 @@ pub struct SweepArgs {
     /// OUT/build; `--param` may then change only runtime parameters.
     #[arg(long)]
     pub build_dir: Option<PathBuf>,
-    /// Run every target on the LPC or MWKD build served at this URL (as `run --build-url`):
-    /// each target's run copies its small files into its own remote-build/ and reads its
-    /// chunks by HTTP range requests.
-    #[arg(long, value_name = "URL", conflicts_with = "build_dir")]
-    pub build_url: Option<String>,
+    #[command(flatten)]
+    pub remote: RemoteArgs,
     /// Write one command line per target (its build, then its run) to this file instead of
     /// running: for `parallel < FILE` or a Slurm array; then `splatbench merge
     /// OUT/parts/* --out OUT`.
@@ -64,7 +63,7 @@ pub fn main(a: &SweepArgs) -> anyhow::Result<()> {
              splatbench merge {}/parts/part-* --out {}",
             file.display(),
             n,
-            if a.build_dir.is_some() || a.build_url.is_some() {
+            if a.build_dir.is_some() || a.remote.build_url.is_some() {
                 ""
             } else {
                 "making its own (identical) build, then "
@@ -93,7 +92,7 @@ pub fn main(a: &SweepArgs) -> anyhow::Result<()> {
     std::fs::create_dir_all(&a.out).with_context(|| format!("creating {}", a.out.display()))?;
     // A sweep.csv (or plot) of an earlier sweep must not outlive a failure of this one.
     harness::sweep::remove_stale(&a.out)?;
-    if a.build_dir.is_none() && a.build_url.is_none() {
+    if a.build_dir.is_none() && a.remote.build_url.is_none() {
         eprintln!("building {} into {}", a.method.method, build_dir.display());
         build(&a.method, &a.scene, &build_dir, &a.cache.dir)?;
     }
@@ -102,7 +101,7 @@ pub fn main(a: &SweepArgs) -> anyhow::Result<()> {
         command: crate::jobs::command_without(&crate::jobs::PART_FLAGS),
         targets: all.iter().map(harness::sweep::TargetRecord::of).collect(),
         part: k,
-        builds: a.build_dir.is_none() && a.build_url.is_none(),
+        builds: a.build_dir.is_none() && a.remote.build_url.is_none(),
         complete: false,
         commit: harness::runner::GIT_COMMIT.into(),
     });
@@ -146,7 +145,7 @@ fn base_config(
             method: a.method.method,
             // A build of our own already holds every --param (its method.json records
             // them); the runner lets a run of a build change runtime parameters only.
-            params: if a.build_dir.is_some() || a.build_url.is_some() {
+            params: if a.build_dir.is_some() || a.remote.build_url.is_some() {
                 a.method.params.clone()
             } else {
                 Vec::new()
@@ -164,8 +163,8 @@ fn base_config(
         no_metrics: false,
         out: a.out.clone(),
         cache: a.cache.clone(),
-        build_dir: a.build_url.is_none().then(|| build_dir.clone()),
-        build_url: a.build_url.clone(),
+        build_dir: a.remote.build_url.is_none().then(|| build_dir.clone()),
+        remote: a.remote.clone(),
         allow_missing_chunks: false,
     })?;
     Ok((base, build_dir))

@@ -12,7 +12,7 @@ use harness::tune::{self, Cost, Grid, Plan, Record, TargetRecord};
 use methods::Params;
 use scenes::paths::PathSpec;
 
-use crate::args::{CacheArgs, MethodArgs, RenderArgs, SceneArgs, SweepTargetArgs};
+use crate::args::{CacheArgs, MethodArgs, RemoteArgs, RenderArgs, SceneArgs, SweepTargetArgs};
 use crate::jobs;
 
 #[derive(Args, Clone)]
@@ -50,6 +50,8 @@ pub struct TuneArgs {
     /// Run every setting on this existing build: only runtime parameters may then vary.
     #[arg(long)]
     pub build_dir: Option<PathBuf>,
+    #[command(flatten)]
+    pub remote: RemoteArgs,
     /// Write one command line per part (a build, then its runs) to this file instead of
     /// running: for `parallel < FILE` or a Slurm array; then `splatbench merge
     /// OUT/parts/* --out OUT`.
@@ -75,7 +77,13 @@ pub fn plan(a: &TuneArgs) -> anyhow::Result<Plan> {
     let kind = a.method.method;
     let fixed = Params::parse(&a.method.params)?;
     kind.check_params(&fixed)?;
-    let grid = Grid::parse(kind, &a.grids, &fixed, a.build_dir.is_some())?;
+    let remote = a.remote.remote()?;
+    let grid = Grid::parse(
+        kind,
+        &a.grids,
+        &fixed,
+        a.build_dir.is_some() || remote.is_some(),
+    )?;
     let spec = a.scene.spec()?;
     let path = PathSpec::parse(&a.targets.path)?;
     if let Some(d) = &a.build_dir {
@@ -100,7 +108,7 @@ pub fn plan(a: &TuneArgs) -> anyhow::Result<Plan> {
         scene_args.extend(["--up".into(), up.to_string()]);
     }
     scene_args.extend(["--shading".into(), a.scene.shading.name().into()]);
-    let run_args = vec![
+    let mut run_args = vec![
         "--path".to_string(),
         a.targets.path.clone(),
         "--frames".into(),
@@ -116,6 +124,12 @@ pub fn plan(a: &TuneArgs) -> anyhow::Result<Plan> {
         "--raster".into(),
         a.render.raster.name().into(),
     ];
+    if let Some(r) = &remote {
+        run_args.extend([
+            "--remote-timeout".into(),
+            r.timeout.as_secs_f64().to_string(),
+        ]);
+    }
     Ok(Plan {
         method: kind.name().into(),
         scene: spec.label(),
@@ -127,6 +141,7 @@ pub fn plan(a: &TuneArgs) -> anyhow::Result<Plan> {
         scene_args,
         run_args,
         build_dir: a.build_dir.clone(),
+        build_url: remote.map(|r| r.url),
         cache: a.cache.dir.clone(),
         command: jobs::command_without(&jobs::PART_FLAGS),
     })

@@ -170,6 +170,12 @@ fn run_opens_a_build_served_over_http() {
         total_bytes > 0.0 && total_issued > 0.0,
         "{total_bytes} {total_issued}"
     );
+    // summary.json's totals are the columns' sums; the bandwidth was measured.
+    let traffic = &summary["traffic"];
+    assert_eq!(traffic["bytes_fetched"].as_f64(), Some(total_bytes));
+    assert_eq!(traffic["requests_issued"].as_f64(), Some(total_issued));
+    assert_eq!(traffic["requests_failed"].as_f64(), Some(0.0));
+    assert!(traffic["bandwidth_est_bytes_per_s"].as_f64().unwrap() > 0.0);
     let repo = std::fs::metadata(build.join("repo.bin")).unwrap().len() as f64;
     // Nothing is evicted (20 K points fit the default core budget many times), so a chunk
     // is read at most twice: by the loader thread, and once more by a synchronous `get`
@@ -193,6 +199,54 @@ fn run_opens_a_build_served_over_http() {
     assert_eq!(rows.lines().count(), 3, "{rows}");
     assert!(!sweep.join("build").exists(), "nothing built");
     assert!(sweep.join("budget-4000/remote-build/index.bin").is_file());
+    // A tune over the same served build: a runtime parameter varies, nothing is built, and
+    // every run reads the served build.
+    let tune = tmp.path().join("tune");
+    bin()
+        .args([
+            "tune", "--method", "lpc", "--scene", scene, "--path", "orbit",
+        ])
+        .args([
+            "--frames",
+            "2",
+            "--width",
+            "64",
+            "--height",
+            "64",
+            "--repeats",
+            "1",
+        ])
+        .args(["--budgets", "6000", "--grid", "in_flight=1,4"])
+        .args(["--build-url", &server.url(), "--remote-timeout", "5"])
+        .arg("--cache")
+        .arg(&cache)
+        .arg("--out")
+        .arg(&tune)
+        .assert()
+        .success();
+    assert_eq!(common::read_csv(&tune.join("tune.csv")).len(), 2);
+    assert!(!tune.join("builds").exists(), "nothing built");
+    let runs: Vec<_> = walk(&tune.join("runs"))
+        .into_iter()
+        .filter(|p| p.ends_with("remote-build/index.bin"))
+        .collect();
+    assert_eq!(runs.len(), 2, "{runs:?}");
+    common::fails(
+        bin()
+            .args([
+                "tune",
+                "--method",
+                "lpc",
+                "--scene",
+                scene,
+                "--budgets",
+                "6000",
+            ])
+            .args(["--grid", "m=256,512", "--build-url", &server.url()])
+            .arg("--out")
+            .arg(tmp.path().join("t2")),
+        "--build-url",
+    );
     common::fails(
         &mut run("qsplat", &server.url(), &tmp.path().join("x")),
         "--build-url",
@@ -220,4 +274,18 @@ fn run_opens_a_build_served_over_http() {
             .arg(&build),
         "--build-dir",
     );
+}
+
+/// Every file under `dir`, recursively.
+fn walk(dir: &std::path::Path) -> Vec<std::path::PathBuf> {
+    let mut out = Vec::new();
+    for e in std::fs::read_dir(dir).unwrap() {
+        let p = e.unwrap().path();
+        if p.is_dir() {
+            out.extend(walk(&p));
+        } else {
+            out.push(p);
+        }
+    }
+    out
 }

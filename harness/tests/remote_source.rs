@@ -187,3 +187,91 @@ fn a_server_that_does_not_answer_is_an_error_within_the_timeout() {
     assert!(t.elapsed() < Duration::from_secs(3), "{:?}", t.elapsed());
     assert!(err.contains("/repo.bin"), "{err}");
 }
+
+/// A one-connection server that answers the first request on it with `reply` (raw bytes)
+/// and closes; with `reply` = `None` it closes without reading the request, which resets
+/// the connection (unread data on a closed socket makes the kernel send RST).
+fn scripted(reply: Option<Vec<u8>>) -> String {
+    use std::io::{Read, Write};
+    let listener = std::net::TcpListener::bind("127.0.0.1:0").unwrap();
+    let url = format!("http://{}/repo.bin", listener.local_addr().unwrap());
+    std::thread::spawn(move || {
+        let (mut s, _) = listener.accept().unwrap();
+        let Some(reply) = reply else {
+            std::thread::sleep(Duration::from_millis(100));
+            return;
+        };
+        let mut req = Vec::new();
+        let mut b = [0u8; 1];
+        while !req.ends_with(b"\r\n\r\n") && s.read(&mut b).unwrap_or(0) == 1 {
+            req.push(b[0]);
+        }
+        let _ = s.write_all(&reply);
+    });
+    url
+}
+
+/// Faults a real server does not make, from a scripted one: a reset connection, a body cut
+/// short of its `Content-Length`, a server that ignores `Range` (200 with the whole file),
+/// a `Content-Range` for other bytes, a 416 and a status line that is not HTTP. Each is an
+/// error naming the URL, within the request's timeout.
+#[test]
+fn a_reset_a_short_body_and_wrong_answers_are_errors_naming_the_url() {
+    let head = |status: &str, range: &str, len: usize| {
+        format!("HTTP/1.1 {status}\r\nContent-Range: {range}\r\nContent-Length: {len}\r\n\r\n")
+            .into_bytes()
+    };
+    let with_body = |mut h: Vec<u8>, body: usize| {
+        h.extend(std::iter::repeat_n(7u8, body));
+        h
+    };
+    let cases: Vec<(&str, Option<Vec<u8>>, &str)> = vec![
+        ("reset", None, "failed"),
+        (
+            "short body",
+            Some(with_body(
+                head("206 Partial Content", "bytes 100-199/1000", 100),
+                40,
+            )),
+            "reading bytes 100-199",
+        ),
+        (
+            "range ignored",
+            Some(with_body(head("200 OK", "bytes 0-999/1000", 1000), 1000)),
+            "HTTP 200 for bytes 100-199, expected 206",
+        ),
+        (
+            "other bytes",
+            Some(with_body(
+                head("206 Partial Content", "bytes 0-99/1000", 100),
+                100,
+            )),
+            "Content-Range \"bytes 0-99/1000\"",
+        ),
+        (
+            "416",
+            Some(head("416 Range Not Satisfiable", "bytes */50", 0)),
+            "HTTP 416",
+        ),
+        (
+            "not HTTP",
+            Some(b"SSH-2.0-OpenSSH\r\n\r\n".to_vec()),
+            "failed",
+        ),
+    ];
+    for (what, reply, needle) in cases {
+        let url = scripted(reply);
+        let file = RemoteFile::new(url.clone(), Duration::from_secs(5));
+        let t = Instant::now();
+        let err = file.get_range(100, 100).unwrap_err().to_string();
+        assert!(
+            t.elapsed() < Duration::from_secs(5),
+            "{what}: {:?}",
+            t.elapsed()
+        );
+        assert!(
+            err.starts_with(&url) && err.contains(needle),
+            "{what}: expected '{needle}' in: {err}"
+        );
+    }
+}

@@ -85,8 +85,8 @@ impl Grid {
     /// Parses `--grid` texts (`key=v1,v2,…`) and checks them against `method` with the fixed
     /// `--param` values `fixed`: every key must be a parameter of the method and every
     /// combination must be accepted by it ([`MethodKind::check_params`]), before anything is
-    /// built. With `existing_build` (`--build-dir`) only runtime keys may vary, as for `run
-    /// --build-dir`. Errors name the flag, the key and the value.
+    /// built. With `existing_build` (`--build-dir`, `--build-url`) only runtime keys may
+    /// vary, as for `run --build-dir`. Errors name the flag, the key and the value.
     pub fn parse(
         method: MethodKind,
         grids: &[String],
@@ -133,8 +133,8 @@ impl Grid {
             if existing_build && !is_runtime {
                 bail!(
                     "--grid {g}: '{key}' changes how {method} builds, not how it renders: it \
-                     cannot vary over one --build-dir (runtime parameters of {method}: {}); \
-                     drop --build-dir to build each value",
+                     cannot vary over one existing build, --build-dir or --build-url (runtime \
+                     parameters of {method}: {}); drop that flag to build each value",
                     if runtime.is_empty() {
                         "none".to_string()
                     } else {
@@ -159,7 +159,7 @@ impl Grid {
         if existing_build && let Some(k) = fixed.0.keys().find(|k| !runtime.contains(&k.as_str())) {
             bail!(
                 "--param {k}: '{k}' changes how {method} builds: it cannot be set over an \
-                 existing --build-dir"
+                 existing build (--build-dir, --build-url)"
             );
         }
         let count = axes

@@ -93,6 +93,10 @@ pub struct Plan {
     pub run_args: Vec<String>,
     /// An existing build every setting runs on (`--build-dir`), else one build per part.
     pub build_dir: Option<PathBuf>,
+    /// A build served over HTTP every setting runs on (`--build-url`; its runs' flags carry
+    /// `--remote-timeout`).
+    #[serde(default)]
+    pub build_url: Option<String>,
     /// The cache directory.
     pub cache: PathBuf,
     /// The command as typed (without `--part`/`--emit-jobs`).
@@ -105,9 +109,14 @@ impl Plan {
         Ok(MethodKind::from_name(&self.method)?)
     }
 
-    /// Number of parts: one per distinct build (one in all over `--build-dir`).
+    /// True if every setting runs on one existing build (`--build-dir` or `--build-url`).
+    pub fn on_existing_build(&self) -> bool {
+        self.build_dir.is_some() || self.build_url.is_some()
+    }
+
+    /// Number of parts: one per distinct build (one in all over an existing build).
     pub fn parts(&self) -> usize {
-        if self.build_dir.is_some() {
+        if self.on_existing_build() {
             1
         } else {
             self.grid.builds().len()
@@ -119,7 +128,7 @@ impl Plan {
         self.grid
             .settings()
             .into_iter()
-            .filter(|s| self.build_dir.is_some() || s.build == k)
+            .filter(|s| self.on_existing_build() || s.build == k)
             .collect()
     }
 
@@ -225,8 +234,13 @@ pub fn run_args(
         a.extend(["--param".to_string(), format!("{key}={v}")]);
     }
     a.extend(t.flag.iter().cloned());
-    a.push("--build-dir".into());
-    a.push(path_arg(&plan.build_dir_of(out, s.build)));
+    match &plan.build_url {
+        Some(url) => a.extend(["--build-url".to_string(), url.clone()]),
+        None => {
+            a.push("--build-dir".into());
+            a.push(path_arg(&plan.build_dir_of(out, s.build)));
+        }
+    }
     a.push("--out".into());
     a.push(path_arg(&Plan::run_dir(out, s, t, rep)));
     a.extend(["--cache".to_string(), path_arg(&plan.cache)]);
@@ -252,7 +266,7 @@ pub fn run_part(
         "part {k} of a tune of {} parts",
         plan.parts()
     );
-    if plan.build_dir.is_none() {
+    if !plan.on_existing_build() {
         let dir = plan.build_dir_of(out, k);
         if dir.exists() {
             std::fs::remove_dir_all(&dir)

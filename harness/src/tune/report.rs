@@ -316,6 +316,7 @@ mod tests {
             scene_args: vec![],
             run_args: vec![],
             build_dir: None,
+            build_url: None,
             cache: "c".into(),
             command: "splatbench tune …".into(),
         }

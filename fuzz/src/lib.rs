@@ -14,6 +14,7 @@
 //!   `fuzz/crashes/TARGET-<hash>.bin` with a `.txt` note. A decoder returning an error is the
 //!   expected outcome for most inputs, not a finding.
 
+pub mod http;
 pub mod mutate;
 pub mod run;
 pub mod targets;

@@ -15,7 +15,7 @@ use scenes::{Aabb, PointCloud, View};
 use crate::mutate;
 
 /// Every target, in the order `all` runs them.
-pub const ALL: [Target; 17] = [
+pub const ALL: [Target; 18] = [
     Target::PlyAscii,
     Target::PlyBinary,
     Target::Las,
@@ -33,6 +33,7 @@ pub const ALL: [Target; 17] = [
     Target::LpcCloud,
     Target::MwkdNode,
     Target::Repo,
+    Target::Http,
 ];
 
 /// A fuzz target.
@@ -64,6 +65,9 @@ pub enum Target {
     MwkdNode,
     /// `store::Repository::read` (checksum, LZO) then the method's decoder.
     Repo,
+    /// `store::http::RemoteFile::get_range` on a mutated HTTP answer, then the chunk
+    /// ([`crate::http`]).
+    Http,
     /// Not a decoder: checks the supervision itself (a panic at input 3, an abort at 5, a
     /// panic on another thread at 6, a hang at 7). Not part of `all`.
     SelfTest,
@@ -86,6 +90,7 @@ impl Target {
             Target::LpcCloud => "lpc-cloud",
             Target::MwkdNode => "mwkd-node",
             Target::Repo => "repo",
+            Target::Http => "http",
             Target::SelfTest => "selftest",
         }
     }
@@ -118,6 +123,9 @@ impl Target {
             Target::LpcCloud => "LPC cloud decoder (lpc::cloud::decode) on raw chunk bytes",
             Target::MwkdNode => "MWKD node decoder (mwkd::codec::decode) on raw chunk bytes",
             Target::Repo => "repository chunks: bounds, checksum (resealed), LZO, then decode",
+            Target::Http => {
+                "HTTP range answers (ureq client, our checks), then LZO and the LPC decoder"
+            }
             Target::SelfTest => "the supervisor itself: a panic, an abort, a thread panic, a hang",
         }
     }
@@ -502,6 +510,13 @@ pub fn corpus(target: Target, work: &Path) -> Result<Corpus, String> {
             name: "selftest.bin".into(),
             bytes: Vec::new(),
         }],
+        Target::Http => {
+            let d = build(MethodKind::Lpc, work)?;
+            let repo = read_seed(&d.join(lpc::REPO_FILE))?.bytes;
+            let (s, r) = crate::http::seeds(&refs(MethodKind::Lpc, &d)?, &repo);
+            refs_out = r;
+            s
+        }
         Target::Repo => {
             let mut s = Vec::new();
             for kind in [MethodKind::Lpc, MethodKind::Mwkd] {
@@ -770,6 +785,7 @@ pub fn execute(
         Target::MwkdNode => mwkd::codec::decode(0, &input.bytes)
             .map(drop)
             .map_err(|e| e.to_string()),
+        Target::Http => crate::http::run(&input.bytes, &corpus.refs[input.seed].0[0]),
         Target::Repo => {
             write(&file, &input.bytes)?;
             let (refs, is_mwkd) = &corpus.refs[input.seed];

@@ -208,16 +208,9 @@ impl ChunkSource for HttpSource {
     fn fetch(&self, id: u32) -> Result<Vec<u8>, MethodError> {
         let r = crate::store::chunk_ref(&self.refs, id)?;
         let what = format!("{} {id}", self.noun);
-        if r.offset < REPO_MAGIC.len() as u64 || r.stored == 0 {
-            return Err(MethodError::corrupt(
-                self.file.url(),
-                format!(
-                    "{what}: bytes {}..+{} lie outside the chunks",
-                    r.offset, r.stored
-                ),
-            ));
-        }
-        let stored = self.file.get_range(r.offset, u64::from(r.stored))?;
+        let span = super::chunk_span(r, None, &what)
+            .map_err(|msg| MethodError::corrupt(self.file.url(), msg))?;
+        let stored = self.file.get_range(span.start, span.end - span.start)?;
         self.read.fetch_add(stored.len() as u64, Ordering::Relaxed);
         unpack(&stored, r, &what).map_err(|msg| MethodError::corrupt(self.file.url(), msg))
     }

@@ -285,22 +285,35 @@ impl Repository {
     /// The mapped pages are released afterwards, so the resident set holds decoded chunks
     /// only, not the repository.
     pub fn read(&self, r: &ChunkRef, what: &str) -> Result<Vec<u8>, MethodError> {
-        let start = r.offset as usize;
-        let end = start.checked_add(r.stored as usize);
-        let Some(end) = end.filter(|&e| e <= self.map.len() && start >= REPO_MAGIC.len()) else {
-            return Err(MethodError::corrupt(
-                &self.path,
-                format!(
-                    "{what}: bytes {start}..+{} lie outside the repository ({} bytes)",
-                    r.stored,
-                    self.map.len()
-                ),
-            ));
-        };
+        let span = chunk_span(r, Some(self.map.len() as u64), what)
+            .map_err(|msg| MethodError::corrupt(&self.path, msg))?;
+        let (start, end) = (span.start as usize, span.end as usize);
         let stored = &self.map[start..end];
         let out = unpack(stored, r, what).map_err(|msg| MethodError::corrupt(&self.path, msg));
         release(&self.map, start, end);
         out
+    }
+}
+
+/// The bytes of chunk `r` in a repository file of `len` bytes: after the magic and, when the
+/// length is known, before the end (`None`: a remote file, whose range answers say where it
+/// ends). The error names the chunk (`what`); the caller adds the file or URL.
+pub fn chunk_span(
+    r: &ChunkRef,
+    len: Option<u64>,
+    what: &str,
+) -> Result<std::ops::Range<u64>, String> {
+    let end = r.offset.checked_add(u64::from(r.stored));
+    match end {
+        Some(end) if r.offset >= REPO_MAGIC.len() as u64 && len.is_none_or(|l| end <= l) => {
+            Ok(r.offset..end)
+        }
+        _ => Err(format!(
+            "{what}: bytes {}..+{} lie outside the repository{}",
+            r.offset,
+            r.stored,
+            len.map_or(String::new(), |l| format!(" ({l} bytes)"))
+        )),
     }
 }
 

@@ -3,9 +3,6 @@
 //! and started again on the same port; and a run against a server that never answers.
 #![allow(clippy::unwrap_used)]
 
-use std::io::{BufRead, BufReader};
-use std::path::Path;
-use std::process::{Child, Stdio};
 use std::time::{Duration, Instant};
 
 use methods::{DrawList, Feedback, LodMethod, MethodKind, Params, Target};
@@ -14,38 +11,6 @@ use scenes::paths::PathSpec;
 use scenes::{PointCloud, View};
 
 mod common;
-
-/// Kills the server when the test ends, however it ends.
-struct Running(Child);
-
-impl Drop for Running {
-    fn drop(&mut self) {
-        let _ = self.0.kill();
-        let _ = self.0.wait();
-    }
-}
-
-/// `splatbench serve DIR --addr ADDR` with `extra` flags; returns it and its URL.
-fn serve(dir: &Path, addr: &str, extra: &[&str]) -> (Running, String) {
-    let mut child = std::process::Command::new(env!("CARGO_BIN_EXE_splatbench"))
-        .args(["serve", dir.to_str().unwrap(), "--addr", addr])
-        .args(extra)
-        .stdout(Stdio::piped())
-        .stderr(Stdio::null())
-        .spawn()
-        .unwrap();
-    let mut first = String::new();
-    BufReader::new(child.stdout.take().unwrap())
-        .read_line(&mut first)
-        .unwrap();
-    let url = first
-        .trim()
-        .split(" at ")
-        .nth(1)
-        .unwrap_or_else(|| panic!("first line {first:?}"))
-        .to_string();
-    (Running(child), url)
-}
 
 /// A close view of the statue: it needs most of the build's chunks.
 fn close_view(cloud: &PointCloud) -> View {
@@ -103,7 +68,7 @@ fn lpc_and_mwkd_survive_their_server_killed_mid_stream_and_restarted() {
             std::thread::sleep(Duration::from_millis(1));
         };
 
-        let (server, url) = serve(&build, "127.0.0.1:0", &["--bandwidth", "0.2"]);
+        let (server, url) = common::serve(&build, "127.0.0.1:0", &["--bandwidth", "0.2"]);
         let addr = url
             .strip_prefix("http://")
             .and_then(|u| u.strip_suffix('/'))
@@ -154,7 +119,7 @@ fn lpc_and_mwkd_survive_their_server_killed_mid_stream_and_restarted() {
             frame(&mut m);
         }
         // Back on the same port: after the cooldown everything comes.
-        let (_server, again) = serve(&build, &addr, &[]);
+        let (_server, again) = common::serve(&build, &addr, &[]);
         assert_eq!(again, url);
         let t2 = Instant::now();
         let got = loop {

@@ -2,24 +2,13 @@
 //! and refuses bad arguments with an error naming them.
 #![allow(clippy::unwrap_used)]
 
-use std::io::{BufRead, BufReader, Read, Write};
+use std::io::{Read, Write};
 use std::net::TcpStream;
-use std::process::{Child, Stdio};
 use std::time::Duration;
 
 mod common;
 
 use common::bin;
-
-/// Kills the server when the test ends, however it ends.
-struct Running(Child);
-
-impl Drop for Running {
-    fn drop(&mut self) {
-        let _ = self.0.kill();
-        let _ = self.0.wait();
-    }
-}
 
 #[test]
 fn serve_prints_its_address_answers_a_range_and_logs_it() {
@@ -29,23 +18,7 @@ fn serve_prints_its_address_answers_a_range_and_logs_it() {
     let bytes: Vec<u8> = (0..10_000u32).map(|i| (i % 256) as u8).collect();
     std::fs::write(root.join("repo.bin"), &bytes).unwrap();
     let log = dir.path().join("access.log");
-    let cmd = std::process::Command::new(env!("CARGO_BIN_EXE_splatbench"))
-        .args(["serve", root.to_str().unwrap(), "--addr", "127.0.0.1:0"])
-        .args(["--log", log.to_str().unwrap()])
-        .stdout(Stdio::piped())
-        .stderr(Stdio::piped())
-        .spawn()
-        .unwrap();
-    let mut server = Running(cmd);
-    let mut first = String::new();
-    BufReader::new(server.0.stdout.take().unwrap())
-        .read_line(&mut first)
-        .unwrap();
-    let url = first
-        .trim()
-        .split(" at ")
-        .nth(1)
-        .unwrap_or_else(|| panic!("first line {first:?}"));
+    let (_server, url) = common::serve(&root, "127.0.0.1:0", &["--log", log.to_str().unwrap()]);
     let addr = url
         .strip_prefix("http://")
         .and_then(|u| u.strip_suffix('/'))

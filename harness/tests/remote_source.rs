@@ -3,30 +3,17 @@
 //! error naming the URL (and the chunk), within the timeout.
 #![allow(clippy::unwrap_used)]
 
-use std::io::Write;
 use std::path::Path;
-use std::sync::{Arc, Mutex};
 use std::time::{Duration, Instant};
 
-use harness::serve::{ServeOptions, Server};
+use harness::serve::Server;
 use methods::MethodError;
 use methods::store::access::{ChunkSource, LocalSource};
 use methods::store::http::{HttpSource, RemoteFile};
 use methods::store::{ChunkRef, RepoWriter, Repository};
+use serving::serve;
 
-/// A log the tests can read.
-#[derive(Clone, Default)]
-struct SharedLog(Arc<Mutex<Vec<u8>>>);
-
-impl Write for SharedLog {
-    fn write(&mut self, b: &[u8]) -> std::io::Result<usize> {
-        self.0.lock().unwrap().extend_from_slice(b);
-        Ok(b.len())
-    }
-    fn flush(&mut self) -> std::io::Result<()> {
-        Ok(())
-    }
-}
+mod serving;
 
 /// A repository of 12 chunks of different sizes and contents in `dir/repo.bin`.
 fn repository(dir: &Path) -> Vec<ChunkRef> {
@@ -41,13 +28,6 @@ fn repository(dir: &Path) -> Vec<ChunkRef> {
         .collect();
     w.finish().unwrap();
     refs
-}
-
-fn serve(dir: &Path, f: impl FnOnce(&mut ServeOptions)) -> (Server, SharedLog) {
-    let mut opt = ServeOptions::new(dir, "127.0.0.1:0".parse().unwrap());
-    f(&mut opt);
-    let log = SharedLog::default();
-    (Server::start(&opt, Box::new(log.clone())).unwrap(), log)
 }
 
 fn remote(server: &Server, name: &str) -> RemoteFile {
@@ -81,7 +61,7 @@ fn chunks_over_http_equal_the_local_reads_over_one_connection() {
     assert_eq!(local.bytes_read(), stored);
     drop(server);
     // The magic and the 12 chunks: 13 range requests from one client port (kept alive).
-    let log = String::from_utf8(log.0.lock().unwrap().clone()).unwrap();
+    let log = log.text();
     let peers: std::collections::BTreeSet<&str> =
         log.lines().filter_map(|l| l.split(' ').nth(1)).collect();
     assert_eq!(log.lines().count(), 13, "{log}");
@@ -274,4 +254,17 @@ fn a_reset_a_short_body_and_wrong_answers_are_errors_naming_the_url() {
             "{what}: expected '{needle}' in: {err}"
         );
     }
+}
+
+/// A host name that cannot resolve (RFC 6761 reserves `.invalid`) is an error naming the
+/// URL within the request's timeout: ureq resolves on a thread it stops waiting for at the
+/// timeout (2 s here; 4 s of margin for a loaded machine).
+#[test]
+fn a_name_that_does_not_resolve_is_an_error_within_the_timeout() {
+    let url = "http://splatbench-test.invalid:8080/repo.bin";
+    let file = RemoteFile::new(url, Duration::from_secs(2));
+    let t = Instant::now();
+    let err = file.get().unwrap_err().to_string();
+    assert!(t.elapsed() < Duration::from_secs(6), "{:?}", t.elapsed());
+    assert!(err.starts_with(url) && err.contains("failed"), "{err}");
 }

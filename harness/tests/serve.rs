@@ -5,11 +5,12 @@
 
 use std::io::{BufRead, BufReader, Read, Write};
 use std::net::{SocketAddr, TcpStream};
-use std::path::Path;
-use std::sync::{Arc, Mutex};
 use std::time::{Duration, Instant};
 
 use harness::serve::{ServeOptions, Server};
+use serving::serve;
+
+mod serving;
 
 /// A parsed response.
 #[derive(Debug)]
@@ -93,29 +94,8 @@ fn get(addr: SocketAddr, target: &str, extra: &str) -> Reply {
     )
 }
 
-/// A log the tests can read.
-#[derive(Clone, Default)]
-struct SharedLog(Arc<Mutex<Vec<u8>>>);
-
-impl Write for SharedLog {
-    fn write(&mut self, b: &[u8]) -> std::io::Result<usize> {
-        self.0.lock().unwrap().extend_from_slice(b);
-        Ok(b.len())
-    }
-    fn flush(&mut self) -> std::io::Result<()> {
-        Ok(())
-    }
-}
-
 fn data(n: usize) -> Vec<u8> {
     (0..n).map(|i| (i * 7 % 251) as u8).collect()
-}
-
-fn serve(root: &Path, f: impl FnOnce(&mut ServeOptions)) -> (Server, SharedLog) {
-    let mut opt = ServeOptions::new(root, "127.0.0.1:0".parse().unwrap());
-    f(&mut opt);
-    let log = SharedLog::default();
-    (Server::start(&opt, Box::new(log.clone())).unwrap(), log)
 }
 
 #[test]
@@ -212,7 +192,7 @@ fn one_connection_serves_many_requests() {
     assert!(s < 0.4, "20 requests took {s} s");
     drop(server);
     // Every request came over the one connection: the log names one peer for all 20.
-    let log = String::from_utf8(log.0.lock().unwrap().clone()).unwrap();
+    let log = log.text();
     let lines: Vec<&str> = log.lines().collect();
     assert_eq!(lines.len(), 20, "{log}");
     assert!(

@@ -50,3 +50,37 @@ pub fn read_csv(path: &std::path::Path) -> Vec<std::collections::BTreeMap<String
         })
         .collect()
 }
+
+/// A `splatbench serve` process, killed when dropped (however the test ends).
+pub struct Serving(pub std::process::Child);
+
+impl Drop for Serving {
+    fn drop(&mut self) {
+        let _ = self.0.kill();
+        let _ = self.0.wait();
+    }
+}
+
+/// Starts `splatbench serve DIR --addr ADDR` with `extra` flags; returns the process and the
+/// URL its first line of stdout announces ("… at http://HOST:PORT/").
+pub fn serve(dir: &std::path::Path, addr: &str, extra: &[&str]) -> (Serving, String) {
+    use std::io::BufRead;
+    let mut child = std::process::Command::new(env!("CARGO_BIN_EXE_splatbench"))
+        .args(["serve", dir.to_str().unwrap(), "--addr", addr])
+        .args(extra)
+        .stdout(std::process::Stdio::piped())
+        .stderr(std::process::Stdio::null())
+        .spawn()
+        .unwrap();
+    let mut first = String::new();
+    std::io::BufReader::new(child.stdout.take().unwrap())
+        .read_line(&mut first)
+        .unwrap();
+    let url = first
+        .trim()
+        .split(" at ")
+        .nth(1)
+        .unwrap_or_else(|| panic!("first line {first:?}"))
+        .to_string();
+    (Serving(child), url)
+}

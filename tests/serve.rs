@@ -262,3 +262,80 @@ fn walk(dir: &std::path::Path) -> Vec<std::path::PathBuf> {
     }
     out
 }
+
+/// Once converged, a run over HTTP draws the local run's image, pixel for pixel: LPC and
+/// MWKD on a still camera (`paper/paths/still-near.toml`), 24 frames, the last frame's PNG
+/// of each run compared byte for byte (the same renderer and encoder), after checking in
+/// `frames.csv` that both had converged (no coarse cloud or stand-in, nothing pending).
+#[test]
+fn a_remote_run_draws_the_local_runs_image_once_converged() {
+    if !have_gpu("a_remote_run_draws_the_local_runs_image_once_converged") {
+        return;
+    }
+    let tmp = tempfile::tempdir().unwrap();
+    let cache = tmp.path().join("cache");
+    let scene = "statue:20000:3";
+    let still = format!("{}/paper/paths/still-near.toml", env!("CARGO_MANIFEST_DIR"));
+    let frames = 24;
+    for (method, param, coarse) in [
+        ("lpc", "m=512", "clouds_coarse"),
+        ("mwkd", "vbo=1024", "stand_ins"),
+    ] {
+        let build = tmp.path().join(format!("b-{method}"));
+        bin()
+            .args([
+                "build", "--method", method, "--param", param, "--scene", scene,
+            ])
+            .arg("--out")
+            .arg(&build)
+            .arg("--cache")
+            .arg(&cache)
+            .assert()
+            .success();
+        let server = harness::serve::Server::start(
+            &harness::serve::ServeOptions::new(&build, "127.0.0.1:0".parse().unwrap()),
+            Box::new(std::io::sink()),
+        )
+        .unwrap();
+        let run = |flag: &str, from: &str, out: &std::path::Path| {
+            bin()
+                .args([
+                    "run", "--method", method, "--scene", scene, "--path", &still,
+                ])
+                .args([
+                    "--frames",
+                    &frames.to_string(),
+                    "--width",
+                    "96",
+                    "--height",
+                    "96",
+                ])
+                .args(["--no-metrics", "--save-images", flag, from])
+                .arg("--cache")
+                .arg(&cache)
+                .arg("--out")
+                .arg(out)
+                .assert()
+                .success();
+            let rows = common::read_csv(&out.join("frames.csv"));
+            let last = rows.last().unwrap();
+            assert_eq!(
+                (last[coarse].as_str(), last["loader_pending"].as_str()),
+                ("0", "0"),
+                "{method} {flag}: not converged after {frames} frames"
+            );
+            std::fs::read(out.join(format!("images/frame_{:04}.png", frames - 1))).unwrap()
+        };
+        let local = run(
+            "--build-dir",
+            build.to_str().unwrap(),
+            &tmp.path().join(format!("l-{method}")),
+        );
+        let remote = run(
+            "--build-url",
+            &server.url(),
+            &tmp.path().join(format!("r-{method}")),
+        );
+        assert!(local == remote, "{method}: the converged images differ");
+    }
+}

@@ -3,10 +3,11 @@
 # a camera path on one build, read locally (--build-dir) and over HTTP from `splatbench
 # serve` on loopback at several bandwidths with a fixed latency (--build-url), one run after
 # the other on an otherwise idle machine.
-#   scripts/stream-measurements.sh BIN OUT [SCENE] [FRAMES] [RATES] [LATENCY_MS] [PATH]
+#   scripts/stream-measurements.sh BIN OUT [SCENE] [FRAMES] [RATES] [LATENCY_MS] [PATH] [METHODS]
 # SCENE: default statue:10000000:1; FRAMES: default 60; RATES: MB/s, space-separated (default
 # "5 20 100"); LATENCY_MS: default 20; PATH: default flythrough (a still camera, e.g.
-# paper/paths/still-near.toml, measures how many frames a cold start takes to converge).
+# paper/paths/still-near.toml, measures how many frames a cold start takes to converge);
+# METHODS: default "lpc mwkd".
 # Renders 640x480 at eps 1 px, no image metrics (the
 # reference of a 10 M scene would dominate the time), default parameters (LPC M = 2048, MWKD
 # N = 4, VBO 8192; in_flight 1 local, 4 remote).
@@ -21,6 +22,7 @@ frames=${4:-60}
 rates=${5:-5 20 100}
 latency=${6:-20}
 path=${7:-flythrough}
+methods=${8:-lpc mwkd}
 cache="$out/cache"
 runs="$out/$(basename "$path" .toml)"
 mkdir -p "$out"
@@ -57,7 +59,7 @@ PY
 
 echo "| method | source | frames with stand-ins | last such frame | converged from frame | stand-ins in all | MB fetched | MB uploaded | requests | cancelled | failed | stale | bandwidth est. MB/s | median Mpoints | peak RSS MB | run s |"
 echo "|---|---|---|---|---|---|---|---|---|---|---|---|---|---|---|---|"
-for method in lpc mwkd; do
+for method in $methods; do
   b="$out/build-$method"
   m="$runs/$method"
   mkdir -p "$m"

@@ -243,9 +243,8 @@ pub struct Lpc {
     attributes: Attributes,
     access: Box<dyn DataAccess>,
     traversal: Traversal,
-    /// Start of the previous frame, and the interval from it to the current one.
+    /// Start of the previous frame.
     last_frame: Option<Instant>,
-    frame_s: Option<f64>,
 }
 
 /// Requests per frame when there is no bandwidth to go by (and no `fetch_per_frame`): before
@@ -315,7 +314,6 @@ impl Lpc {
             attributes: manifest.attributes,
             access,
             last_frame: None,
-            frame_s: None,
         })
     }
 
@@ -325,14 +323,15 @@ impl Lpc {
     /// delivered over its recent responses ([`DataAccess::throughput`]) times the last
     /// frame's duration, rounded up, at least one. Before the first answer and the first
     /// frame interval, [`UNMEASURED_FETCH_PER_FRAME`] too.
-    pub fn requests_this_frame(&self) -> usize {
+    /// `frame_s` is the last frame's duration (`None` in the first frame).
+    pub fn requests_this_frame(&self, frame_s: Option<f64>) -> usize {
         if let Some(n) = self.params.fetch_per_frame {
             return n as usize;
         }
         if self.params.delay_frames > 0 {
             return UNMEASURED_FETCH_PER_FRAME as usize;
         }
-        match (self.access.throughput(), self.frame_s) {
+        match (self.access.throughput(), frame_s) {
             (Some(t), Some(dt)) => ((t.chunks_per_s * dt).ceil() as usize).max(1),
             _ => UNMEASURED_FETCH_PER_FRAME as usize,
         }
@@ -407,7 +406,7 @@ impl LodMethod for Lpc {
         )?;
         self.access.begin_frame();
         let now = Instant::now();
-        self.frame_s = self
+        let frame_s = self
             .last_frame
             .replace(now)
             .map(|t| now.duration_since(t).as_secs_f64());
@@ -415,7 +414,7 @@ impl LodMethod for Lpc {
         let sel = self.select(view, target, &cached);
         // End of frame: the queue in priority order (node index), as many requests as the
         // bandwidth allows, the rest forgotten.
-        let issue = sel.fetch.len().min(self.requests_this_frame());
+        let issue = sel.fetch.len().min(self.requests_this_frame(frame_s));
         for &id in &sel.fetch[..issue] {
             self.access.request(id);
         }

@@ -76,6 +76,31 @@ fn serve_refuses_a_missing_directory_and_bad_flags() {
     );
 }
 
+/// Builds `method` with `param` on `scene` into `build`, and serves it on a loopback port.
+fn build_and_serve(
+    method: &str,
+    param: &str,
+    scene: &str,
+    build: &std::path::Path,
+    cache: &std::path::Path,
+) -> harness::serve::Server {
+    bin()
+        .args([
+            "build", "--method", method, "--param", param, "--scene", scene,
+        ])
+        .arg("--out")
+        .arg(build)
+        .arg("--cache")
+        .arg(cache)
+        .assert()
+        .success();
+    harness::serve::Server::start(
+        &harness::serve::ServeOptions::new(build, "127.0.0.1:0".parse().unwrap()),
+        Box::new(std::io::sink()),
+    )
+    .unwrap()
+}
+
 fn have_gpu(test: &str) -> bool {
     harness::gpu::gpu_for_test(test).is_some()
 }
@@ -93,21 +118,7 @@ fn run_opens_a_build_served_over_http() {
     let cache = tmp.path().join("cache");
     let build = tmp.path().join("b");
     let scene = "statue:20000:3";
-    bin()
-        .args([
-            "build", "--method", "lpc", "--param", "m=512", "--scene", scene,
-        ])
-        .arg("--out")
-        .arg(&build)
-        .arg("--cache")
-        .arg(&cache)
-        .assert()
-        .success();
-    let server = harness::serve::Server::start(
-        &harness::serve::ServeOptions::new(&build, "127.0.0.1:0".parse().unwrap()),
-        Box::new(std::io::sink()),
-    )
-    .unwrap();
+    let server = build_and_serve("lpc", "m=512", scene, &build, &cache);
     let run = |method: &str, url: &str, out: &std::path::Path| {
         let mut c = bin();
         c.args(["run", "--method", method, "--scene", scene, "--frames", "3"])
@@ -282,21 +293,7 @@ fn a_remote_run_draws_the_local_runs_image_once_converged() {
         ("mwkd", "vbo=1024", "stand_ins"),
     ] {
         let build = tmp.path().join(format!("b-{method}"));
-        bin()
-            .args([
-                "build", "--method", method, "--param", param, "--scene", scene,
-            ])
-            .arg("--out")
-            .arg(&build)
-            .arg("--cache")
-            .arg(&cache)
-            .assert()
-            .success();
-        let server = harness::serve::Server::start(
-            &harness::serve::ServeOptions::new(&build, "127.0.0.1:0".parse().unwrap()),
-            Box::new(std::io::sink()),
-        )
-        .unwrap();
+        let server = build_and_serve(method, param, scene, &build, &cache);
         let run = |flag: &str, from: &str, out: &std::path::Path| {
             bin()
                 .args([

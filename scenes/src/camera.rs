@@ -72,6 +72,29 @@ impl Frustum {
             Containment::Intersects
         }
     }
+    /// Classifies an axis-aligned box `[min, max]`: outside when its corner furthest along
+    /// some plane's normal is behind that plane (the test Potree culls its octree nodes by;
+    /// conservative: a box near a frustum edge may be called intersecting while outside).
+    #[inline]
+    pub fn aabb(&self, min: Vec3, max: Vec3) -> Containment {
+        let mut inside = true;
+        for p in &self.planes {
+            let n = p.xyz();
+            let far = Vec3::select(n.cmpge(Vec3::ZERO), max, min);
+            let near = Vec3::select(n.cmpge(Vec3::ZERO), min, max);
+            if n.dot(far) + p.w < 0.0 {
+                return Containment::Outside;
+            }
+            if n.dot(near) + p.w < 0.0 {
+                inside = false;
+            }
+        }
+        if inside {
+            Containment::Inside
+        } else {
+            Containment::Intersects
+        }
+    }
     /// True if the point is inside (or on) all six planes.
     #[inline]
     pub fn contains(&self, p: Vec3) -> bool {
@@ -194,6 +217,29 @@ mod tests {
         let f = v.project(Vec3::new(0.0, 0.0, 10.0 - 100.0)).unwrap();
         assert!(n.z.abs() < 1e-4 && (f.z - 1.0).abs() < 1e-4);
         assert!((v.view_depth(Vec3::new(3.0, 0.0, 0.0)) - 10.0).abs() < 1e-5);
+    }
+
+    #[test]
+    fn frustum_classifies_boxes() {
+        let f = view().frustum();
+        let b = |lo: [f32; 3], hi: [f32; 3]| f.aabb(Vec3::from(lo), Vec3::from(hi));
+        assert_eq!(b([-1.0; 3], [1.0; 3]), Containment::Inside);
+        // Straddles the right plane (x = z' at depth z' = 10 - z with fov 90°, aspect 2).
+        assert_eq!(
+            b([15.0, -1.0, -1.0], [25.0, 1.0, 1.0]),
+            Containment::Intersects
+        );
+        assert_eq!(
+            b([30.0, -1.0, -1.0], [31.0, 1.0, 1.0]),
+            Containment::Outside
+        );
+        // Behind the eye.
+        assert_eq!(
+            b([-1.0, -1.0, 11.0], [1.0, 1.0, 12.0]),
+            Containment::Outside
+        );
+        // A box enclosing the whole frustum intersects it.
+        assert_eq!(b([-500.0; 3], [500.0; 3]), Containment::Intersects);
     }
 
     #[test]

@@ -13,7 +13,7 @@
 //! - [`store`]: the LZO chunk store with per-chunk checksums and the data-access layer
 //!   (loader thread) shared by the out-of-core methods.
 //! - one module per method: [`full`] (no LOD, the reference), then the four papers' methods
-//!   ([`qsplat`], [`spt`], [`lpc`], [`mwkd`]).
+//!   ([`qsplat`], [`spt`], [`lpc`], [`mwkd`]), and [`potree`], today's practice (Potree 2.0).
 
 pub mod cull;
 pub mod draw;
@@ -27,6 +27,7 @@ pub mod mwkd;
 pub mod octnormal;
 pub mod overlap;
 pub mod params;
+pub mod potree;
 pub mod qsplat;
 pub mod registry;
 pub mod sortkey;

@@ -9,7 +9,9 @@ use scenes::{PointCloud, Progress};
 use crate::store::access::RepoAt;
 use crate::store::http::RemoteFile;
 use crate::strays::{self, Strays};
-use crate::{BuildStats, LodMethod, Manifest, MethodError, Params, full, lpc, mwkd, qsplat, spt};
+use crate::{
+    BuildStats, LodMethod, Manifest, MethodError, Params, full, lpc, mwkd, potree, qsplat, spt,
+};
 
 /// Every registered method.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Hash, clap::ValueEnum, serde::Serialize)]
@@ -25,6 +27,8 @@ pub enum MethodKind {
     Lpc,
     /// Multi-way kd-tree (Goswami, Erol, Mukhi, Pajarola, Gobbetti ~2010).
     Mwkd,
+    /// Potree 2.0's octree (Schütz, Ohrhallinger, Wimmer 2020): today's practice.
+    Potree,
 }
 
 impl MethodKind {
@@ -35,6 +39,7 @@ impl MethodKind {
         MethodKind::Spt,
         MethodKind::Lpc,
         MethodKind::Mwkd,
+        MethodKind::Potree,
     ];
 
     /// The registry name (`--method` value, `method.json`).
@@ -45,6 +50,7 @@ impl MethodKind {
             MethodKind::Spt => spt::NAME,
             MethodKind::Lpc => lpc::NAME,
             MethodKind::Mwkd => mwkd::NAME,
+            MethodKind::Potree => potree::NAME,
         }
     }
 
@@ -65,6 +71,9 @@ impl MethodKind {
             }
             MethodKind::Mwkd => {
                 "multi-way kd-tree: balanced N-ary tree of s-splat nodes, budget priority queue, async loading"
+            }
+            MethodKind::Potree => {
+                "Potree 2.0: nested octree of spacing-halving subsamples, point budget by projected node size"
             }
         }
     }
@@ -93,6 +102,7 @@ impl MethodKind {
             MethodKind::Spt => params.to_typed::<spt::SptParams>(self.name()).map(drop),
             MethodKind::Lpc => lpc::LpcParams::from_params(params).map(drop),
             MethodKind::Mwkd => mwkd::MwkdParams::from_params(params).map(drop),
+            MethodKind::Potree => potree::PotreeParams::from_params(params).map(drop),
         }
     }
 
@@ -129,6 +139,7 @@ impl MethodKind {
             MethodKind::Spt => spt::build(cloud, params, scene, dir, progress),
             MethodKind::Lpc => lpc::build(cloud, params, scene, dir, progress),
             MethodKind::Mwkd => mwkd::build(cloud, params, scene, dir, progress),
+            MethodKind::Potree => potree::build(cloud, params, scene, dir, progress),
         }
     }
 
@@ -143,6 +154,7 @@ impl MethodKind {
             MethodKind::Spt => serde_json::to_value(spt::SptParams::default()),
             MethodKind::Lpc => serde_json::to_value(lpc::LpcParams::default()),
             MethodKind::Mwkd => serde_json::to_value(mwkd::MwkdParams::default()),
+            MethodKind::Potree => serde_json::to_value(potree::PotreeParams::default()),
         };
         let mut out = std::collections::BTreeMap::new();
         if let Ok(serde_json::Value::Object(map)) = value {
@@ -170,7 +182,52 @@ impl MethodKind {
             MethodKind::Spt => spt::RUNTIME_PARAMS,
             MethodKind::Lpc => lpc::RUNTIME_PARAMS,
             MethodKind::Mwkd => mwkd::RUNTIME_PARAMS,
+            MethodKind::Potree => potree::RUNTIME_PARAMS,
         }
+    }
+
+    /// True if `dir` is another tool's output that this method reads as it is (no
+    /// `method.json`): a PotreeConverter 2.0 directory for `potree`.
+    pub fn reads_foreign(self, dir: &Path) -> bool {
+        self == MethodKind::Potree
+            && !dir.join(Manifest::FILE).exists()
+            && dir.join(potree::format::METADATA_FILE).exists()
+    }
+
+    /// Opens another tool's output ([`MethodKind::reads_foreign`]) with positions relative
+    /// to `origin` (the scene's) and `runtime` parameters; returns the method and what
+    /// stands for its `build.json`.
+    pub fn open_foreign(
+        self,
+        dir: &Path,
+        origin: glam::DVec3,
+        runtime: &Params,
+    ) -> Result<(Box<dyn LodMethod>, BuildStats), MethodError> {
+        if !self.reads_foreign(dir) {
+            return Err(MethodError::Param(format!(
+                "{}: not a directory {self} reads as it is (it reads {})",
+                dir.display(),
+                match self {
+                    MethodKind::Potree =>
+                        "PotreeConverter 2.0 output: metadata.json, \
+                                           hierarchy.bin, octree.bin",
+                    _ => "its own builds only",
+                }
+            )));
+        }
+        for k in runtime.0.keys() {
+            if !self.runtime_params().contains(&k.as_str()) {
+                return Err(MethodError::Param(format!(
+                    "'{k}' changes how {self} builds; {} was built by another tool \
+                     (runtime parameters: {})",
+                    dir.display(),
+                    self.runtime_params().join(", ")
+                )));
+            }
+        }
+        let params = potree::PotreeParams::from_params(runtime)?;
+        let m = potree::Potree::open_dir(dir, origin, &params)?;
+        Ok((Box::new(m), potree::Potree::foreign_stats(dir)?))
     }
 
     /// Opens a build directory written by [`MethodKind::build`] (of any method).
@@ -191,7 +248,7 @@ impl MethodKind {
         match self {
             MethodKind::Lpc => Some(&[lpc::INDEX_FILE, lpc::INFO_FILE]),
             MethodKind::Mwkd => Some(&[mwkd::INDEX_FILE, mwkd::INFO_FILE]),
-            MethodKind::Full | MethodKind::Qsplat | MethodKind::Spt => None,
+            MethodKind::Full | MethodKind::Qsplat | MethodKind::Spt | MethodKind::Potree => None,
         }
     }
 
@@ -297,6 +354,7 @@ impl MethodKind {
                 Some(r) => mwkd::Mwkd::open_at(dir, manifest, r)?,
                 None => mwkd::Mwkd::open(dir, manifest)?,
             }),
+            MethodKind::Potree => Box::new(potree::Potree::open(dir, manifest)?),
         };
 
         match rule {

@@ -1,0 +1,418 @@
+//! `potree`: the octree of Potree 2.0 (Schütz, Ohrhallinger, Wimmer, "Fast Out-of-Core
+//! Octree Generation for Massive Point Clouds", CGF 2020; Schütz, "Potree: Rendering Large
+//! Point Clouds in Web Browsers", TU Wien 2016), the level-of-detail structure practitioners
+//! use today, as a fifth baseline beside the four papers' methods.
+//!
+//! - [`format`]: the three files PotreeConverter 2.0 writes (`metadata.json`,
+//!   `hierarchy.bin`, `octree.bin`), read and written by the same code.
+//! - [`hierarchy`]: the octree as far as its chunks have been read; proxies expanded on
+//!   demand.
+//! - [`select`]: the viewer's traversal (priority by projected node size, point budget,
+//!   frustum culling).
+//! - [`build`](mod@build): our converter from a scene into the same format.
+//!
+//! A directory written by PotreeConverter opens with [`Potree::open_dir`] (no conversion,
+//! no `method.json`); one written by [`build()`] opens through the registry like any build.
+//! See `README.md` next to this file for what is faithful and what deviates.
+
+pub mod build;
+pub mod format;
+pub mod hierarchy;
+mod params;
+pub mod select;
+
+use std::path::Path;
+use std::sync::Arc;
+
+use glam::DVec3;
+use scenes::{Attributes, View};
+
+use crate::store::access::{ChunkSource, DataAccess, Decoder, Loader, LoaderOptions, RepoAt};
+use crate::{
+    ChunkId, DrawItem, DrawList, Feedback, LodMethod, Manifest, MethodError, MethodStats,
+    SplatBatch, SplatSize, Target,
+};
+pub use build::build;
+use format::{Decoding, Metadata};
+use hierarchy::{Hierarchy, LocalFile, RangeRead, Spans};
+pub use params::{LoadMode, PotreeParams, RUNTIME_PARAMS, Sampling};
+
+/// Registry name.
+pub const NAME: &str = "potree";
+/// Version of what [`build()`] writes besides the Potree files (`potree.json`).
+pub const FORMAT_VERSION: u32 = 1;
+/// What a build by splatbench records beside the Potree files: the scene's origin.
+pub const INFO_FILE: &str = "potree.json";
+/// Potree's adaptive point size: a splat is `1.7 · size · spacing` across (the viewer's
+/// `uOctreeSpacing * 1.7`), `spacing` its node's.
+pub const ADAPTIVE_FACTOR: f32 = 1.7;
+/// Traversals a `load=sync` frame makes at most (each loads what the last one found
+/// missing; a level per traversal, so the octree's depth bounds it).
+const SYNC_ROUNDS: usize = format::MAX_LEVEL as usize + 2;
+
+/// `potree.json`.
+#[derive(Debug, Clone, PartialEq, serde::Serialize, serde::Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct Info {
+    /// World origin of the scene's local frame (subtracted from decoded positions).
+    pub origin: [f64; 3],
+    /// Nodes written.
+    pub nodes: u64,
+    /// Levels (deepest + 1).
+    pub levels: u32,
+}
+
+/// Extra CSV columns of `potree`.
+pub const COLUMNS: &[&str] = &[
+    "visible_nodes",
+    "visible_points",
+    "nodes_culled",
+    "nodes_waiting",
+    "hierarchy_chunks_read",
+    "loader_pending",
+];
+
+/// Counters of one frame.
+#[derive(Debug, Clone, Copy, Default, PartialEq)]
+pub struct FrameCounters {
+    /// Nodes drawn.
+    pub visible_nodes: u64,
+    /// Points of the visible nodes, loaded or not (Potree's `numVisiblePoints`).
+    pub visible_points: u64,
+    /// Nodes dropped by the frustum test.
+    pub nodes_culled: u64,
+    /// Visible nodes not loaded yet (requested).
+    pub nodes_waiting: u64,
+    /// Hierarchy chunks read this frame (proxies expanded).
+    pub hierarchy_chunks_read: u64,
+}
+
+/// The points of `octree.bin`, node by node, for the loader.
+struct OctreeSource {
+    file: Box<dyn RangeRead>,
+    spans: Spans,
+    read: std::sync::atomic::AtomicU64,
+}
+
+impl OctreeSource {
+    fn span(&self, id: u32) -> Result<hierarchy::Span, MethodError> {
+        let spans = self.spans.read().unwrap_or_else(|e| e.into_inner());
+        spans
+            .get(id as usize)
+            .copied()
+            .ok_or(MethodError::NoChunk(u64::from(id)))
+    }
+}
+
+impl ChunkSource for OctreeSource {
+    fn len(&self) -> usize {
+        self.spans.read().unwrap_or_else(|e| e.into_inner()).len()
+    }
+    fn fetch(&self, id: u32) -> Result<Vec<u8>, MethodError> {
+        let s = self.span(id)?;
+        let bytes = self.file.read(s.offset, s.size).map_err(|e| {
+            MethodError::corrupt(self.file.path(), format!("node {}: {e}", s.name()))
+        })?;
+        self.read
+            .fetch_add(s.size, std::sync::atomic::Ordering::Relaxed);
+        Ok(bytes)
+    }
+    fn bytes_read(&self) -> u64 {
+        self.read.load(std::sync::atomic::Ordering::Relaxed)
+    }
+    fn stored_bytes(&self, id: u32) -> u64 {
+        self.span(id).map_or(0, |s| s.size)
+    }
+}
+
+/// An opened Potree octree.
+pub struct Potree {
+    hierarchy: Hierarchy,
+    meta: Metadata,
+    params: PotreeParams,
+    attributes: Attributes,
+    access: Box<dyn DataAccess>,
+    last: FrameCounters,
+}
+
+impl Potree {
+    /// Opens a build written by [`build()`] (`method.json`, `potree.json` and the Potree
+    /// files in `dir`).
+    pub fn open(dir: &Path, manifest: Manifest) -> Result<Self, MethodError> {
+        let info: Info = crate::method::read_json(&dir.join(INFO_FILE))?;
+        let params = PotreeParams::from_params(&manifest.params)?;
+        let p = Self::open_dir(dir, DVec3::from(info.origin), &params)?;
+        if p.meta.points != manifest.points {
+            return Err(MethodError::corrupt(
+                dir.join(format::METADATA_FILE),
+                format!(
+                    "{} points, but method.json says {}",
+                    p.meta.points, manifest.points
+                ),
+            ));
+        }
+        Ok(p)
+    }
+
+    /// Opens a Potree 2.0 directory as PotreeConverter wrote it, positions relative to
+    /// `origin` (the scene's), with `params` (their runtime part matters).
+    pub fn open_dir(dir: &Path, origin: DVec3, params: &PotreeParams) -> Result<Self, MethodError> {
+        params.validate()?;
+        let meta = Metadata::read(dir)?;
+        let meta_path = dir.join(format::METADATA_FILE);
+        let layout = meta.layout(&meta_path)?;
+        let octree = LocalFile::open(&dir.join(format::OCTREE_FILE))?;
+        let hierarchy = Hierarchy::open(
+            &meta,
+            Box::new(LocalFile::open(&dir.join(format::HIERARCHY_FILE))?),
+            octree.len(),
+            layout.bytes_per_point as u64,
+            origin,
+        )?;
+        let decoding = Decoding {
+            layout,
+            scale: DVec3::from(meta.scale),
+            offset: DVec3::from(meta.offset),
+            origin,
+        };
+        let attributes = decoding.attributes();
+        let spans = hierarchy.spans();
+        let octree_path = octree.path().to_owned();
+        let spacing = meta.spacing;
+        let decode_spans = Arc::clone(&spans);
+        let decoder: Decoder = Arc::new(move |id: u32, bytes: &[u8]| {
+            let s = decode_spans.read().unwrap_or_else(|e| e.into_inner())[id as usize];
+            let radius = (spacing / f64::from(1u32 << s.level.min(31)) * 0.5) as f32;
+            decoding
+                .decode(bytes, s.points, radius)
+                .map_err(|m| MethodError::corrupt(&octree_path, format!("node {}: {m}", s.name())))
+        });
+        let source = OctreeSource {
+            file: Box::new(octree),
+            spans,
+            read: Default::default(),
+        };
+        let in_flight = RepoAt::Local(dir.join(format::OCTREE_FILE)).in_flight(params.in_flight);
+        let access = Loader::spawn(
+            Arc::new(source),
+            decoder,
+            LoaderOptions {
+                core_bytes: params.core_mb << 20,
+                delay_frames: params.delay_frames,
+                in_flight,
+            },
+        );
+        // The root is what every frame draws first: read (and checked) now.
+        if hierarchy.nodes()[0].points > 0 {
+            access.get(0)?;
+        }
+        Ok(Self {
+            hierarchy,
+            meta,
+            params: params.clone(),
+            attributes,
+            access: Box::new(access),
+            last: FrameCounters::default(),
+        })
+    }
+
+    /// What `build.json` would say of a directory PotreeConverter wrote (it has none): the
+    /// point count, nodes (non-proxy records of `hierarchy.bin`), levels and bytes of the
+    /// three files; no build time.
+    pub fn foreign_stats(dir: &Path) -> Result<crate::BuildStats, MethodError> {
+        let meta = Metadata::read(dir)?;
+        let h = dir.join(format::HIERARCHY_FILE);
+        let records = std::fs::read(&h).map_err(|e| MethodError::io(&h, e))?;
+        let nodes = records
+            .chunks_exact(format::RECORD_BYTES)
+            .filter(|r| r[0] != 2)
+            .count() as u64;
+        let mut bytes_out = 0;
+        for f in [
+            format::METADATA_FILE,
+            format::HIERARCHY_FILE,
+            format::OCTREE_FILE,
+        ] {
+            let p = dir.join(f);
+            bytes_out += std::fs::metadata(&p)
+                .map_err(|e| MethodError::io(&p, e))?
+                .len();
+        }
+        let mut extra = serde_json::Map::new();
+        extra.insert(
+            "source".into(),
+            "a Potree 2.0 directory written by another tool (no build.json)".into(),
+        );
+        extra.insert("spacing".into(), meta.spacing.into());
+        Ok(crate::BuildStats {
+            points_in: meta.points,
+            nodes,
+            levels: meta.hierarchy.depth + 1,
+            bytes_out,
+            extra,
+            ..Default::default()
+        }
+        .finish())
+    }
+
+    /// The metadata.
+    pub fn metadata(&self) -> &Metadata {
+        &self.meta
+    }
+    /// The nodes known so far.
+    pub fn hierarchy(&self) -> &Hierarchy {
+        &self.hierarchy
+    }
+    /// Counters of the last frame.
+    pub fn counters(&self) -> FrameCounters {
+        self.last
+    }
+
+    /// Reads every hierarchy chunk (tests and tools that walk the whole octree).
+    pub fn expand_all(&mut self) -> Result<(), MethodError> {
+        let mut id = 0;
+        while id < self.hierarchy.nodes().len() as u32 {
+            self.hierarchy.expand(id)?;
+            id += 1;
+        }
+        Ok(())
+    }
+
+    fn loaded(&self, id: u32, feedback: &Feedback) -> bool {
+        !self.hierarchy.is_proxy(id)
+            && (self.hierarchy.nodes()[id as usize].points == 0
+                || feedback.cached.contains(&ChunkId::from(id))
+                || self.access.available(id))
+    }
+
+    fn selection(&self, view: &View, target: Target, feedback: &Feedback) -> select::Selection {
+        select::select(
+            self.hierarchy.nodes(),
+            view,
+            target,
+            self.meta.spacing,
+            self.params.min_node_px,
+            &|id| self.loaded(id, feedback),
+        )
+    }
+}
+
+impl LodMethod for Potree {
+    fn attributes(&self) -> Attributes {
+        self.attributes
+    }
+    fn input_points(&self) -> u64 {
+        self.meta.points
+    }
+    fn loads_chunks(&self) -> bool {
+        true
+    }
+    fn traffic(&self) -> crate::store::access::Traffic {
+        self.access.traffic()
+    }
+    fn throughput(&self) -> Option<crate::store::access::Throughput> {
+        self.access.throughput()
+    }
+    fn failed_chunks(&self) -> Vec<(ChunkId, String)> {
+        self.access
+            .failures()
+            .into_iter()
+            .map(|(id, e)| (ChunkId::from(id), e))
+            .collect()
+    }
+    fn frame(
+        &mut self,
+        view: &View,
+        target: Target,
+        feedback: &Feedback,
+    ) -> Result<DrawList, MethodError> {
+        let target = target.validate()?;
+        crate::method::check_budget_above_root(
+            NAME,
+            "root node",
+            target,
+            Some(self.hierarchy.nodes()[0].points),
+        )?;
+        self.access.begin_frame();
+        let chunks_before = self.hierarchy.chunks_read();
+        let mut sel = self.selection(view, target, feedback);
+        if self.params.load == LoadMode::Sync {
+            for _ in 0..SYNC_ROUNDS {
+                if sel.waiting.is_empty() {
+                    break;
+                }
+                for &id in &sel.waiting {
+                    self.hierarchy.expand(id)?;
+                    if self.hierarchy.nodes()[id as usize].points > 0 {
+                        self.access.get(id)?;
+                    }
+                }
+                sel = self.selection(view, target, feedback);
+            }
+        }
+        // Waiting nodes, best first: a proxy's chunk is read now (a few hundred bytes per
+        // four levels), its points are requested.
+        for &id in &sel.waiting {
+            self.hierarchy.expand(id)?;
+            if self.hierarchy.nodes()[id as usize].points > 0 {
+                self.access.request(id);
+            }
+        }
+        let c = FrameCounters {
+            visible_nodes: sel.draw.len() as u64,
+            visible_points: sel.visible_points,
+            nodes_culled: u64::from(sel.culled),
+            nodes_waiting: sel.waiting.len() as u64,
+            hierarchy_chunks_read: self.hierarchy.chunks_read() - chunks_before,
+        };
+        self.last = c;
+        let size = SplatSize::Radius {
+            scale: ADAPTIVE_FACTOR * self.params.point_size,
+            min_px: self.params.min_px,
+        };
+        let nodes = self.hierarchy.nodes();
+        Ok(DrawList {
+            items: sel
+                .draw
+                .iter()
+                .filter(|&&id| nodes[id as usize].points > 0)
+                .map(|&id| DrawItem::Chunk {
+                    id: ChunkId::from(id),
+                    points: nodes[id as usize].points,
+                    size,
+                })
+                .collect(),
+            fetch: sel.waiting.iter().map(|&id| ChunkId::from(id)).collect(),
+            counters: vec![
+                c.visible_nodes as f64,
+                c.visible_points as f64,
+                c.nodes_culled as f64,
+                c.nodes_waiting as f64,
+                c.hierarchy_chunks_read as f64,
+                self.access.pending() as f64,
+            ],
+            ..Default::default()
+        })
+    }
+    fn chunk(&self, id: ChunkId) -> Result<Arc<SplatBatch>, MethodError> {
+        let id = u32::try_from(id)
+            .ok()
+            .filter(|&i| (i as usize) < self.hierarchy.nodes().len() && !self.hierarchy.is_proxy(i))
+            .ok_or(MethodError::NoChunk(id))?;
+        self.access.get(id)
+    }
+    fn stats(&self) -> MethodStats {
+        let nodes = self.hierarchy.nodes();
+        MethodStats {
+            resident_bytes: (std::mem::size_of_val(nodes)
+                + nodes.len() * std::mem::size_of::<hierarchy::Span>())
+                as u64
+                + self.access.resident_bytes(),
+            nodes: nodes.len() as u64,
+            levels: self.meta.hierarchy.depth + 1,
+        }
+    }
+    fn extra_columns(&self) -> &'static [&'static str] {
+        COLUMNS
+    }
+}

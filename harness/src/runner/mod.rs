@@ -337,6 +337,7 @@ pub fn run(cfg: &RunConfig, gpu: &Gpu, progress: &dyn Progress) -> anyhow::Resul
         (None, Some((dir, _, url))) => Some((dir.clone(), format!("--build-url {url}"))),
         (None, None) => None,
     };
+    let mut foreign = None;
     let (build_dir, build, params) = match &given {
         None => {
             let dir = cfg.out.join("build");
@@ -345,6 +346,25 @@ pub fn run(cfg: &RunConfig, gpu: &Gpu, progress: &dyn Progress) -> anyhow::Resul
                 .build(&cloud, &cfg.params, &label, &dir, progress)
                 .with_context(|| format!("building {} on {label}", cfg.method))?;
             (dir, build, cfg.params.clone())
+        }
+        // Another tool's output (PotreeConverter's for `potree`): read as it is.
+        Some((dir, flag)) if remote.is_none() && cfg.method.reads_foreign(dir) => {
+            let (m, build) = cfg
+                .method
+                .open_foreign(dir, cloud.origin(), &cfg.params)
+                .with_context(|| flag.clone())?;
+            if m.input_points() != cloud.len() as u64 {
+                let w = format!(
+                    "{flag}: holds {} points, the scene '{label}' {}: frames are compared \
+                     with a reference of the scene's points",
+                    m.input_points(),
+                    cloud.len()
+                );
+                eprintln!("warning: {w}");
+                scene_warnings.push(w);
+            }
+            foreign = Some(m);
+            (dir.clone(), build, cfg.params.clone())
         }
         Some((dir, flag)) => {
             let m = methods::Manifest::read(dir).with_context(|| flag.clone())?;
@@ -364,9 +384,10 @@ pub fn run(cfg: &RunConfig, gpu: &Gpu, progress: &dyn Progress) -> anyhow::Resul
             (dir.clone(), build, params)
         }
     };
-    let mut method = match &given {
-        None => MethodKind::open(&build_dir)?,
-        Some((dir, flag)) => {
+    let mut method = match (foreign, &given) {
+        (Some(m), _) => m,
+        (None, None) => MethodKind::open(&build_dir)?,
+        (None, Some((dir, flag))) => {
             let opened = match &remote {
                 Some((_, repo, _)) => MethodKind::open_remote(dir, repo, &cfg.params),
                 None => MethodKind::open_with(dir, &cfg.params),

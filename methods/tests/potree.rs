@@ -397,3 +397,89 @@ fn builds_are_byte_identical_across_thread_counts() {
     };
     assert!(files(1) == files(3), "a build depends on the thread count");
 }
+
+/// PotreeConverter 2.0's own output for `terrain:15000:1` (`tests/data/…/README.md`): every
+/// point of the scene is read back once, at its position (the LAS export's and the
+/// converter's quantisation apart) with its colour, in a node whose box holds it, although
+/// the converter wrote type-1 nodes with children, eight nodes counting points they do not
+/// store (potree#1125) and `hierarchy.depth` 0.
+#[test]
+fn reads_what_potree_converter_wrote() {
+    let dir = Path::new(env!("CARGO_MANIFEST_DIR")).join("tests/data/potree-converter-terrain-15k");
+    let scene = scenes::spec::SceneSpec::parse("terrain:15000:1", None, 0).unwrap();
+    let cloud = scene.load(None, &scenes::NoProgress).unwrap().warn();
+    let mut p = Potree::open_dir(&dir, cloud.origin(), &PotreeParams::default()).unwrap();
+    p.expand_all().unwrap();
+    assert_eq!(
+        p.metadata().hierarchy.depth,
+        0,
+        "the converter's value, read as it is"
+    );
+    let nodes = p.hierarchy().nodes().to_vec();
+    assert!(nodes.iter().map(|n| n.level).max().unwrap() >= 2);
+    assert!(
+        nodes
+            .iter()
+            .any(|n| n.points > 0 && n.children.iter().any(|&c| c != u32::MAX))
+    );
+    // Decoded world positions (local + origin) with colours, checked against their boxes.
+    // Positions are compared in world units after three roundings: the scene's and the
+    // decoder's f32 local coordinates (half an ulp each, 6.1e-5 per axis below 2,048 m), the
+    // converter's 1e-5 quantisation and the LAS export's: √3 · (2 · 6.1e-5 + 1e-5) < 3e-4.
+    let tol = 3e-4;
+    let mut got = Vec::new();
+    for (id, n) in nodes.iter().enumerate() {
+        let b = p.chunk(id as u64).unwrap();
+        assert_eq!(b.len(), n.points as usize);
+        for (k, q) in b.positions.iter().enumerate() {
+            let w = glam::Vec3::from(*q).as_dvec3() + cloud.origin();
+            assert!(
+                (w - n.min).min_element() > -tol && (n.max - w).min_element() > -tol,
+                "{}: {w} outside {}..{}",
+                n.name(),
+                n.min,
+                n.max
+            );
+            got.push((w, b.colors.as_ref().unwrap()[k]));
+        }
+    }
+    assert_eq!(got.len(), cloud.len());
+    // Match every scene point to a decoded one (a multiset: each used once), by a hash grid.
+    let cell = |w: DVec3| (w / 0.01).floor().as_i64vec3();
+    let mut grid: std::collections::HashMap<glam::I64Vec3, Vec<usize>> = Default::default();
+    for (i, (w, _)) in got.iter().enumerate() {
+        grid.entry(cell(*w)).or_default().push(i);
+    }
+    let mut used = vec![false; got.len()];
+    let colors = cloud.colors().unwrap();
+    for i in 0..cloud.len() {
+        let w = cloud.world_position(i);
+        let c = cell(w);
+        let hit = (-1..=1)
+            .flat_map(|x| {
+                (-1..=1).flat_map(move |y| (-1..=1).map(move |z| glam::I64Vec3::new(x, y, z)))
+            })
+            .filter_map(|d| grid.get(&(c + d)))
+            .flatten()
+            .copied()
+            .find(|&j| {
+                !used[j]
+                    && got[j].0.distance(w) < tol
+                    && got[j].1 == methods::draw::pack_color(colors[i])
+            });
+        let j = hit.unwrap_or_else(|| {
+            let near = got
+                .iter()
+                .enumerate()
+                .min_by(|a, b| a.1.0.distance(w).total_cmp(&b.1.0.distance(w)))
+                .unwrap();
+            panic!(
+                "scene point {i} at {w} not read back; nearest {:?} at {} used {}",
+                near.1,
+                near.1.0.distance(w),
+                used[near.0]
+            )
+        });
+        used[j] = true;
+    }
+}

@@ -391,7 +391,8 @@ impl Metadata {
 pub enum NodeKind {
     /// An inner node (type 0).
     Inner,
-    /// A leaf (type 1).
+    /// A leaf (type 1). PotreeConverter 2.0 also writes type 1 for nodes that have children:
+    /// the child mask, not the type, says whether a node has children.
     Leaf,
     /// A proxy (type 2): offset and size name its hierarchy chunk.
     Proxy,

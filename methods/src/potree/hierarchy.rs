@@ -315,7 +315,10 @@ impl Hierarchy {
         Ok(())
     }
 
-    /// Checks one record: type against child mask and level, byte range and size.
+    /// Checks one record: child mask against the deepest level, byte range and size. The
+    /// type is not checked against the mask: PotreeConverter 2.0 writes nodes of type 1
+    /// ("leaf") that have children, and the viewer creates children from the mask for every
+    /// type but proxy; so do we.
     fn check(&self, rec: &Record, name: &str) -> Result<(), String> {
         let level = name.len() as u32 - 1;
         if rec.child_mask != 0 && level >= MAX_LEVEL {
@@ -324,10 +327,6 @@ impl Hierarchy {
             ));
         }
         match rec.kind {
-            NodeKind::Leaf if rec.child_mask != 0 => Err(format!(
-                "node {name} is a leaf with child mask {:#010b}",
-                rec.child_mask
-            )),
             NodeKind::Proxy => {
                 let fits = rec
                     .offset

@@ -244,6 +244,12 @@ impl Potree {
             "a Potree 2.0 directory written by another tool (no build.json)".into(),
         );
         extra.insert("spacing".into(), meta.spacing.into());
+        extra.insert(
+            "levels_from".into(),
+            "metadata.json hierarchy.depth + 1 (PotreeConverter writes 0 for some multi-level \
+             octrees)"
+                .into(),
+        );
         Ok(crate::BuildStats {
             points_in: meta.points,
             nodes,
@@ -409,7 +415,15 @@ impl LodMethod for Potree {
                 as u64
                 + self.access.resident_bytes(),
             nodes: nodes.len() as u64,
-            levels: self.meta.hierarchy.depth + 1,
+            // The deepest node known so far, or the metadata's depth if deeper (the
+            // converter writes 0 for some multi-level octrees).
+            levels: nodes
+                .iter()
+                .map(|n| n.level)
+                .max()
+                .unwrap_or(0)
+                .max(self.meta.hierarchy.depth)
+                + 1,
         }
     }
     fn extra_columns(&self) -> &'static [&'static str] {

@@ -452,7 +452,7 @@ fn reads_what_potree_converter_wrote() {
     }
     let mut used = vec![false; got.len()];
     let colors = cloud.colors().unwrap();
-    for i in 0..cloud.len() {
+    for (i, color) in colors.iter().enumerate() {
         let w = cloud.world_position(i);
         let c = cell(w);
         let hit = (-1..=1)
@@ -465,7 +465,7 @@ fn reads_what_potree_converter_wrote() {
             .find(|&j| {
                 !used[j]
                     && got[j].0.distance(w) < tol
-                    && got[j].1 == methods::draw::pack_color(colors[i])
+                    && got[j].1 == methods::draw::pack_color(*color)
             });
         let j = hit.unwrap_or_else(|| {
             let near = got

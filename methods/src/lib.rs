@@ -15,6 +15,7 @@
 //! - one module per method: [`full`] (no LOD, the reference), then the four papers' methods
 //!   ([`qsplat`], [`spt`], [`lpc`], [`mwkd`]), and [`potree`], today's practice (Potree 2.0).
 
+pub mod cellmap;
 pub mod cull;
 pub mod draw;
 pub mod error;

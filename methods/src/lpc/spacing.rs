@@ -2,9 +2,6 @@
 //! ([`probe_knn`]), the estimate of `r` and `nn_spacing` from them ([`spacing_estimates`]),
 //! and the per-node spacings of eqs. (1)–(2) ([`hierarchical_spacing`]).
 
-use std::collections::HashMap;
-use std::hash::{BuildHasherDefault, Hasher};
-
 use glam::Vec3;
 use rayon::prelude::*;
 use scenes::Aabb;
@@ -69,24 +66,6 @@ fn filter_bit(key: u64) -> usize {
     (key.wrapping_mul(0xD6E8_FEB8_6659_FD93) >> 44) as usize
 }
 
-#[derive(Default)]
-struct KeyHasher(u64);
-
-impl Hasher for KeyHasher {
-    fn finish(&self) -> u64 {
-        self.0
-    }
-    fn write(&mut self, bytes: &[u8]) {
-        for b in bytes {
-            self.0 = (self.0 ^ *b as u64).wrapping_mul(0x0100_0000_01b3);
-        }
-    }
-    fn write_u64(&mut self, v: u64) {
-        let h = v.wrapping_mul(0x9E37_79B9_7F4A_7C15);
-        self.0 = h ^ (h >> 29);
-    }
-}
-
 /// `[nearest, k-th nearest]` neighbour distances of each probe sample of `s`
 /// (flagged at load), measured exactly against all of `s` (the probe itself excluded once).
 ///
@@ -140,8 +119,8 @@ pub fn probe_knn(s: &[Sample], bbox: Aabb, k: usize) -> Vec<[f32; 2]> {
         }
         entries.sort_unstable();
         let mut filter = vec![0u64; FILTER_BITS / 64];
-        let mut map: HashMap<u64, (u32, u32), BuildHasherDefault<KeyHasher>> =
-            HashMap::with_capacity_and_hasher(entries.len(), Default::default());
+        let mut map: crate::cellmap::CellMap<(u32, u32)> =
+            crate::cellmap::CellMap::with_capacity_and_hasher(entries.len(), Default::default());
         let mut a = 0;
         while a < entries.len() {
             let mut b = a + 1;

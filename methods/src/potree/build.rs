@@ -235,8 +235,15 @@ fn poisson(node: &Node, cands: &[(u32, u8)], s: &Sorted, spacing: f64) -> Vec<bo
         );
         da.total_cmp(&db).then(cands[a].0.cmp(&cands[b].0))
     });
-    let cell = |p: DVec3| ((p - node.min) / spacing).floor().as_i64vec3();
-    let mut grid: std::collections::HashMap<glam::I64Vec3, Vec<DVec3>> = Default::default();
+    // Cells of `spacing` over the node (a few outside it, for points on its faces), packed
+    // into a key; each cell heads a list of the accepted points in it.
+    let cell = |p: DVec3| ((p - node.min) / spacing).floor().as_i64vec3() + glam::I64Vec3::ONE;
+    let key = |c: glam::I64Vec3| {
+        (c.x as u64 & 0x1f_ffff) | (c.y as u64 & 0x1f_ffff) << 21 | (c.z as u64 & 0x1f_ffff) << 42
+    };
+    let mut heads: crate::cellmap::CellMap<u32> = Default::default();
+    let mut next: Vec<u32> = Vec::new();
+    let mut kept: Vec<DVec3> = Vec::new();
     let mut accepted = vec![false; cands.len()];
     let sq = spacing * spacing;
     for k in order {
@@ -246,16 +253,25 @@ fn poisson(node: &Node, cands: &[(u32, u8)], s: &Sorted, spacing: f64) -> Vec<bo
         'near: for dx in -1..=1 {
             for dy in -1..=1 {
                 for dz in -1..=1 {
-                    let n = grid.get(&(c + glam::I64Vec3::new(dx, dy, dz)));
-                    if n.is_some_and(|v| v.iter().any(|q| q.distance_squared(p) < sq)) {
-                        free = false;
-                        break 'near;
+                    let mut at = heads
+                        .get(&key(c + glam::I64Vec3::new(dx, dy, dz)))
+                        .copied()
+                        .unwrap_or(u32::MAX);
+                    while at != u32::MAX {
+                        if kept[at as usize].distance_squared(p) < sq {
+                            free = false;
+                            break 'near;
+                        }
+                        at = next[at as usize];
                     }
                 }
             }
         }
         if free {
-            grid.entry(c).or_default().push(p);
+            let slot = heads.entry(key(c)).or_insert(u32::MAX);
+            next.push(*slot);
+            *slot = kept.len() as u32;
+            kept.push(p);
             accepted[k] = true;
         }
     }

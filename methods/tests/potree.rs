@@ -483,3 +483,81 @@ fn reads_what_potree_converter_wrote() {
         used[j] = true;
     }
 }
+
+fn files(dir: &Path) -> Vec<Vec<u8>> {
+    [
+        "octree.bin",
+        "hierarchy.bin",
+        "metadata.json",
+        "potree.json",
+    ]
+    .iter()
+    .map(|f| std::fs::read(dir.join(f)).unwrap())
+    .collect()
+}
+
+/// A build in units (`mem_mb=1`: at most 16,384 points a unit) writes the in-core build's
+/// files byte for byte, for both samplings; its temporary files are gone.
+#[test]
+fn a_build_in_units_equals_the_build_in_core() {
+    for (generator, sampling) in [
+        (Generator::Statue, "poisson"),
+        (Generator::Terrain, "random"),
+    ] {
+        let cloud = generator.generate(120_000, 4).unwrap();
+        let tmp = tempfile::tempdir().unwrap();
+        let (core, units) = (tmp.path().join("core"), tmp.path().join("units"));
+        let s = format!("sampling={sampling}");
+        build(&cloud, &[&s, "max_leaf=3000"], &core);
+        build(&cloud, &[&s, "max_leaf=3000", "mem_mb=1"], &units);
+        let stats = methods::BuildStats::read(&units).unwrap();
+        let n_units = stats.extra["units"].as_u64().unwrap();
+        assert!(n_units > 7, "{sampling}: {n_units} units");
+        assert!(stats.extra["largest_unit"].as_u64().unwrap() <= 16_384);
+        assert_eq!(methods::BuildStats::read(&core).unwrap().extra["units"], 1);
+        assert!(
+            files(&core) == files(&units),
+            "{sampling}: units change the files"
+        );
+        let left: Vec<_> = std::fs::read_dir(&units)
+            .unwrap()
+            .map(|e| e.unwrap().file_name())
+            .collect();
+        assert!(
+            left.iter().all(|f| !f.to_string_lossy().ends_with(".tmp")),
+            "{left:?}"
+        );
+    }
+}
+
+/// A unit's spill file altered between routing and reading is an error naming it.
+#[test]
+fn a_damaged_unit_file_is_an_error_naming_it() {
+    let cloud = Generator::Statue.generate(60_000, 4).unwrap();
+    let tmp = tempfile::tempdir().unwrap();
+    let params = Params::parse(&["mem_mb=1".to_string()]).unwrap();
+    let hook = |spills: &[&methods::spill::Spill]| {
+        let s = spills[spills.len() / 2];
+        let mut b = std::fs::read(&s.path).unwrap();
+        b[5] ^= 0xff;
+        std::fs::write(&s.path, b).unwrap();
+    };
+    let e = methods::potree::build::build_with(
+        &cloud,
+        &params,
+        "t",
+        tmp.path(),
+        Some(&hook),
+        &scenes::NoProgress,
+    )
+    .unwrap_err()
+    .to_string();
+    assert!(
+        e.contains("potree-units.tmp") && e.contains("route-"),
+        "{e}"
+    );
+    assert!(
+        !tmp.path().join("method.json").exists(),
+        "no manifest after a failed build"
+    );
+}

@@ -9,7 +9,9 @@
 //!   demand.
 //! - [`select`]: the viewer's traversal (priority by projected node size, point budget,
 //!   frustum culling).
-//! - [`build`](mod@build): our converter from a scene into the same format.
+//! - [`build`](mod@build): our converter from a scene into the same format ([`octree`]:
+//!   the tree and its sampling; [`ooc`]: the same in units for clouds beyond `mem_mb`;
+//!   [`write`]: the files).
 //!
 //! A directory written by PotreeConverter opens with [`Potree::open_dir`] (no conversion,
 //! no `method.json`); one written by [`build()`] opens through the registry like any build.
@@ -18,8 +20,11 @@
 pub mod build;
 pub mod format;
 pub mod hierarchy;
+pub mod octree;
+pub mod ooc;
 mod params;
 pub mod select;
+pub mod write;
 
 use std::path::Path;
 use std::sync::Arc;

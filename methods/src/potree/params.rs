@@ -54,6 +54,9 @@ pub struct PotreeParams {
     pub step: u32,
     /// Seed of `sampling=random` (the converter seeds from the clock; ours is reproducible).
     pub seed: u64,
+    /// Working memory of the build, MiB (≥ 1): a cloud of more than `mem_mb·2²⁰ / 64`
+    /// points is built in units ([`super::ooc`]); the files do not depend on it.
+    pub mem_mb: u64,
     /// Smallest projected node radius, pixels, refined into (Potree's
     /// `minimumNodePixelSize`, 150); budget targets only.
     pub min_node_px: f32,
@@ -81,6 +84,7 @@ impl Default for PotreeParams {
             max_leaf: 10_000,
             step: 4,
             seed: 0,
+            mem_mb: 256,
             min_node_px: 150.0,
             point_size: 1.0,
             min_px: 2.0,
@@ -105,6 +109,9 @@ impl PotreeParams {
         let bad = |msg: String| Err(MethodError::Param(format!("method '{NAME}': {msg}")));
         if self.max_leaf < 1 {
             return bad(format!("max_leaf must be ≥ 1, got {}", self.max_leaf));
+        }
+        if self.mem_mb < 1 || self.mem_mb > 1 << 30 {
+            return bad(format!("mem_mb must be in 1..=2³⁰, got {}", self.mem_mb));
         }
         if !(1..=super::format::MAX_LEVEL).contains(&self.step) {
             return bad(format!(

@@ -1,0 +1,280 @@
+//! The build in units, for clouds larger than `mem_mb` allows (PotreeConverter's chunking,
+//! Schütz et al. 2020 §4.1, in our terms):
+//!
+//! 1. **Count**: every point's Morton code; counts per cell of the level-[`GRID_LEVEL`] grid
+//!    over the cube (128³ cells).
+//! 2. **Plan**: from the root down, a node of more points than a unit may hold is split
+//!    (the in-core build splits it too: a unit holds at least `max_leaf` points); the
+//!    others become *units*, in Morton order. A grid cell denser than a unit stays one unit
+//!    (recorded as `largest_unit`): the grid is the finest this pass splits.
+//! 3. **Route**: one pass over the cloud appends (code, index) to its unit's spill file.
+//! 4. **Units**, one after the other: sort, split, sample (as in core); every node but the
+//!    unit's root is encoded into a second spill file, breadth first; the root, with its
+//!    points, joins the top.
+//! 5. **Top**: the nodes above the units sample from the units' roots, bottom up.
+//! 6. **Files**: nodes breadth first, unit nodes copied from their spill files in order.
+//!
+//! A node's sample depends only on its children's points, and points are numbered by their
+//! global Morton rank in both builds: the files are byte-identical to the in-core build's
+//! (`methods/tests/potree.rs`).
+
+use glam::DVec3;
+use rayon::prelude::*;
+use scenes::{PointCloud, Progress};
+
+use super::PotreeParams;
+use super::octree::{self, Loose, MORTON_BITS, Node, Quant, Sorted};
+use super::write::{self, Desc, Src};
+use crate::MethodError;
+use crate::spill::{Budget, Spill, SpillDir};
+
+/// Level of the counting grid (8⁷ = 2,097,152 cells; 16 MiB of counts and unit numbers).
+pub const GRID_LEVEL: u32 = 7;
+/// Working memory a unit takes per point (codes, ranks, integer positions, node lists,
+/// sampling candidates), bytes: a unit holds at most `mem_mb·2²⁰ / 64` points.
+pub const UNIT_BYTES_PER_POINT: u64 = 64;
+/// Block size of the spill files (many are read at once while the files are written).
+const SPILL_BLOCK: usize = 1 << 16;
+
+/// Points a unit may hold within `mem_bytes`.
+pub fn unit_capacity(mem_bytes: u64) -> u64 {
+    mem_bytes / UNIT_BYTES_PER_POINT
+}
+
+/// A planned unit.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub struct Unit {
+    /// Level of its root.
+    pub level: u32,
+    /// Octant digits of its root.
+    pub path: u64,
+    /// Points.
+    pub count: u64,
+}
+
+/// Plans units over `prefix` (prefix sums of the grid's cell counts, `8^GRID_LEVEL + 1`
+/// entries): nodes of more than `cap` points are split, down to the grid's level.
+pub fn plan(prefix: &[u64], cap: u64) -> Vec<Unit> {
+    fn visit(prefix: &[u64], cap: u64, level: u32, path: u64, out: &mut Vec<Unit>) {
+        let shift = 3 * (GRID_LEVEL - level);
+        let lo = (path << shift) as usize;
+        let hi = ((path + 1) << shift) as usize;
+        let count = prefix[hi] - prefix[lo];
+        if count == 0 {
+            return;
+        }
+        if count > cap && level < GRID_LEVEL {
+            for o in 0..8 {
+                visit(prefix, cap, level + 1, (path << 3) | o, out);
+            }
+        } else {
+            out.push(Unit { level, path, count });
+        }
+    }
+    let mut out = Vec::new();
+    visit(prefix, cap, 0, 0, &mut out);
+    out
+}
+
+/// The grid cell (level-[`GRID_LEVEL`] path) of a Morton code.
+fn cell_of(code: u64) -> usize {
+    (code >> (3 * (MORTON_BITS - GRID_LEVEL))) as usize
+}
+
+/// What [`build`] made.
+pub struct Built {
+    /// The files written.
+    pub written: write::Written,
+    /// Units.
+    pub units: u64,
+    /// Points of the largest unit.
+    pub largest_unit: u64,
+}
+
+/// Builds `cloud` in units of at most `budget.mem_bytes / 64` points into `budget.dir`.
+pub fn build(
+    cloud: &PointCloud,
+    quant: Quant,
+    p: &PotreeParams,
+    meta: crate::potree::format::Metadata,
+    budget: Budget<'_>,
+    progress: &dyn Progress,
+) -> Result<Built, MethodError> {
+    let n = cloud.len();
+    let origin = cloud.origin();
+    let pos = cloud.positions();
+    let code_of = |i: usize| quant.morton(quant.of_local(origin, pos[i]));
+    // 1. Count.
+    progress.start("potree: count", n as u64);
+    let cells = 1usize << (3 * GRID_LEVEL);
+    let counts = (0..n)
+        .into_par_iter()
+        .fold(
+            || vec![0u32; cells],
+            |mut c, i| {
+                c[cell_of(code_of(i))] += 1;
+                c
+            },
+        )
+        .reduce(
+            || vec![0u32; cells],
+            |mut a, b| {
+                a.iter_mut().zip(&b).for_each(|(x, y)| *x += y);
+                a
+            },
+        );
+    let mut prefix = Vec::with_capacity(cells + 1);
+    prefix.push(0u64);
+    for c in &counts {
+        prefix.push(prefix.last().copied().unwrap_or(0) + u64::from(*c));
+    }
+    drop(counts);
+    progress.finish();
+    // 2. Plan.
+    let cap = unit_capacity(budget.mem_bytes).max(u64::from(p.max_leaf));
+    let units = plan(&prefix, cap);
+    let mut unit_of = vec![u32::MAX; cells];
+    let mut bases = Vec::with_capacity(units.len());
+    for (k, u) in units.iter().enumerate() {
+        let shift = 3 * (GRID_LEVEL - u.level);
+        let (lo, hi) = ((u.path << shift) as usize, ((u.path + 1) << shift) as usize);
+        unit_of[lo..hi].fill(k as u32);
+        bases.push(prefix[lo] as u32);
+    }
+    drop(prefix);
+    // 3. Route.
+    let spill = SpillDir::create(budget.dir, "potree-units")?;
+    progress.start("potree: route", n as u64);
+    let mut writers = (0..units.len())
+        .map(|_| spill.writer_with_block("route", 12, SPILL_BLOCK))
+        .collect::<Result<Vec<_>, _>>()?;
+    let mut rec = [0u8; 12];
+    for i in 0..n {
+        let code = code_of(i);
+        rec[..8].copy_from_slice(&code.to_le_bytes());
+        rec[8..].copy_from_slice(&(i as u32).to_le_bytes());
+        writers[unit_of[cell_of(code)] as usize].push(&rec)?;
+        if i % (1 << 16) == 0 {
+            cloud.release_pages(i.saturating_sub(1 << 16)..i);
+        }
+    }
+    let routed: Vec<Spill> = writers
+        .into_iter()
+        .map(|w| w.finish())
+        .collect::<Result<_, _>>()?;
+    drop(unit_of);
+    progress.finish();
+    if let Some(hook) = budget.hook {
+        hook(&routed.iter().collect::<Vec<_>>());
+    }
+    // 4. Units.
+    progress.start("potree: units", n as u64);
+    let spacing = quant.size / 128.0;
+    let root_box = (quant.min, quant.min + DVec3::splat(quant.size));
+    let bpp = meta
+        .layout(&budget.dir.join(crate::potree::format::METADATA_FILE))?
+        .bytes_per_point;
+    let mut descs: Vec<Desc> = Vec::new();
+    let mut encoded: Vec<Spill> = Vec::with_capacity(units.len());
+    let mut roots: Vec<Node> = Vec::with_capacity(units.len());
+    let mut loose = Vec::new();
+    let mut largest = 0;
+    for (k, (u, routed)) in units.iter().zip(routed).enumerate() {
+        let mut keyed = Vec::with_capacity(u.count as usize);
+        routed.read(|block| {
+            for r in block.chunks_exact(12) {
+                let code = u64::from_le_bytes(r[..8].try_into().unwrap_or([0; 8]));
+                let idx = u32::from_le_bytes(r[8..].try_into().unwrap_or([0; 4]));
+                keyed.push((code, idx));
+            }
+            Ok(())
+        })?;
+        routed.remove();
+        largest = largest.max(keyed.len() as u64);
+        let sorted = Sorted::new(cloud, quant, bases[k], keyed);
+        let at = Node::at(u.level, u.path, root_box);
+        let mut root = octree::split(&sorted, 0..sorted.len(), at, p.max_leaf as usize);
+        octree::sample(&mut root, &sorted, spacing, p);
+        // Every node below the root, breadth first, encoded into the unit's file.
+        let mut below = Vec::new();
+        for c in root.children.iter().flatten() {
+            write::describe(c, &mut below);
+        }
+        below.sort_unstable_by_key(|d| (d.level, d.path));
+        let mut w = spill.writer_with_block("unit", bpp, SPILL_BLOCK)?;
+        let mut buf = vec![0u8; bpp];
+        for d in below {
+            if let Src::Ids(ids) = &d.src {
+                for &id in ids {
+                    let i = sorted.order[(id - sorted.base) as usize];
+                    write::encode(
+                        cloud,
+                        i as usize,
+                        sorted.q[(id - sorted.base) as usize],
+                        &mut buf,
+                    );
+                    w.push(&buf)?;
+                }
+            }
+            descs.push(Desc {
+                src: Src::Unit(k),
+                ..d
+            });
+        }
+        encoded.push(w.finish()?);
+        root.outer_mask = root.child_mask();
+        root.children = Default::default();
+        for &id in &root.points {
+            let j = (id - sorted.base) as usize;
+            loose.push((id, sorted.q[j], sorted.order[j]));
+        }
+        roots.push(root);
+        progress.inc(u.count);
+    }
+    progress.finish();
+    // 5. Top: the nodes above the units, sampling from the units' roots.
+    loose.sort_unstable_by_key(|l| l.0);
+    let loose = Loose {
+        points: loose,
+        quant,
+    };
+    let mut top = Node::at(0, 0, root_box);
+    for r in roots {
+        insert(&mut top, r, root_box);
+    }
+    octree::sample(&mut top, &loose, spacing, p);
+    write::describe(&top, &mut descs);
+    // 6. Files.
+    let mut readers = encoded
+        .iter()
+        .map(Spill::reader)
+        .collect::<Result<Vec<_>, _>>()?;
+    let written = write::write_files(cloud, meta, &mut descs, &loose, &mut readers, budget.dir)?;
+    Ok(Built {
+        written,
+        units: units.len() as u64,
+        largest_unit: largest,
+    })
+}
+
+/// Puts unit root `r` into the top tree under `top`, creating the nodes on the way.
+fn insert(top: &mut Node, r: Node, root_box: (DVec3, DVec3)) {
+    if r.level == top.level {
+        // The unit is the whole cloud's root.
+        *top = r;
+        return;
+    }
+    let digit = ((r.path >> (3 * (r.level - top.level - 1))) & 7) as usize;
+    if top.level + 1 == r.level {
+        top.children[digit] = Some(Box::new(r));
+        return;
+    }
+    let child = top.children[digit].get_or_insert_with(|| {
+        Box::new(Node::at(
+            top.level + 1,
+            (top.path << 3) | digit as u64,
+            root_box,
+        ))
+    });
+    insert(child, r, root_box);
+}

@@ -8,7 +8,8 @@
 # logged duration is quoted too: its wall time is held to whole seconds by its status thread.
 #   scripts/build-measurements.sh BIN OUT N [POTREE_BIN] [METHODS]
 # N: points (e.g. 10000000); POTREE_BIN: PotreeConverter built from source (rows skipped when
-# absent); METHODS: space-separated (default "lpc mwkd qsplat spt").
+# absent); METHODS: space-separated (default "lpc mwkd qsplat spt"), each METHOD or
+# METHOD:key=value,… for --param (e.g. "potree potree:sampling=random").
 # Prints one markdown row per build, and writes OUT/N/*.json|log.
 set -euo pipefail
 bin=${1:?usage: $0 BIN OUT N [POTREE_BIN] [METHODS]}
@@ -50,9 +51,17 @@ if [ -n "$potree" ] && [ -x "$potree" ]; then
     rm -rf "$dir/potree-$mode"
   done
 fi
-for meth in $methods; do
+for spec in $methods; do
+  # METHOD or METHOD:key=value,key=value (e.g. potree:sampling=random).
+  meth=${spec%%:*}
+  params=()
+  if [ "$spec" != "$meth" ]; then
+    IFS=, read -r -a kv <<<"${spec#*:}"
+    for p in "${kv[@]}"; do params+=(--param "$p"); done
+  fi
+  meth=$(tr ':=,' '-' <<<"$spec")
   rm -rf "$dir/$meth" "$dir/cache-$meth"
-  timed "$dir/$meth.time" "$bin" build --method "$meth" --scene "$las" --out "$dir/$meth" \
+  timed "$dir/$meth.time" "$bin" build --method "${spec%%:*}" "${params[@]}" --scene "$las" --out "$dir/$meth" \
     --cache "$dir/cache-$meth" >"$dir/$meth.json" 2>"$dir/$meth.log" \
     || { cat "$dir/$meth.log" >&2; exit 1; }
   read -r w m <"$dir/$meth.time"
@@ -61,7 +70,7 @@ for meth in $methods; do
   note=$(jq -r --argjson n "$n" '"build \(.seconds*10|round/10) s after the LAS read; \(.bytes_out*8/$n*10|round/10) bits/point; units \(.extra.units // "-")"
     + (if .extra.temp_bytes then "; temp \(.extra.temp_bytes/$n*10|round/10) B/point" else "" end)' \
     "$dir/$meth.json")
-  row "$meth" "$w" "$m" "$note"
+  row "$spec" "$w" "$m" "$note"
   rm -rf "$dir/$meth" "$dir/cache-$meth"
 done
 echo

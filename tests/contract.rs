@@ -90,10 +90,15 @@ fn check_chunks(kind: MethodKind, m: &dyn LodMethod, cloud: &PointCloud, list: &
     let scene = cloud.attributes();
     for item in &list.items {
         let (batch, drawn, size) = match item {
-            DrawItem::Chunk { id, points, size } => (
+            DrawItem::Chunk {
+                id,
+                first,
+                points,
+                size,
+            } => (
                 m.chunk(*id)
                     .unwrap_or_else(|e| panic!("{kind}: chunk {id}: {e:#}")),
-                *points as usize,
+                (*first + *points) as usize,
                 *size,
             ),
             DrawItem::Sequential {

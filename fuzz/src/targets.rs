@@ -652,7 +652,7 @@ fn drive(m: &mut dyn LodMethod, bounds: &Aabb) -> Result<(), String> {
                 };
                 let list = m.frame(v, aim, &fb).map_err(|e| e.to_string())?;
                 for item in &list.items {
-                    if let Some((id, _, _)) = item.cached() {
+                    if let Some(methods::Cached { id, .. }) = item.cached() {
                         m.chunk(id).map_err(|e| e.to_string())?;
                         cached.insert(id);
                     }

@@ -378,7 +378,7 @@ fn batches_over_the_storage_binding_limit_are_drawn_in_parts() {
                 .unwrap()
                 .draw(&v, &list, m.as_ref(), true)
                 .unwrap();
-            let spans = |i: &DrawItem| i.cached().is_some_and(|(_, n, _)| u64::from(n) > per);
+            let spans = |i: &DrawItem| i.cached().is_some_and(|c| u64::from(c.count) > per);
             assert!(
                 list.items.iter().any(spans),
                 "{raster:?}: a draw spans parts"

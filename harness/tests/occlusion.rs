@@ -114,6 +114,7 @@ impl Walls {
     fn item(&self, id: ChunkId) -> DrawItem {
         DrawItem::Chunk {
             id,
+            first: 0,
             points: self.clouds[id as usize].batch.len() as u32,
             size: SplatSize::Pixels(4.0),
         }
@@ -452,7 +453,7 @@ fn feedback_carries_visibility_to_the_next_frame() {
         let phase1: Vec<ChunkId> = list
             .items
             .iter()
-            .filter_map(|it| it.cached().map(|c| c.0))
+            .filter_map(|it| it.cached().map(|c| c.id))
             .collect();
         let (stats, _) = draw_both(&mut r, &v, &list, &m);
         let counters = runner::frame_counters(&m, &list, &stats, 0, Default::default());

@@ -444,3 +444,79 @@ fn golden_edl() {
         check_golden(name, &img.unwrap(), 0.02);
     }
 }
+
+/// `DrawItem::Chunk { first, points }` draws exactly splats `first .. first + points`: a
+/// chunk drawn in two ranges gives the image of the whole chunk, and a range gives the image
+/// of a stream holding only its splats; with the quads and the compute rasteriser, and the
+/// CPU mirror agrees.
+#[test]
+fn chunk_ranges_draw_exactly_their_splats() {
+    let Some(gpu) = gpu_for_test("chunk_ranges_draw_exactly_their_splats") else {
+        return;
+    };
+    let tmp = tempfile::tempdir().unwrap();
+    let cloud = Generator::Statue.generate(6_000, 11).unwrap();
+    let m = full(&cloud, tmp.path());
+    let v = view(&cloud, 200, 150, 1);
+    let chunk = m.chunk(0).unwrap();
+    assert_eq!(chunk.len(), 6_000);
+    let item = |first: u32, points: u32, px: f32| DrawItem::Chunk {
+        id: 0,
+        first,
+        points,
+        size: SplatSize::Pixels(px),
+    };
+    let list = |items: Vec<DrawItem>| DrawList {
+        items,
+        ..Default::default()
+    };
+    let whole = list(vec![item(0, 6_000, 3.0)]);
+    let halves = list(vec![item(0, 2_500, 3.0), item(2_500, 3_500, 3.0)]);
+    let range = list(vec![item(1_000, 2_000, 6.0)]);
+    let slice = SplatBatch {
+        positions: chunk.positions[1_000..3_000].to_vec(),
+        normals: chunk.normals.as_ref().map(|n| n[1_000..3_000].to_vec()),
+        colors: chunk.colors.as_ref().map(|c| c[1_000..3_000].to_vec()),
+        radii: chunk.radii.as_ref().map(|r| r[1_000..3_000].to_vec()),
+        lod: None,
+    };
+    let stream = list(vec![DrawItem::Stream {
+        batch: slice,
+        size: SplatSize::Pixels(6.0),
+    }]);
+    for raster in [Raster::Quads, Raster::Compute] {
+        let s = RenderSettings {
+            raster,
+            ..settings(200, 150, Kernel::Square)
+        };
+        let mut r = Renderer::new(&gpu, s).unwrap();
+        let mut draw = |l: &DrawList| {
+            let (stats, img) = r.draw(&v, l, m.as_ref(), true).unwrap();
+            (stats.points, img.unwrap())
+        };
+        let (n_whole, a) = draw(&whole);
+        let (n_halves, b) = draw(&halves);
+        assert_eq!((n_whole, n_halves), (6_000, 6_000));
+        assert!(
+            a.rgba == b.rgba,
+            "{raster:?}: two ranges differ from the whole chunk"
+        );
+        let (n_range, c) = draw(&range);
+        let (_, d) = draw(&stream);
+        assert_eq!(n_range, 2_000);
+        assert!(
+            c.rgba == d.rgba,
+            "{raster:?}: a range differs from a stream of its splats"
+        );
+        assert!(
+            c.rgba != a.rgba,
+            "{raster:?}: the range drew the whole chunk"
+        );
+        let mirror = cpu::rasterize(&v, &range, m.as_ref(), Kernel::Square).unwrap();
+        let (cov, _) = disagreement(&c, &mirror);
+        assert!(
+            cov < 0.01,
+            "{raster:?}: the CPU mirror's range differs on {cov}"
+        );
+    }
+}

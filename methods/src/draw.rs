@@ -132,11 +132,14 @@ pub fn pack_color(c: [u8; 3]) -> u32 {
 /// One thing to draw.
 #[derive(Debug, Clone, PartialEq)]
 pub enum DrawItem {
-    /// The first `points` splats of cached chunk `id`.
+    /// Splats `first .. first + points` of cached chunk `id`.
     Chunk {
         /// The chunk.
         id: ChunkId,
-        /// How many splats of it to draw (a prefix; the chunk's length draws it all).
+        /// The first splat drawn (0 for a prefix; Potree draws a node in ranges, each sized
+        /// by the deepest node drawn over it).
+        first: u32,
+        /// How many splats of it to draw (with `first = 0`, the chunk's length draws it all).
         points: u32,
         /// Splat size.
         size: SplatSize,
@@ -160,6 +163,19 @@ pub enum DrawItem {
         /// Splat size.
         size: SplatSize,
     },
+}
+
+/// What an item drawn from a cached chunk sends ([`DrawItem::cached`]).
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct Cached {
+    /// The chunk.
+    pub id: ChunkId,
+    /// First splat sent.
+    pub first: u32,
+    /// Splats sent from `first` on.
+    pub count: u32,
+    /// The vertex-stage interval test, if any.
+    pub test: Option<IntervalTest>,
 }
 
 /// SPT's per-splat interval test, evaluated in the vertex stage and mirrored on the CPU by
@@ -187,14 +203,26 @@ impl IntervalTest {
 }
 
 impl DrawItem {
-    /// For items drawn from a cached chunk (`Chunk` and `Sequential`): the chunk, how many of
-    /// its splats are sent, and the interval test if any. `None` for streams.
-    pub fn cached(&self) -> Option<(ChunkId, u32, Option<IntervalTest>)> {
+    /// For items drawn from a cached chunk (`Chunk` and `Sequential`): the chunk, the first
+    /// splat sent, how many are sent, and the interval test if any. `None` for streams.
+    pub fn cached(&self) -> Option<Cached> {
         match self {
-            DrawItem::Chunk { id, points, .. } => Some((*id, *points, None)),
+            DrawItem::Chunk {
+                id, first, points, ..
+            } => Some(Cached {
+                id: *id,
+                first: *first,
+                count: *points,
+                test: None,
+            }),
             DrawItem::Sequential {
                 id, prefix, test, ..
-            } => Some((*id, *prefix, Some(*test))),
+            } => Some(Cached {
+                id: *id,
+                first: 0,
+                count: *prefix,
+                test: Some(*test),
+            }),
             DrawItem::Stream { .. } => None,
         }
     }

@@ -39,7 +39,7 @@ pub mod strays;
 pub mod unit_knn;
 
 pub use draw::{
-    ChunkId, DrawItem, DrawList, Feedback, IntervalTest, OcclusionCandidate, OcclusionPass,
+    Cached, ChunkId, DrawItem, DrawList, Feedback, IntervalTest, OcclusionCandidate, OcclusionPass,
     SplatBatch, SplatShape, SplatSize, Target,
 };
 pub use error::MethodError;

@@ -228,6 +228,7 @@ impl LodMethod for Apart {
         let mut list = self.inner.frame(view, own, feedback)?;
         list.items.push(DrawItem::Chunk {
             id: CHUNK,
+            first: 0,
             points: self.batch.len() as u32,
             size: SplatSize::Radius {
                 scale: 1.0,

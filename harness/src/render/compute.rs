@@ -240,13 +240,13 @@ impl ComputeRaster {
 
 impl Renderer<'_> {
     /// Records one phase of splat draws with the compute rasteriser: the `resolved` draws
-    /// ((splat columns bind group, splats sent), frame+draw bind group `bg0`), then the resolve pass into the
+    /// ((splat columns bind group, first splat, splats sent), frame+draw bind group `bg0`), then the resolve pass into the
     /// colour and depth targets as `target` says.
     pub(super) fn encode_compute_raster(
         &self,
         enc: &mut wgpu::CommandEncoder,
         bg0: &wgpu::BindGroup,
-        resolved: &[(&wgpu::BindGroup, u32)],
+        resolved: &[(&wgpu::BindGroup, u32, u32)],
         target: PhaseTarget,
     ) -> anyhow::Result<()> {
         let c = self
@@ -271,7 +271,7 @@ impl Renderer<'_> {
         pass.set_pipeline(&c.raster);
         pass.set_bind_group(2, &c.raster_bg, &[]);
         let max = self.gpu.limits.max_compute_workgroups_per_dimension;
-        for (i, (g, count)) in resolved.iter().enumerate() {
+        for (i, (g, _, count)) in resolved.iter().enumerate() {
             if *count == 0 {
                 continue;
             }

@@ -18,10 +18,11 @@ const MAX_FOOTPRINT_PX: f32 = 64.0;
 
 @compute @workgroup_size(64)
 fn cs_raster(@builtin(global_invocation_id) gid: vec3<u32>, @builtin(num_workgroups) groups: vec3<u32>) {
-    let ii = dispatch_index(gid, groups);
-    if (ii >= draw.count) {
+    let k = dispatch_index(gid, groups);
+    if (k >= draw.count) {
         return;
     }
+    let ii = draw.first + k;
     let p = splat_position(ii);
     let clip = frame.view_proj * vec4<f32>(p, 1.0);
     if (clip.w <= 0.0 || !splat_passes(ii)) {

@@ -209,18 +209,19 @@ fn footprints<'a>(
     for item in items {
         let size = item.size();
         let chunk;
-        let (batch, count, test) = match (item, item.cached()) {
-            (_, Some((id, sent, test))) => {
-                chunk = method.chunk(id)?;
-                let c = (sent as usize).min(chunk.len());
+        let (batch, first, count, test) = match (item, item.cached()) {
+            (_, Some(c)) => {
+                chunk = method.chunk(c.id)?;
+                let first = (c.first as usize).min(chunk.len());
+                let n = (c.count as usize).min(chunk.len() - first);
                 chunks += 1;
-                (&*chunk, c, test)
+                (&*chunk, first, n, c.test)
             }
-            (DrawItem::Stream { batch, .. }, None) => (batch, batch.len(), None),
+            (DrawItem::Stream { batch, .. }, None) => (batch, 0, batch.len(), None),
             (item, None) => anyhow::bail!("unexpected draw item {item:?}"),
         };
         points += count as u64;
-        for i in 0..count {
+        for i in first..first + count {
             if let Some(t) = &test
                 && !interval_passes(batch, i, t, eye)
             {

@@ -15,7 +15,7 @@ impl Renderer<'_> {
         enc: &mut wgpu::CommandEncoder,
         bg0: &wgpu::BindGroup,
         tested: &[(usize, u32)],
-        resolved: &[(&wgpu::BindGroup, u32)],
+        resolved: &[(&wgpu::BindGroup, u32, u32)],
     ) -> anyhow::Result<Option<(wgpu::Buffer, u64)>> {
         if tested.is_empty() {
             return Ok(None);

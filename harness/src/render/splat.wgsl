@@ -33,7 +33,7 @@ struct Draw {
     test_overlap: f32, // offset 32
     count: u32,        // offset 36: splats sent (counting pass)
     slot: u32,         // offset 40: counter slot of this draw (counting pass)
-    _p0: u32,          // offset 44
+    first: u32,        // offset 44: first splat sent of this part
 }                      // size 48
 
 @group(0) @binding(0) var<uniform> frame: Frame;
@@ -117,7 +117,7 @@ fn dispatch_index(gid: vec3<u32>, groups: vec3<u32>) -> u32 {
 @compute @workgroup_size(64)
 fn cs_count(@builtin(global_invocation_id) gid: vec3<u32>, @builtin(num_workgroups) groups: vec3<u32>) {
     let i = dispatch_index(gid, groups);
-    if (i < draw.count && splat_passes(i)) {
+    if (i < draw.count && splat_passes(draw.first + i)) {
         atomicAdd(&counters[draw.slot], 1u);
     }
 }

@@ -34,7 +34,8 @@ impl Renderer<'_> {
         // The draw buffer holds them all ([`Self::ensure_draw_capacity`]).
         let stride = self.draw_stride as usize;
         let mut draws: Vec<u8> = Vec::with_capacity(stride * items.len().max(1));
-        let mut resolved: Vec<(&wgpu::BindGroup, u32)> = Vec::with_capacity(items.len());
+        // (splat columns of the part, first splat sent in the part, splats sent).
+        let mut resolved: Vec<(&wgpu::BindGroup, u32, u32)> = Vec::with_capacity(items.len());
         // Draws whose splats pass an interval test: (draw index, splats sent); counter slot
         // = position in this list (the counts are summed into `gpu_passed`).
         let mut tested: Vec<(usize, u32)> = Vec::new();
@@ -46,20 +47,22 @@ impl Renderer<'_> {
                     .with_context(|| format!("chunk {id} vanished from the cache"))
             };
             let size = item.size();
-            let (g, count, test) = match item.cached() {
-                Some((id, sent, test)) => {
-                    let g = cached(&id)?;
-                    if test.is_some() && !g.lod {
+            let (g, first, count, test) = match item.cached() {
+                Some(c) => {
+                    let g = cached(&c.id)?;
+                    if c.test.is_some() && !g.lod {
                         bail!(
-                            "draw item {i} has an interval test but chunk {id} carries no lod column"
+                            "draw item {i} has an interval test but chunk {} carries no lod column",
+                            c.id
                         );
                     }
                     stats.chunks += 1;
-                    (g, sent.min(g.len), test)
+                    let first = c.first.min(g.len);
+                    (g, first, c.count.min(g.len - first), c.test)
                 }
                 None => {
                     let g = s.next().context("stream buffers out of step")?;
-                    (g, g.len, None)
+                    (g, 0, g.len, None)
                 }
             };
             if matches!(size, SplatSize::Radius { .. }) && !g.attrs.radii {
@@ -67,10 +70,15 @@ impl Renderer<'_> {
             }
             stats.points += count as u64;
             for part in &g.parts {
-                // The first `count` splats of the batch: this part's share of them.
-                let sent = count.saturating_sub(part.start).min(part.len);
+                // Splats `first .. first + count` of the batch: this part's share of them,
+                // in the part's own numbering.
+                let lo = first.max(part.start) - part.start;
+                let hi = (first + count).min(part.start + part.len).max(part.start) - part.start;
+                let sent = hi.saturating_sub(lo);
                 let mut u = DrawUniform::new(size, g.attrs, g.lod, test);
-                // Splats sent: the compute passes (interval count, compute raster) stop there.
+                // Splats sent: the compute passes (interval count, compute raster) start at
+                // `first` and stop after `count`; the quads pass draws instances lo..lo+sent.
+                u.first = lo;
                 u.count = sent;
                 let draw = resolved.len();
                 if test.is_some() {
@@ -79,7 +87,7 @@ impl Renderer<'_> {
                 }
                 draws.extend_from_slice(bytemuck::bytes_of(&u));
                 draws.resize((draw + 1) * stride, 0);
-                resolved.push((&part.bind_group, sent));
+                resolved.push((&part.bind_group, lo, sent));
             }
         }
         if !draws.is_empty() {
@@ -233,20 +241,20 @@ struct Splats<'a> {
     bg0: &'a wgpu::BindGroup,
     stride: u64,
     indices: &'a wgpu::Buffer,
-    batches: &'a [(&'a wgpu::BindGroup, u32)],
+    batches: &'a [(&'a wgpu::BindGroup, u32, u32)],
 }
 
 impl Splats<'_> {
     fn record(&self, pass: &mut wgpu::RenderPass<'_>, pipeline: &wgpu::RenderPipeline) {
         pass.set_pipeline(pipeline);
         pass.set_index_buffer(self.indices.slice(..), wgpu::IndexFormat::Uint16);
-        for (i, (g, count)) in self.batches.iter().enumerate() {
+        for (i, (g, first, count)) in self.batches.iter().enumerate() {
             if *count == 0 {
                 continue;
             }
             pass.set_bind_group(0, self.bg0, &[(i as u64 * self.stride) as u32]);
             pass.set_bind_group(1, *g, &[]);
-            pass.draw_indexed(0..6, 0, 0..*count);
+            pass.draw_indexed(0..6, 0, *first..*first + *count);
         }
     }
 }

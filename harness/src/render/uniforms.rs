@@ -67,8 +67,9 @@ pub struct DrawUniform {
     pub count: u32,
     /// offset 40: counter slot (counting pass)
     pub slot: u32,
-    /// offset 44
-    pub _pad: u32,
+    /// offset 44: first splat of the part sent (compute and counting passes; the quads
+    /// pass starts its instance range there)
+    pub first: u32,
 }
 const _: () = assert!(std::mem::size_of::<DrawUniform>() == 48);
 
@@ -95,7 +96,7 @@ impl DrawUniform {
             test_overlap: test.map_or(0.0, |t| t.overlap),
             count: 0,
             slot: 0,
-            _pad: 0,
+            first: 0,
         }
     }
 }

@@ -137,7 +137,7 @@ impl Renderer<'_> {
     fn draw_slots(&self, items: &[&DrawItem], streams: &[GpuBatch]) -> anyhow::Result<u64> {
         let mut n = streams.iter().map(|g| g.parts.len() as u64).sum::<u64>();
         for item in items {
-            if let Some((id, _, _)) = item.cached() {
+            if let Some(methods::Cached { id, .. }) = item.cached() {
                 let g = self
                     .cache
                     .peek(&id)

@@ -175,6 +175,7 @@ impl LodMethod for Full {
         let items = (0..draw.div_ceil(CHUNK_POINTS))
             .map(|c| DrawItem::Chunk {
                 id: c as ChunkId,
+                first: 0,
                 points: (draw - c * CHUNK_POINTS).min(CHUNK_POINTS) as u32,
                 size,
             })

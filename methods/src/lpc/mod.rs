@@ -426,6 +426,7 @@ impl LodMethod for Lpc {
                     d.node,
                     DrawItem::Chunk {
                         id: d.node as ChunkId,
+                        first: 0,
                         points: d.points,
                         size: crate::SplatSize::Pixels(d.size_px),
                     },

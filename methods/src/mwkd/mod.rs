@@ -572,6 +572,7 @@ impl LodMethod for Mwkd {
         };
         let item = |id: u32| DrawItem::Chunk {
             id: id as ChunkId,
+            first: 0,
             points: self.nodes[id as usize].points,
             size,
         };

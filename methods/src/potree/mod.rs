@@ -389,6 +389,7 @@ impl LodMethod for Potree {
                 .filter(|&&id| nodes[id as usize].points > 0)
                 .map(|&id| DrawItem::Chunk {
                     id: ChunkId::from(id),
+                    first: 0,
                     points: nodes[id as usize].points,
                     size,
                 })

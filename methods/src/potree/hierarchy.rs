@@ -59,7 +59,7 @@ impl Node {
 }
 
 /// Where a node's points are in `octree.bin`: what the loader reads and decodes.
-#[derive(Debug, Clone, Copy, Default, PartialEq, Eq)]
+#[derive(Debug, Clone, Copy, Default, PartialEq)]
 pub struct Span {
     /// Byte offset.
     pub offset: u64,
@@ -71,6 +71,10 @@ pub struct Span {
     pub level: u32,
     /// Octant digits ([`Node::path`]), for messages.
     pub path: u64,
+    /// The node's local box (its points are ordered by octant digits in it).
+    pub lo: [f32; 3],
+    /// The node's local box.
+    pub hi: [f32; 3],
 }
 
 impl Span {
@@ -202,9 +206,12 @@ impl Hierarchy {
             lo: (min - self.origin).as_vec3(),
             hi: (max - self.origin).as_vec3(),
         });
+        let (lo, hi) = (self.nodes[id as usize].lo, self.nodes[id as usize].hi);
         self.spans_mut().push(Span {
             level,
             path,
+            lo: lo.to_array(),
+            hi: hi.to_array(),
             ..Span::default()
         });
         id
@@ -288,13 +295,12 @@ impl Hierarchy {
                 continue;
             }
             self.proxy_chunks.remove(&node);
-            self.spans_mut()[node as usize] = Span {
-                offset: rec.offset,
-                size: rec.size,
-                points: self.nodes[node as usize].points,
-                level,
-                path,
-            };
+            let mut spans = self.spans_mut();
+            let s = &mut spans[node as usize];
+            s.offset = rec.offset;
+            s.size = rec.size;
+            s.points = self.nodes[node as usize].points;
+            drop(spans);
             for c in 0..8u8 {
                 if rec.child_mask & (1 << c) == 0 {
                     continue;

@@ -17,6 +17,7 @@
 //! no `method.json`); one written by [`build()`] opens through the registry like any build.
 //! See `README.md` next to this file for what is faithful and what deviates.
 
+pub mod adaptive;
 pub mod build;
 pub mod format;
 pub mod hierarchy;
@@ -188,9 +189,11 @@ impl Potree {
         let decoder: Decoder = Arc::new(move |id: u32, bytes: &[u8]| {
             let s = decode_spans.read().unwrap_or_else(|e| e.into_inner())[id as usize];
             let radius = (spacing / f64::from(1u32 << s.level.min(31)) * 0.5) as f32;
-            decoding
-                .decode(bytes, s.points, radius)
-                .map_err(|m| MethodError::corrupt(&octree_path, format!("node {}: {m}", s.name())))
+            let mut b = decoding.decode(bytes, s.points, radius).map_err(|m| {
+                MethodError::corrupt(&octree_path, format!("node {}: {m}", s.name()))
+            })?;
+            adaptive::sort(&mut b, glam::Vec3::from(s.lo), glam::Vec3::from(s.hi));
+            Ok(b)
         });
         let source = OctreeSource {
             file: Box::new(octree),
@@ -289,6 +292,52 @@ impl Potree {
         Ok(())
     }
 
+    /// The draw items of the drawn nodes `draw`: each node in ranges of its points (sorted
+    /// at decode, [`adaptive`]), each range sized by the deepest drawn node holding it, as
+    /// the viewer's adaptive point size.
+    fn adaptive_items(&self, draw: &[u32]) -> Result<Vec<DrawItem>, MethodError> {
+        let nodes = self.hierarchy.nodes();
+        let mut drawn = vec![false; nodes.len()];
+        for &id in draw {
+            drawn[id as usize] = true;
+        }
+        // The descendant `depth` levels below `id` along the digits `path`, if drawn.
+        let below = |id: u32, depth: u32, path: u64| {
+            let mut at = id;
+            for d in (0..depth).rev() {
+                at = nodes[at as usize].children[((path >> (3 * d)) & 7) as usize];
+                if at == hierarchy::NONE {
+                    return false;
+                }
+            }
+            drawn[at as usize]
+        };
+        let mut items = Vec::with_capacity(draw.len());
+        for &id in draw {
+            let n = &nodes[id as usize];
+            if n.points == 0 {
+                continue;
+            }
+            let batch = self.access.get(id)?;
+            let ranges = adaptive::ranges(&batch.positions, (n.lo, n.hi), n.level, &|d, p| {
+                below(id, d, p)
+            });
+            for r in ranges {
+                items.push(DrawItem::Chunk {
+                    id: ChunkId::from(id),
+                    first: r.first,
+                    points: r.len,
+                    size: SplatSize::Radius {
+                        scale: ADAPTIVE_FACTOR * self.params.point_size
+                            / (1u64 << (r.lod - n.level).min(63)) as f32,
+                        min_px: self.params.min_px,
+                    },
+                });
+            }
+        }
+        Ok(items)
+    }
+
     fn loaded(&self, id: u32, feedback: &Feedback) -> bool {
         !self.hierarchy.is_proxy(id)
             && (self.hierarchy.nodes()[id as usize].points == 0
@@ -377,23 +426,9 @@ impl LodMethod for Potree {
             hierarchy_chunks_read: self.hierarchy.chunks_read() - chunks_before,
         };
         self.last = c;
-        let size = SplatSize::Radius {
-            scale: ADAPTIVE_FACTOR * self.params.point_size,
-            min_px: self.params.min_px,
-        };
-        let nodes = self.hierarchy.nodes();
+        let items = self.adaptive_items(&sel.draw)?;
         Ok(DrawList {
-            items: sel
-                .draw
-                .iter()
-                .filter(|&&id| nodes[id as usize].points > 0)
-                .map(|&id| DrawItem::Chunk {
-                    id: ChunkId::from(id),
-                    first: 0,
-                    points: nodes[id as usize].points,
-                    size,
-                })
-                .collect(),
+            items,
             fetch: sel.waiting.iter().map(|&id| ChunkId::from(id)).collect(),
             counters: vec![
                 c.visible_nodes as f64,

@@ -372,22 +372,7 @@ impl LodMethod for Lpc {
     fn attributes(&self) -> Attributes {
         self.attributes
     }
-    fn loads_chunks(&self) -> bool {
-        true
-    }
-    fn traffic(&self) -> crate::store::access::Traffic {
-        self.access.traffic()
-    }
-    fn throughput(&self) -> Option<crate::store::access::Throughput> {
-        self.access.throughput()
-    }
-    fn failed_chunks(&self) -> Vec<(ChunkId, String)> {
-        self.access
-            .failures()
-            .into_iter()
-            .map(|(id, e)| (ChunkId::from(id), e))
-            .collect()
-    }
+    crate::loads_through_access!(access);
     fn input_points(&self) -> u64 {
         self.info.points
     }

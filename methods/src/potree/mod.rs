@@ -364,22 +364,7 @@ impl LodMethod for Potree {
     fn input_points(&self) -> u64 {
         self.meta.points
     }
-    fn loads_chunks(&self) -> bool {
-        true
-    }
-    fn traffic(&self) -> crate::store::access::Traffic {
-        self.access.traffic()
-    }
-    fn throughput(&self) -> Option<crate::store::access::Throughput> {
-        self.access.throughput()
-    }
-    fn failed_chunks(&self) -> Vec<(ChunkId, String)> {
-        self.access
-            .failures()
-            .into_iter()
-            .map(|(id, e)| (ChunkId::from(id), e))
-            .collect()
-    }
+    crate::loads_through_access!(access);
     fn frame(
         &mut self,
         view: &View,

@@ -89,6 +89,32 @@ impl ChunkSource for LocalSource {
     }
 }
 
+/// The [`crate::LodMethod`] methods of a method that loads its chunks through the
+/// [`DataAccess`] in its field `$field` (LPC, MWKD, Potree): `loads_chunks` true, and
+/// `traffic`, `throughput` and `failed_chunks` as the access layer reports them. Used
+/// inside the `impl LodMethod` block.
+#[macro_export]
+macro_rules! loads_through_access {
+    ($field:ident) => {
+        fn loads_chunks(&self) -> bool {
+            true
+        }
+        fn traffic(&self) -> $crate::store::access::Traffic {
+            self.$field.traffic()
+        }
+        fn throughput(&self) -> Option<$crate::store::access::Throughput> {
+            self.$field.throughput()
+        }
+        fn failed_chunks(&self) -> Vec<($crate::ChunkId, String)> {
+            self.$field
+                .failures()
+                .into_iter()
+                .map(|(id, e)| ($crate::ChunkId::from(id), e))
+                .collect()
+        }
+    };
+}
+
 /// Requests a remote repository has in flight unless told otherwise: as many as Potree's
 /// viewer loads at once (`Potree.maxNodesLoading`, 4), so that a link's latency is paid once
 /// per four chunks rather than once per chunk.

@@ -19,3 +19,4 @@ pub mod runner;
 pub mod serve;
 pub mod sweep;
 pub mod tune;
+pub mod viewer;

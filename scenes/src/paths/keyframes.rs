@@ -175,6 +175,34 @@ impl Keyframes {
         &self.keys
     }
 
+    /// The path as a keyframe file that [`Keyframes::from_toml`] reads back to an equal
+    /// path (numbers in Rust's shortest round-trip form).
+    pub fn to_toml(&self) -> String {
+        let coordinates = match self.coordinates {
+            Coordinates::Relative => "relative",
+            Coordinates::Absolute => "absolute",
+        };
+        let interpolation = match self.interpolation {
+            Interpolation::CatmullRom => "catmull-rom",
+            Interpolation::Linear => "linear",
+        };
+        let v = |d: DVec3| format!("[{:?}, {:?}, {:?}]", d.x, d.y, d.z);
+        let mut out = format!(
+            "# splatbench camera path\ncoordinates = \"{coordinates}\"\ninterpolation = \"{interpolation}\"\nfov_deg = {:?}\n",
+            self.fov_deg
+        );
+        for k in &self.keys {
+            out.push_str(&format!(
+                "\n[[key]]\nt = {:?}\nposition = {}\ntarget = {}\nup = {}\n",
+                k.t,
+                v(k.position),
+                v(k.target),
+                v(k.up)
+            ));
+        }
+        out
+    }
+
     fn validated(source: &str, kf: Keyframes) -> Result<Keyframes, SceneError> {
         let err = |msg: String| SceneError::Path(format!("{source}: {msg}"));
         let keys = &kf.keys;

@@ -263,6 +263,14 @@ impl fmt::Display for PathSpec {
     }
 }
 
+/// The camera at `eye` looking at `target` (local coordinates) over a scene with `bounds`,
+/// finished as every path's cameras are (near and far planes bounding the scene, the guards
+/// of [`Camera::is_valid`]): for a camera moved by hand (the viewer) that a path file must
+/// reproduce exactly.
+pub fn camera_at(bounds: &Aabb, eye: DVec3, target: DVec3, up: DVec3, fov_y: f64) -> Camera {
+    Frame::new(bounds).camera(eye, target, up, fov_y, target - eye)
+}
+
 /// Normalised time of frame `i` on an open path: `i / (frames − 1)`, 0 for a single frame.
 fn open_time(i: usize, frames: usize) -> f64 {
     if frames <= 1 {

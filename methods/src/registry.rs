@@ -215,19 +215,34 @@ impl MethodKind {
                 }
             )));
         }
-        for k in runtime.0.keys() {
-            if !self.runtime_params().contains(&k.as_str()) {
-                return Err(MethodError::Param(format!(
-                    "'{k}' changes how {self} builds; {} was built by another tool \
-                     (runtime parameters: {})",
-                    dir.display(),
-                    self.runtime_params().join(", ")
-                )));
-            }
-        }
+        self.check_runtime(
+            runtime,
+            &format!("{} was built by another tool", dir.display()),
+        )?;
         let params = potree::PotreeParams::from_params(runtime)?;
         let m = potree::Potree::open_dir(dir, origin, &params)?;
         Ok((Box::new(m), potree::Potree::foreign_stats(dir)?))
+    }
+
+    /// Refuses any key of `runtime` that is not one of [`MethodKind::runtime_params`]: the
+    /// error names it and says what to do (`instead`).
+    fn check_runtime(self, runtime: &Params, instead: &str) -> Result<(), MethodError> {
+        match runtime
+            .0
+            .keys()
+            .find(|k| !self.runtime_params().contains(&k.as_str()))
+        {
+            Some(k) => Err(MethodError::Param(format!(
+                "'{k}' changes how {self} builds, not how it renders: {instead} (runtime \
+                 parameters of {self}: {})",
+                if self.runtime_params().is_empty() {
+                    "none".to_string()
+                } else {
+                    self.runtime_params().join(", ")
+                }
+            ))),
+            None => Ok(()),
+        }
     }
 
     /// Opens a build directory written by [`MethodKind::build`] (of any method).
@@ -325,18 +340,8 @@ impl MethodKind {
                 "a {kind} build is read from a local directory only"
             )));
         }
+        kind.check_runtime(runtime, "rebuild instead")?;
         for (k, v) in &runtime.0 {
-            if !kind.runtime_params().contains(&k.as_str()) {
-                return Err(MethodError::Param(format!(
-                    "'{k}' changes how {kind} builds, not how it renders: rebuild instead \
-                     (runtime parameters of {kind}: {})",
-                    if kind.runtime_params().is_empty() {
-                        "none".to_string()
-                    } else {
-                        kind.runtime_params().join(", ")
-                    }
-                )));
-            }
             manifest.params.0.insert(k.clone(), v.clone());
         }
         let (rule, own) = strays::split_params(&manifest.params)?;

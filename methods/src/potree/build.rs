@@ -89,8 +89,7 @@ pub fn build_with(
         octree::sample(&mut root, &sorted, quant.size / 128.0, &p);
         progress.finish();
         let mut descs = Vec::new();
-        write::describe(&root, &mut descs);
-        drop(root);
+        write::describe(root, &mut descs);
         let w = write::write_files(cloud, meta, &mut descs, &sorted, &mut [], dir)?;
         (w, 1, n as u64)
     };
@@ -132,13 +131,7 @@ pub fn build_with(
         extra,
     }
     .finish();
-    let attributes = super::format::Decoding {
-        layout: written.layout,
-        scale: glam::DVec3::ZERO,
-        offset: glam::DVec3::ZERO,
-        origin: glam::DVec3::ZERO,
-    }
-    .attributes();
+    let attributes = written.layout.attributes();
     Manifest {
         method: NAME.into(),
         format_version: FORMAT_VERSION,

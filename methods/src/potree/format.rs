@@ -229,6 +229,18 @@ pub struct Layout {
     pub skipped: Vec<String>,
 }
 
+impl Layout {
+    /// Which attributes the decoded splats carry: the data set's colour and normal if it
+    /// has them, and a radius per splat (the node's spacing, see the method's README).
+    pub fn attributes(&self) -> scenes::Attributes {
+        scenes::Attributes {
+            normals: self.normal.is_some(),
+            colors: self.rgb.is_some(),
+            radii: true,
+        }
+    }
+}
+
 impl Metadata {
     /// Reads and validates `metadata.json` of `dir`.
     pub fn read(dir: &Path) -> Result<Self, MethodError> {
@@ -497,14 +509,9 @@ pub struct Decoding {
 }
 
 impl Decoding {
-    /// Which attributes a decoded batch carries: the data set's colour and normal if it has
-    /// them, and a radius per splat (the node's spacing, see the method's README).
+    /// Which attributes a decoded batch carries ([`Layout::attributes`]).
     pub fn attributes(&self) -> scenes::Attributes {
-        scenes::Attributes {
-            normals: self.layout.normal.is_some(),
-            colors: self.layout.rgb.is_some(),
-            radii: true,
-        }
+        self.layout.attributes()
     }
 
     /// The `int32` position of record `i` of `bytes` (whole records).

@@ -196,9 +196,10 @@ pub fn build(
         let mut root = octree::split(&sorted, 0..sorted.len(), at, p.max_leaf as usize);
         octree::sample(&mut root, &sorted, spacing, p);
         // Every node below the root, breadth first, encoded into the unit's file.
+        root.outer_mask = root.child_mask();
         let mut below = Vec::new();
-        for c in root.children.iter().flatten() {
-            write::describe(c, &mut below);
+        for c in std::mem::take(&mut root.children).into_iter().flatten() {
+            write::describe(*c, &mut below);
         }
         below.sort_unstable_by_key(|d| (d.level, d.path));
         let mut w = spill.writer_with_block("unit", bpp, SPILL_BLOCK)?;
@@ -222,8 +223,6 @@ pub fn build(
             });
         }
         encoded.push(w.finish()?);
-        root.outer_mask = root.child_mask();
-        root.children = Default::default();
         for &id in &root.points {
             let j = (id - sorted.base) as usize;
             loose.push((id, sorted.q[j], sorted.order[j]));
@@ -243,7 +242,7 @@ pub fn build(
         insert(&mut top, r, root_box);
     }
     octree::sample(&mut top, &loose, spacing, p);
-    write::describe(&top, &mut descs);
+    write::describe(top, &mut descs);
     // 6. Files.
     let mut readers = encoded
         .iter()

@@ -37,17 +37,17 @@ pub enum Src {
     Unit(usize),
 }
 
-/// Every node of `root`'s tree, its points in memory.
-pub fn describe(root: &super::octree::Node, out: &mut Vec<Desc>) {
+/// Every node of `root`'s tree, its points (moved out of the tree) in memory.
+pub fn describe(mut root: super::octree::Node, out: &mut Vec<Desc>) {
     out.push(Desc {
         level: root.level,
         path: root.path,
         mask: root.child_mask(),
         points: root.points.len() as u32,
-        src: Src::Ids(root.points.clone()),
+        src: Src::Ids(std::mem::take(&mut root.points)),
     });
-    for c in root.children.iter().flatten() {
-        describe(c, out);
+    for c in root.children.into_iter().flatten() {
+        describe(*c, out);
     }
 }
 

@@ -90,8 +90,8 @@ pub type Spans = Arc<RwLock<Vec<Span>>>;
 
 /// Reads byte ranges of a file (local now; the trait leaves room for HTTP range requests).
 pub trait RangeRead: Send + Sync {
-    /// `len` bytes at `offset`, or an error naming the file.
-    fn read(&self, offset: u64, len: u64) -> Result<Vec<u8>, MethodError>;
+    /// `len` bytes at `offset`, or an error naming the file and `what` is read (a node).
+    fn read(&self, offset: u64, len: u64, what: &str) -> Result<Vec<u8>, MethodError>;
     /// File size in bytes.
     fn len(&self) -> u64;
     /// True for an empty file.
@@ -124,22 +124,26 @@ impl LocalFile {
 }
 
 impl RangeRead for LocalFile {
-    fn read(&self, offset: u64, len: u64) -> Result<Vec<u8>, MethodError> {
+    fn read(&self, offset: u64, len: u64, what: &str) -> Result<Vec<u8>, MethodError> {
         use std::os::unix::fs::FileExt;
         let end = offset.checked_add(len).filter(|&e| e <= self.len);
         if end.is_none() {
             return Err(MethodError::corrupt(
                 &self.path,
                 format!(
-                    "bytes {offset}..{offset}+{len} lie beyond the end of the file ({} bytes)",
+                    "{what}: bytes {offset}..{offset}+{len} lie beyond the end of the file ({} \
+                     bytes)",
                     self.len
                 ),
             ));
         }
         let mut buf = vec![0u8; len as usize];
-        self.file
-            .read_exact_at(&mut buf, offset)
-            .map_err(|e| MethodError::io(&self.path, e))?;
+        self.file.read_exact_at(&mut buf, offset).map_err(|e| {
+            MethodError::io(
+                &self.path,
+                std::io::Error::new(e.kind(), format!("{what}: {e}")),
+            )
+        })?;
         Ok(buf)
     }
     fn len(&self) -> u64 {
@@ -259,8 +263,7 @@ impl Hierarchy {
         }
         let bytes = self
             .file
-            .read(offset, size)
-            .map_err(|e| bad(e.to_string()))?;
+            .read(offset, size, &format!("hierarchy chunk of node {name}"))?;
         self.chunks_read += 1;
         // Breadth first: record i describes queue[i]; a non-proxy record appends its
         // children in octant order.

@@ -116,9 +116,9 @@ impl ChunkSource for OctreeSource {
     }
     fn fetch(&self, id: u32) -> Result<Vec<u8>, MethodError> {
         let s = self.span(id)?;
-        let bytes = self.file.read(s.offset, s.size).map_err(|e| {
-            MethodError::corrupt(self.file.path(), format!("node {}: {e}", s.name()))
-        })?;
+        let bytes = self
+            .file
+            .read(s.offset, s.size, &format!("node {}", s.name()))?;
         self.read
             .fetch_add(s.size, std::sync::atomic::Ordering::Relaxed);
         Ok(bytes)

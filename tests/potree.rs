@@ -59,7 +59,12 @@ fn a_bare_potree_directory_renders_as_our_build_of_it() {
     let summary = std::fs::read_to_string(d.path().join("b/summary.json")).unwrap();
     assert!(summary.contains("another tool"), "{summary}");
     // A runtime parameter applies to the bare directory; a build parameter is refused.
-    run(&bare, &d.path().join("c"), &["--param", "min_px=3"]);
+    run(&bare, &d.path().join("c"), &["--param", "point_size=3"]);
+    let c = read_csv(&d.path().join("c/frames.csv"));
+    assert!(
+        c.iter().zip(&b).all(|(x, y)| x["flip_mean"] != y["flip_mean"]),
+        "point_size=3 did not change the frames"
+    );
     fails(
         bin()
             .args([

@@ -40,11 +40,15 @@ use crate::render::{FrameStats, RenderSettings, Renderer};
 use crate::results::{FrameRow, FramesWriter, write_json};
 
 mod columns;
+mod prepare;
 mod summary;
 
 pub use columns::{
     INTERVAL_COLUMNS, OCCLUSION_COLUMNS, TRAFFIC_COLUMNS, frame_columns, frame_counters,
     next_feedback,
+};
+pub use prepare::{
+    BuildSource, OpenedMethod, PreparedScene, check_gpu_budget, load_scene, open_method,
 };
 pub use summary::{FailedChunk, Medians, SceneStats, Summary, TrafficTotals};
 
@@ -287,136 +291,36 @@ pub fn run(cfg: &RunConfig, gpu: &Gpu, progress: &dyn Progress) -> anyhow::Resul
     cfg.method.check_params(&cfg.params)?;
     std::fs::create_dir_all(&cfg.out)
         .with_context(|| format!("creating output directory {}", cfg.out.display()))?;
-    // Shading by a file scalar loads it as the cloud's colour (scenes::scalar).
-    let scene = cfg
-        .scene
-        .clone()
-        .with_colour_from(cfg.render.shade.shading.scalar());
-    let loaded = scene
-        .load(Some(&cfg.cache), progress)
-        .with_context(|| format!("loading scene '{}'", cfg.scene.text))?;
-    let mut scene_warnings = loaded.warnings.clone();
-    let cloud = loaded.warn();
-    let framing = scenes::framing::framing(&cloud);
-    if framing.outside > 0 {
-        let w = format!(
-            "{}: {} of {} samples lie far outside the rest (beyond half the robust extent of \
-             the 0.1–99.9 % quantile box): drawn, but the camera paths frame the others",
-            cfg.scene.text,
-            framing.outside,
-            cloud.len()
-        );
-        eprintln!("warning: {w}");
-        scene_warnings.push(w);
-    }
-    let scene_hash = scene.content_hash()?;
-    let label = scene.label();
-    let render = RenderSettings {
-        shade: crate::render::Shade {
-            shading: cfg.render.shade.shading.resolve(cloud.attributes()),
-            elevation: [framing.framed.min.z, framing.framed.max.z],
-        },
-        ..cfg.render
-    };
+    let prepared = load_scene(&cfg.scene, cfg.render, &cfg.cache, progress)?;
+    let mut scene_warnings = prepared.warnings.clone();
     anyhow::ensure!(
         cfg.build_dir.is_none() || cfg.build_url.is_none(),
         "--build-dir and --build-url name two builds: give one"
     );
-    // A remote build: its small files copied here, its repository read over HTTP.
-    let remote = match &cfg.build_url {
-        Some(RemoteBuild { url, timeout }) => {
-            let dir = cfg.out.join("remote-build");
-            let repo = MethodKind::fetch_remote(url, &dir, *timeout)
-                .with_context(|| format!("--build-url {url}"))?;
-            Some((dir, repo, url.clone()))
-        }
-        None => None,
+    let remote_dir = cfg.out.join("remote-build");
+    let build_into = cfg.out.join("build");
+    let source = match (&cfg.build_dir, &cfg.build_url) {
+        (Some(dir), _) => BuildSource::Dir(dir),
+        (None, Some(remote)) => BuildSource::Remote(remote, &remote_dir),
+        (None, None) => BuildSource::Build(&build_into),
     };
-    let given = match (&cfg.build_dir, &remote) {
-        (Some(dir), _) => Some((dir.clone(), format!("--build-dir {}", dir.display()))),
-        (None, Some((dir, _, url))) => Some((dir.clone(), format!("--build-url {url}"))),
-        (None, None) => None,
-    };
-    let mut foreign = None;
-    let (build_dir, build, params) = match &given {
-        None => {
-            let dir = cfg.out.join("build");
-            let build = cfg
-                .method
-                .build(&cloud, &cfg.params, &label, &dir, progress)
-                .with_context(|| format!("building {} on {label}", cfg.method))?;
-            (dir, build, cfg.params.clone())
-        }
-        // Another tool's output (PotreeConverter's for `potree`): read as it is.
-        Some((dir, flag)) if remote.is_none() && cfg.method.reads_foreign(dir) => {
-            let (m, build) = cfg
-                .method
-                .open_foreign(dir, cloud.origin(), &cfg.params)
-                .with_context(|| flag.clone())?;
-            if m.input_points() != cloud.len() as u64 {
-                let w = format!(
-                    "{flag}: holds {} points, the scene '{label}' {}: frames are compared \
-                     with a reference of the scene's points",
-                    m.input_points(),
-                    cloud.len()
-                );
-                eprintln!("warning: {w}");
-                scene_warnings.push(w);
-            }
-            foreign = Some(m);
-            (dir.clone(), build, cfg.params.clone())
-        }
-        Some((dir, flag)) => {
-            let m = methods::Manifest::read(dir).with_context(|| flag.clone())?;
-            anyhow::ensure!(
-                m.method == cfg.method.name() && m.scene == label && m.points == cloud.len() as u64,
-                "{flag}: holds {} on '{}' ({} points), not {} on '{label}' ({} points)",
-                m.method,
-                m.scene,
-                m.points,
-                cfg.method,
-                cloud.len()
-            );
-            // `--param` may only change runtime parameters (checked by `open_with` below).
-            let mut params = m.params.clone();
-            params.0.extend(cfg.params.0.clone());
-            let build = BuildStats::read(dir).with_context(|| flag.clone())?;
-            (dir.clone(), build, params)
-        }
-    };
-    let mut method = match (foreign, &given) {
-        (Some(m), _) => m,
-        (None, None) => MethodKind::open(&build_dir)?,
-        (None, Some((dir, flag))) => {
-            let opened = match &remote {
-                Some((_, repo, _)) => MethodKind::open_remote(dir, repo, &cfg.params),
-                None => MethodKind::open_with(dir, &cfg.params),
-            };
-            opened.with_context(|| {
-                if cfg.params.0.is_empty() {
-                    flag.clone()
-                } else {
-                    format!("{flag} with --param")
-                }
-            })?
-        }
-    };
-    if let Some(need) = method.gpu_resident_bytes()
-        && need > cfg.render.cache_bytes
-    {
-        anyhow::bail!(
-            "{} keeps its whole model on the GPU: {:.1} MiB, more than the GPU cache budget of \
-             {:.1} MiB (--gpu-cache-mb); raise the budget or use a smaller scene",
-            cfg.method,
-            need as f64 / (1u64 << 20) as f64,
-            cfg.render.cache_bytes as f64 / (1u64 << 20) as f64
-        );
-    }
+    let opened = open_method(cfg.method, &cfg.params, &prepared, source, progress)?;
+    scene_warnings.extend(opened.warnings);
+    let (build, params, mut method) = (opened.build, opened.params, opened.method);
+    check_gpu_budget(cfg.method, method.as_ref(), cfg.render.cache_bytes)?;
+    let PreparedScene {
+        cloud,
+        bounds,
+        outside,
+        hash: scene_hash,
+        label,
+        render,
+        ..
+    } = prepared;
     let mut renderer = Renderer::new(gpu, render)?;
     let mut reference = cfg
         .metrics
         .then(|| Reference::new(gpu, &cloud, label.clone(), scene_hash, &cfg.cache, render));
-    let bounds = framing.framed;
     let mut summary = Summary {
         complete: false,
         adapter: gpu.adapter.clone(),
@@ -441,7 +345,7 @@ pub fn run(cfg: &RunConfig, gpu: &Gpu, progress: &dyn Progress) -> anyhow::Resul
             attributes: cloud.attributes().to_string(),
             bounds: cloud.bounds(),
             framed_bounds: bounds,
-            outside_frame: framing.outside,
+            outside_frame: outside,
             reference_radii_capped: None,
             origin: cloud.origin().to_array(),
             content_hash: format!("{scene_hash:016x}"),

@@ -32,6 +32,10 @@ pub struct Gpu {
     pub timestamps: bool,
     /// The device's limits (the adapter's best).
     pub limits: wgpu::Limits,
+    /// The instance it came from (a window's surface is made from it).
+    pub instance: wgpu::Instance,
+    /// The adapter (a surface's capabilities are asked of it).
+    pub handle: wgpu::Adapter,
 }
 
 impl Gpu {
@@ -44,8 +48,18 @@ impl Gpu {
     /// (lowered, e.g. a small storage binding limit, to test how the renderer copes with a
     /// smaller GPU; raising one past the adapter's fails).
     pub fn with_limits(adjust: impl FnOnce(&mut wgpu::Limits)) -> anyhow::Result<Option<Gpu>> {
-        let instance =
-            wgpu::Instance::new(wgpu::InstanceDescriptor::new_without_display_handle_from_env());
+        Self::from_instance(
+            wgpu::Instance::new(wgpu::InstanceDescriptor::new_without_display_handle_from_env()),
+            adjust,
+        )
+    }
+
+    /// The default adapter of `instance` (the viewer's has the window system's display
+    /// handle), or `Ok(None)` when it has none.
+    pub fn from_instance(
+        instance: wgpu::Instance,
+        adjust: impl FnOnce(&mut wgpu::Limits),
+    ) -> anyhow::Result<Option<Gpu>> {
         let Ok(adapter) = pollster::block_on(wgpu::util::initialize_adapter_from_env_or_default(
             &instance, None,
         )) else {
@@ -83,6 +97,8 @@ impl Gpu {
             },
             timestamps,
             limits,
+            instance,
+            handle: adapter,
         }))
     }
 

@@ -108,7 +108,7 @@ pub const TIMELINE_SIZE: (u32, u32) = (1280, 1024);
 pub const COMPARISON_SIZE: (u32, u32) = (1600, 720);
 
 /// The font family every plot uses; the bundled DejaVu Sans is registered under it.
-const FONT: &str = "sans-serif";
+pub(crate) const FONT: &str = "sans-serif";
 
 /// DejaVu Sans, bundled so that plots need no system font.
 const FONT_BYTES: &[u8] = include_bytes!("../../assets/DejaVuSans.ttf");
@@ -240,7 +240,7 @@ pub fn plot_comparison(run_dirs: &[PathBuf], out_dir: &Path) -> anyhow::Result<V
 }
 
 /// Registers the bundled font as "sans-serif", once per process.
-fn ensure_font() -> anyhow::Result<()> {
+pub(crate) fn ensure_font() -> anyhow::Result<()> {
     static REGISTERED: OnceLock<bool> = OnceLock::new();
     let ok = *REGISTERED.get_or_init(|| {
         plotters::style::register_font(FONT, FontStyle::Normal, FONT_BYTES).is_ok()

@@ -85,6 +85,7 @@ use crate::image::Image;
 use occlusion::Icosahedron;
 pub use occlusion::OcclusionStats;
 use queries::QueryPipeline;
+pub(crate) use readback::read_texture;
 use readback::{TIMESTAMP_READBACK_BYTES, Timestamps, read_buffer, zeroed_counters};
 pub use shading::{Shade, Shading};
 use splats::PhaseTarget;
@@ -248,6 +249,7 @@ pub const SHADER_MODULES: &[(&str, &str)] = &[
     ("normalize.wgsl", include_str!("normalize.wgsl")),
     ("occlusion.wgsl", OCCLUSION_WGSL),
     ("edl.wgsl", edl::EDL_WGSL),
+    ("present.wgsl", crate::viewer::present::PRESENT_WGSL),
 ];
 
 /// The occlusion-query shader (phase 2 of occlusion culling).
@@ -459,6 +461,11 @@ impl<'g> Renderer<'g> {
     /// The settings.
     pub fn settings(&self) -> RenderSettings {
         self.settings
+    }
+
+    /// The colour target the frames are drawn into (the viewer presents it).
+    pub fn color_view(&self) -> &wgpu::TextureView {
+        &self.color_view
     }
 
     /// Chunks resident in the GPU cache.

@@ -89,52 +89,48 @@ impl Renderer<'_> {
 
     /// Reads the colour target back.
     pub fn read_color(&self) -> anyhow::Result<Image> {
-        let (w, h) = (self.settings.width, self.settings.height);
-        let row = w * 4;
-        let padded =
-            row.div_ceil(wgpu::COPY_BYTES_PER_ROW_ALIGNMENT) * wgpu::COPY_BYTES_PER_ROW_ALIGNMENT;
-        let size = padded as u64 * h as u64;
-        let buf = self.gpu.device.create_buffer(&wgpu::BufferDescriptor {
-            label: Some("color readback"),
-            size,
-            usage: wgpu::BufferUsages::MAP_READ | wgpu::BufferUsages::COPY_DST,
-            mapped_at_creation: false,
-        });
-        let mut enc = self.gpu.device.create_command_encoder(&Default::default());
-        enc.copy_texture_to_buffer(
-            wgpu::TexelCopyTextureInfo {
-                texture: &self.color,
-                mip_level: 0,
-                origin: wgpu::Origin3d::ZERO,
-                aspect: wgpu::TextureAspect::All,
-            },
-            wgpu::TexelCopyBufferInfo {
-                buffer: &buf,
-                layout: wgpu::TexelCopyBufferLayout {
-                    offset: 0,
-                    bytes_per_row: Some(padded),
-                    rows_per_image: Some(h),
-                },
-            },
-            wgpu::Extent3d {
-                width: w,
-                height: h,
-                depth_or_array_layers: 1,
-            },
-        );
-        self.gpu.queue.submit([enc.finish()]);
-        let bytes = read_buffer(self.gpu, &buf, size)?;
-        let mut rgba = Vec::with_capacity((row * h) as usize);
-        for y in 0..h as usize {
-            let start = y * padded as usize;
-            rgba.extend_from_slice(&bytes[start..start + row as usize]);
-        }
-        Ok(Image {
-            width: w,
-            height: h,
-            rgba,
-        })
+        read_texture(self.gpu, &self.color)
     }
+}
+
+/// Reads an RGBA8 `texture` back (its whole first mip level).
+pub(crate) fn read_texture(gpu: &Gpu, texture: &wgpu::Texture) -> anyhow::Result<Image> {
+    let (w, h) = (texture.width(), texture.height());
+    let row = w * 4;
+    let padded =
+        row.div_ceil(wgpu::COPY_BYTES_PER_ROW_ALIGNMENT) * wgpu::COPY_BYTES_PER_ROW_ALIGNMENT;
+    let size = padded as u64 * h as u64;
+    let buf = gpu.device.create_buffer(&wgpu::BufferDescriptor {
+        label: Some("color readback"),
+        size,
+        usage: wgpu::BufferUsages::MAP_READ | wgpu::BufferUsages::COPY_DST,
+        mapped_at_creation: false,
+    });
+    let mut enc = gpu.device.create_command_encoder(&Default::default());
+    enc.copy_texture_to_buffer(
+        texture.as_image_copy(),
+        wgpu::TexelCopyBufferInfo {
+            buffer: &buf,
+            layout: wgpu::TexelCopyBufferLayout {
+                offset: 0,
+                bytes_per_row: Some(padded),
+                rows_per_image: Some(h),
+            },
+        },
+        texture.size(),
+    );
+    gpu.queue.submit([enc.finish()]);
+    let bytes = read_buffer(gpu, &buf, size)?;
+    let mut rgba = Vec::with_capacity((row * h) as usize);
+    for y in 0..h as usize {
+        let start = y * padded as usize;
+        rgba.extend_from_slice(&bytes[start..start + row as usize]);
+    }
+    Ok(Image {
+        width: w,
+        height: h,
+        rgba,
+    })
 }
 
 /// Maps `buf`, waits for the device, and copies its first `size` bytes out.

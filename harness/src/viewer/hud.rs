@@ -1,0 +1,205 @@
+//! The on-screen HUD: what the frame cost and what the viewer is doing, as lines of text
+//! ([`lines`], a plain function) drawn with the plots' bundled font into an image
+//! ([`draw`]) that the window lays over the top-left corner.
+
+use methods::{MethodKind, Target};
+use plotters::prelude::*;
+
+use super::control::Mode;
+use super::session::{FrameInfo, Overlay};
+use crate::image::Image;
+use crate::render::RenderSettings;
+
+/// What the HUD reports.
+pub struct HudState<'a> {
+    /// The methods (keys 1…9).
+    pub methods: Vec<MethodKind>,
+    /// The one shown.
+    pub current: usize,
+    /// Tolerance or budget.
+    pub target: Target,
+    /// Renderer settings (kernel, raster, size).
+    pub settings: RenderSettings,
+    /// The last frame.
+    pub info: &'a FrameInfo,
+    /// The image shown.
+    pub overlay: Overlay,
+    /// Fly or orbit.
+    pub mode: Mode,
+    /// Fly speed, scene radii per second.
+    pub speed: f64,
+    /// Keyframes recorded.
+    pub keyframes: usize,
+    /// (frame, of frames) of a path playing.
+    pub playing: Option<(usize, usize)>,
+    /// The last message.
+    pub message: &'a str,
+    /// Whether the adapter has timestamp queries (else GPU time is unknown).
+    pub timestamps: bool,
+}
+
+fn mib(bytes: u64) -> String {
+    format!("{:.1} MiB", bytes as f64 / f64::from(1u32 << 20))
+}
+
+/// The HUD's lines.
+pub fn lines(s: &HudState<'_>) -> Vec<String> {
+    let i = s.info;
+    let method = s.methods.get(s.current).map_or("-", |m| m.name());
+    let others: Vec<String> = s
+        .methods
+        .iter()
+        .enumerate()
+        .map(|(n, m)| format!("{} {}", n + 1, m.name()))
+        .collect();
+    let target = match s.target {
+        Target::Tolerance(e) => format!("eps {e:.3} px"),
+        Target::Budget(b) => format!("budget {b} points"),
+    };
+    let mode = match s.mode {
+        Mode::Fly => format!("fly {:.2} R/s", s.speed),
+        Mode::Orbit => "orbit".into(),
+    };
+    let gpu = match (i.stats.gpu_ms, s.timestamps) {
+        (Some(ms), _) => format!("{ms:.2} ms"),
+        (None, false) => "n/a (no timestamps)".into(),
+        (None, true) => "-".into(),
+    };
+    let drawn = i.stats.gpu_passed.unwrap_or(i.stats.points);
+    let fps = if i.frame_ms > 0.0 {
+        1e3 / i.frame_ms
+    } else {
+        0.0
+    };
+    let flip = match i.flip {
+        Some((f, v)) => format!("FLIP {v:.4} (frame {f})"),
+        None => "FLIP: press C".into(),
+    };
+    let loader = match &i.traffic {
+        Some(t) => format!(
+            "loader: {} requests, {} read, {} failed tries, {} chunks missing",
+            t.issued,
+            mib(t.bytes),
+            t.failed,
+            i.failed_chunks
+        ),
+        None => "loader: in core".into(),
+    };
+    let play = match s.playing {
+        Some((f, n)) => format!("  playing {f}/{n}"),
+        None => String::new(),
+    };
+    vec![
+        format!("{method}  [{}]", others.join(", ")),
+        format!(
+            "{target}  kernel {}  raster {}  {mode}{play}",
+            s.settings.kernel.name(),
+            s.settings.raster.name()
+        ),
+        format!(
+            "points {drawn}  chunks {}  cpu select {:.2} ms  gpu {gpu}",
+            i.stats.chunks, i.cpu_select_ms
+        ),
+        format!(
+            "frame {:.1} ms ({fps:.1} fps)  draw {:.1} ms  upload {}  gpu cache {}",
+            i.frame_ms,
+            i.stats.wall_ms,
+            mib(i.stats.upload_bytes),
+            mib(i.stats.cache_bytes)
+        ),
+        format!("{flip}  showing {}  {loader}", s.overlay.name()),
+        format!(
+            "keyframes {} (Space add, Enter save, P play)  F12 screenshot  {}",
+            s.keyframes, s.message
+        ),
+    ]
+}
+
+/// Text height, pixels.
+pub const LINE_PX: u32 = 16;
+
+/// `lines` in white on a dark panel `width` pixels wide (opaque RGBA, one [`LINE_PX`] row
+/// per line plus a margin).
+pub fn draw(lines: &[String], width: u32) -> anyhow::Result<Image> {
+    crate::plot::ensure_font()?;
+    let height = LINE_PX * lines.len() as u32 + 8;
+    let mut rgb = vec![0u8; width as usize * height as usize * 3];
+    {
+        let root = BitMapBackend::with_buffer(&mut rgb, (width, height)).into_drawing_area();
+        root.fill(&RGBColor(16, 16, 24))
+            .map_err(|e| anyhow::anyhow!("HUD: {e}"))?;
+        let style = (crate::plot::FONT, LINE_PX as f64 * 0.85)
+            .into_font()
+            .color(&WHITE);
+        for (n, l) in lines.iter().enumerate() {
+            root.draw(&Text::new(
+                l.as_str(),
+                (6, 4 + (n as u32 * LINE_PX) as i32),
+                &style,
+            ))
+            .map_err(|e| anyhow::anyhow!("HUD: {e}"))?;
+        }
+        root.present().map_err(|e| anyhow::anyhow!("HUD: {e}"))?;
+    }
+    let rgba = rgb
+        .chunks_exact(3)
+        .flat_map(|p| [p[0], p[1], p[2], 255])
+        .collect();
+    Ok(Image::from_rgba(width, height, rgba)?)
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::render::FrameStats;
+
+    #[test]
+    fn the_hud_reports_the_frame_and_draws_legibly() {
+        let info = FrameInfo {
+            stats: FrameStats {
+                points: 1000,
+                gpu_passed: Some(750),
+                chunks: 3,
+                gpu_ms: None,
+                upload_bytes: 3 << 20,
+                ..Default::default()
+            },
+            cpu_select_ms: 1.5,
+            frame_ms: 20.0,
+            flip: Some((7, 0.0123)),
+            ..Default::default()
+        };
+        let l = lines(&HudState {
+            methods: vec![MethodKind::Qsplat, MethodKind::Spt],
+            current: 1,
+            target: Target::Tolerance(2.0),
+            settings: RenderSettings::default(),
+            info: &info,
+            overlay: Overlay::Holes,
+            mode: Mode::Fly,
+            speed: 0.5,
+            keyframes: 2,
+            playing: None,
+            message: "saved",
+            timestamps: false,
+        });
+        assert!(l[0].starts_with("spt  [1 qsplat, 2 spt]"), "{}", l[0]);
+        assert!(l[1].starts_with("eps 2.000 px  kernel square"), "{}", l[1]);
+        assert!(
+            l[2].contains("points 750 ") && l[2].contains("gpu n/a (no timestamps)"),
+            "the GPU's count, and no GPU time without timestamps: {}",
+            l[2]
+        );
+        assert!(
+            l[3].contains("(50.0 fps)") && l[3].contains("upload 3.0 MiB"),
+            "{}",
+            l[3]
+        );
+        assert!(l[4].contains("FLIP 0.0123 (frame 7)") && l[4].contains("showing holes"));
+        assert!(l[5].starts_with("keyframes 2") && l[5].ends_with("saved"));
+        let img = draw(&l, 600).expect("drawn");
+        assert_eq!((img.width, img.height), (600, 16 * 6 + 8));
+        let bright = img.rgba.chunks_exact(4).filter(|p| p[0] > 128).count();
+        assert!(bright > 500, "text drawn: {bright} bright pixels");
+    }
+}

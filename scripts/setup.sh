@@ -1,13 +1,15 @@
 #!/usr/bin/env bash
 # Installs what a fresh Debian/Ubuntu machine lacks to build, test and run splatbench:
 # Mesa's software Vulkan driver (lavapipe) and the Vulkan loader, so wgpu finds an adapter
-# with no GPU; jq, which scripts/gpu-bench.sh (run by the tests) reads summaries with. Plot
-# fonts are embedded in the binary (harness/assets), nothing to install.
+# with no GPU; jq, which scripts/gpu-bench.sh (run by the tests) reads summaries with; Xvfb
+# and xauth (xvfb-run), the X server without a screen that the viewer's end-to-end test
+# (tests/view.rs) opens its window on. Plot and HUD fonts are embedded in the binary
+# (harness/assets), nothing to install.
 # Idempotent: installs nothing when everything is present.
 set -euo pipefail
 
 need=()
-for pkg in mesa-vulkan-drivers libvulkan1 jq; do
+for pkg in mesa-vulkan-drivers libvulkan1 jq xvfb xauth; do
   dpkg-query -W -f='${Status}' "$pkg" 2>/dev/null | grep -q "install ok installed" || need+=("$pkg")
 done
 
@@ -20,4 +22,4 @@ if [ ${#need[@]} -gt 0 ]; then
 fi
 
 command -v cargo >/dev/null || { echo "setup: cargo not found: install Rust (https://rustup.rs)" >&2; exit 1; }
-echo "setup: ok (Vulkan loader + lavapipe present, $(cargo --version))"
+echo "setup: ok (Vulkan loader + lavapipe, Xvfb present, $(cargo --version))"

@@ -24,6 +24,7 @@ mod serve;
 mod shared;
 mod sweep;
 mod tune;
+mod view;
 
 use clap::{Parser, Subcommand};
 
@@ -82,6 +83,11 @@ enum Command {
     /// Assemble the parts written by jobs that `--emit-jobs` listed into the output a local
     /// run writes.
     Merge(merge::MergeArgs),
+    /// An interactive window onto one or several methods (the same renderer and draw lists
+    /// as `run`): fly/orbit, HUD, reference / FLIP map / hole toggles, keyframe recording
+    /// (`run --path` reads it), screenshots with their pose. Needs a display (X11; Xvfb on a
+    /// headless machine).
+    View(view::ViewArgs),
 }
 
 fn main() {
@@ -112,6 +118,7 @@ fn real_main(command: Command) -> anyhow::Result<()> {
         Command::Tune(a) => tune::main(&a),
         Command::Merge(a) => merge::main(&a),
         Command::Serve(a) => serve::main(&a),
+        Command::View(a) => view::main(&a),
         Command::Check(_) => unreachable!("handled in main"),
     }
 }

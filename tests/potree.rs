@@ -62,7 +62,9 @@ fn a_bare_potree_directory_renders_as_our_build_of_it() {
     run(&bare, &d.path().join("c"), &["--param", "point_size=3"]);
     let c = read_csv(&d.path().join("c/frames.csv"));
     assert!(
-        c.iter().zip(&b).all(|(x, y)| x["flip_mean"] != y["flip_mean"]),
+        c.iter()
+            .zip(&b)
+            .all(|(x, y)| x["flip_mean"] != y["flip_mean"]),
         "point_size=3 did not change the frames"
     );
     fails(

@@ -58,6 +58,14 @@ pub trait LodMethod: Send {
     fn gpu_resident_bytes(&self) -> Option<u64> {
         None
     }
+    /// The level in its hierarchy of the node or cloud whose chunk is `id` (0 = the root),
+    /// for methods that draw chunks by node (LPC, MWKD, Potree); `None` for the others
+    /// (QSplat and SPT draw splats of every level in one stream or list). The viewer
+    /// colours drawn chunks by it.
+    fn chunk_level(&self, id: ChunkId) -> Option<u32> {
+        let _ = id;
+        None
+    }
     /// Chunks that failed to load and that the method renders on without (a coarser level, a
     /// stand-in), each with its error naming the file and the chunk. The runner reports them
     /// and fails the run unless told to accept them: frames missing data are not a faithful

@@ -271,6 +271,10 @@ impl LodMethod for Apart {
     fn gpu_resident_bytes(&self) -> Option<u64> {
         self.inner.gpu_resident_bytes()
     }
+    fn chunk_level(&self, id: ChunkId) -> Option<u32> {
+        // The strays' own chunk belongs to no level.
+        (id != CHUNK).then(|| self.inner.chunk_level(id)).flatten()
+    }
     fn failed_chunks(&self) -> Vec<(ChunkId, String)> {
         self.inner.failed_chunks()
     }

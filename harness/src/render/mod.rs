@@ -95,7 +95,8 @@ pub use upload::splats_per_part;
 pub use methods::SplatShape as Kernel;
 pub(crate) use pipelines::fullscreen_pipeline;
 pub use uniforms::{
-    AMBIENT, BASE_COLOR, DrawUniform, FrameUniform, GAUSS_DEPTH_OFFSET, frame_uniform,
+    AMBIENT, BASE_COLOR, DrawUniform, FrameUniform, GAUSS_DEPTH_OFFSET, LEVEL_PALETTE,
+    frame_uniform, level_tint,
 };
 
 /// Fixed settings of a renderer.
@@ -213,6 +214,8 @@ pub struct Renderer<'g> {
     edl: Option<edl::EdlPass>,
     /// The compute rasteriser, for [`Raster::Compute`].
     compute: Option<compute::ComputeRaster>,
+    /// Tint chunks by their level ([`LodMethod::chunk_level`]): the viewer's `L`.
+    level_colours: bool,
 }
 
 /// Which pipeline: an opaque kernel, or one of the gaussian passes.
@@ -449,7 +452,15 @@ impl<'g> Renderer<'g> {
             edl: (settings.shade.shading == Shading::Edl)
                 .then(|| edl::EdlPass::new(gpu, settings.width, settings.height, COLOR_FORMAT)),
             compute,
+            level_colours: false,
         })
+    }
+
+    /// Draws every chunk of a method that knows its chunks' levels
+    /// ([`LodMethod::chunk_level`]) in its level's colour ([`uniforms::LEVEL_PALETTE`],
+    /// shaded as usual) when `on`; the viewer's `L`. Runs never set it.
+    pub fn set_level_colours(&mut self, on: bool) {
+        self.level_colours = on;
     }
 
     /// True when occlusion sample counts are exact on this renderer's adapter
@@ -568,6 +579,7 @@ impl<'g> Renderer<'g> {
         self.ensure_draw_capacity(&items, &streams)?;
         let mut enc = self.gpu.device.create_command_encoder(&Default::default());
         let counters1 = self.encode_splats(
+            method,
             shape,
             &items,
             &streams,
@@ -627,6 +639,7 @@ impl<'g> Renderer<'g> {
             self.ensure_draw_capacity(&items3, &streams3)?;
             let mut enc = self.gpu.device.create_command_encoder(&Default::default());
             counters.push(self.encode_splats(
+                method,
                 shape,
                 &items3,
                 &streams3,

@@ -34,7 +34,8 @@ struct Draw {
     count: u32,        // offset 36: splats sent (counting pass)
     slot: u32,         // offset 40: counter slot of this draw (counting pass)
     first: u32,        // offset 44: first splat sent of this part
-}                      // size 48
+    tint: vec4<f32>,   // offset 48: a > 0: linear RGB replacing the base colour (the viewer's level colours)
+}                      // size 64
 
 @group(0) @binding(0) var<uniform> frame: Frame;
 @group(0) @binding(1) var<uniform> draw: Draw;
@@ -139,6 +140,10 @@ fn splat_linear(ii: u32, p: vec3<f32>, n: vec3<f32>, has_normal: bool, l: vec3<f
         base = srgb_to_linear(elevation_colour((p.z - frame.elevation_lo) * frame.elevation_scale));
     } else if ((draw.flags & 2u) != 0u) {
         base = srgb_to_linear(unpack4x8unorm(colors[ii]).rgb);
+    }
+    // The viewer's level colours only (runs never tint: the CPU mirror has no tint).
+    if (draw.tint.a > 0.0) {
+        base = draw.tint.rgb;
     }
     var shade = 1.0;
     if (has_normal && frame.shading == 0u) {

@@ -22,6 +22,7 @@ impl Renderer<'_> {
     /// be cached ([`Self::upload_items`]) and the draw buffer large enough.
     pub(super) fn encode_splats(
         &self,
+        method: &dyn LodMethod,
         shape: Kernel,
         items: &[&DrawItem],
         streams: &[GpuBatch],
@@ -47,8 +48,14 @@ impl Renderer<'_> {
                     .with_context(|| format!("chunk {id} vanished from the cache"))
             };
             let size = item.size();
+            let mut tint = [0.0; 4];
             let (g, first, count, test) = match item.cached() {
                 Some(c) => {
+                    if self.level_colours
+                        && let Some(level) = method.chunk_level(c.id)
+                    {
+                        tint = level_tint(level);
+                    }
                     let g = cached(&c.id)?;
                     if c.test.is_some() && !g.lod {
                         bail!(
@@ -76,6 +83,7 @@ impl Renderer<'_> {
                 let hi = (first + count).min(part.start + part.len).max(part.start) - part.start;
                 let sent = hi.saturating_sub(lo);
                 let mut u = DrawUniform::new(size, g.attrs, g.lod, test);
+                u.tint = tint;
                 // Splats sent: the compute passes (interval count, compute raster) start at
                 // `first` and stop after `count`; the quads pass draws instances lo..lo+sent.
                 u.first = lo;

@@ -70,8 +70,39 @@ pub struct DrawUniform {
     /// offset 44: first splat of the part sent (compute and counting passes; the quads
     /// pass starts its instance range there)
     pub first: u32,
+    /// offset 48: when `tint[3] > 0`, linear RGB that replaces the splats' base colour
+    /// (shading still applies): the viewer's level colours ([`level_tint`]); zero otherwise
+    pub tint: [f32; 4],
 }
-const _: () = assert!(std::mem::size_of::<DrawUniform>() == 48);
+const _: () = assert!(std::mem::size_of::<DrawUniform>() == 64);
+
+/// Linear RGB of the viewer's level colours, level 0 first, repeating after 8 levels:
+/// a qualitative palette (Okabe–Ito, distinguishable with the common colour-vision
+/// deficiencies), sRGB values decoded.
+pub const LEVEL_PALETTE: [[u8; 3]; 8] = [
+    [230, 159, 0],
+    [86, 180, 233],
+    [0, 158, 115],
+    [240, 228, 66],
+    [0, 114, 178],
+    [213, 94, 0],
+    [204, 121, 167],
+    [255, 255, 255],
+];
+
+/// The tint of level `level` ([`LEVEL_PALETTE`], linear, alpha 1).
+pub fn level_tint(level: u32) -> [f32; 4] {
+    let c = LEVEL_PALETTE[level as usize % LEVEL_PALETTE.len()];
+    let lin = |v: u8| {
+        let s = f32::from(v) / 255.0;
+        if s <= 0.04045 {
+            s / 12.92
+        } else {
+            ((s + 0.055) / 1.055).powf(2.4)
+        }
+    };
+    [lin(c[0]), lin(c[1]), lin(c[2]), 1.0]
+}
 
 impl DrawUniform {
     /// The uniform for a splat size, the attributes present and an optional interval test.
@@ -97,6 +128,7 @@ impl DrawUniform {
             count: 0,
             slot: 0,
             first: 0,
+            tint: [0.0; 4],
         }
     }
 }

@@ -369,6 +369,9 @@ pub const COLUMNS: &[&str] = &[
 ];
 
 impl LodMethod for Lpc {
+    fn chunk_level(&self, id: ChunkId) -> Option<u32> {
+        self.nodes.get(usize::try_from(id).ok()?).map(|n| n.level)
+    }
     fn attributes(&self) -> Attributes {
         self.attributes
     }

@@ -490,6 +490,9 @@ fn select_front(ctx: &Ctx<'_>, target: Target, held_back: &dyn Fn(u32) -> bool) 
 }
 
 impl LodMethod for Mwkd {
+    fn chunk_level(&self, id: ChunkId) -> Option<u32> {
+        self.nodes.get(usize::try_from(id).ok()?).map(|n| n.level)
+    }
     fn attributes(&self) -> Attributes {
         self.attributes
     }

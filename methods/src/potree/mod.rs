@@ -358,6 +358,12 @@ impl Potree {
 }
 
 impl LodMethod for Potree {
+    fn chunk_level(&self, id: ChunkId) -> Option<u32> {
+        self.hierarchy
+            .nodes()
+            .get(usize::try_from(id).ok()?)
+            .map(|n| n.level)
+    }
     fn attributes(&self) -> Attributes {
         self.attributes
     }

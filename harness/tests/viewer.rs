@@ -137,3 +137,63 @@ fn a_played_path_draws_runs_poses_and_gives_the_camera_back() {
     assert!(s.message.contains("at least 2 keyframes"), "{}", s.message);
     assert!(s.saved_paths().is_empty());
 }
+
+#[test]
+fn level_colours_tint_each_drawn_node_by_its_level() {
+    let Some(gpu) = gpu_for_test("level_colours_tint_each_drawn_node_by_its_level") else {
+        return;
+    };
+    let dir = tempfile::tempdir().unwrap();
+    let scene = scene(&dir.path().join("cache"));
+    let cfg = config(dir.path(), &[MethodKind::Qsplat, MethodKind::Mwkd]);
+    let mut s = Session::new(&gpu, &scene, cfg, &NoProgress).unwrap();
+    press(&mut s, "l");
+    assert!(!s.level_colours());
+    assert!(
+        s.message.contains("no nodes to colour by level"),
+        "{}",
+        s.message
+    );
+    press(&mut s, "2");
+    // MWKD streams its nodes in: draw until the view has all it asks for.
+    for _ in 0..10 {
+        s.frame(0.0, &NoProgress).unwrap();
+    }
+    press(&mut s, "f12");
+    s.frame(0.0, &NoProgress).unwrap();
+    press(&mut s, "l");
+    assert!(s.level_colours());
+    press(&mut s, "f12");
+    s.frame(0.0, &NoProgress).unwrap();
+    let plain = harness::image::Image::load_png(&s.shots[0].frame).unwrap();
+    let tinted = harness::image::Image::load_png(&s.shots[1].frame).unwrap();
+    let covered = |img: &harness::image::Image| -> Vec<[u8; 4]> {
+        img.rgba
+            .chunks_exact(4)
+            .filter(|p| p[3] > 0)
+            .map(|p| [p[0], p[1], p[2], p[3]])
+            .collect()
+    };
+    let (p, t) = (covered(&plain), covered(&tinted));
+    assert_eq!(
+        p.len(),
+        t.len(),
+        "the same splats, only their colour changes"
+    );
+    let grey = |c: &[u8; 4]| c[0].abs_diff(c[1]) < 8 && c[1].abs_diff(c[2]) < 8;
+    assert!(p.iter().all(grey), "the statue has no colour of its own");
+    // Each pixel's hue is its level's: the channel order of the palette entry.
+    let hues: std::collections::BTreeSet<[bool; 3]> = t
+        .iter()
+        .filter(|c| !grey(c))
+        .map(|c| [c[0] > c[1], c[1] > c[2], c[0] > c[2]])
+        .collect();
+    let palette: std::collections::BTreeSet<[bool; 3]> = harness::render::LEVEL_PALETTE
+        .iter()
+        .filter(|c| !(c[0] == c[1] && c[1] == c[2]))
+        .map(|c| [c[0] > c[1], c[1] > c[2], c[0] > c[2]])
+        .collect();
+    eprintln!("hues drawn {hues:?}");
+    assert!(hues.is_subset(&palette), "{hues:?} ⊄ {palette:?}");
+    assert!(t.iter().filter(|c| !grey(c)).count() * 2 > t.len());
+}

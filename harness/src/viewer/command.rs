@@ -15,6 +15,7 @@
 //! | F | show the reference instead of the method |
 //! | G | FLIP heat map of the frame against the reference |
 //! | H | hole mask: red where the reference has a splat and the frame none |
+//! | L | colour the drawn nodes / clouds by level (LPC, MWKD, Potree) |
 //! | C | compute the FLIP of the current frame (shown in the HUD) |
 //! | Space | add a keyframe at the current pose |
 //! | Enter | save the keyframes as a `.toml` path (`run --path` reads it) |
@@ -64,6 +65,8 @@ pub enum Action {
     FlipMap,
     /// Show the hole mask.
     Holes,
+    /// Colour chunks by level.
+    Levels,
     /// Measure the current frame's FLIP.
     Measure,
     /// Add a keyframe.
@@ -97,6 +100,7 @@ pub fn action(name: &str) -> Option<Action> {
         "f" => Action::Reference,
         "g" => Action::FlipMap,
         "h" => Action::Holes,
+        "l" => Action::Levels,
         "c" => Action::Measure,
         "space" => Action::AddKey,
         "enter" => Action::SavePath,
@@ -233,7 +237,7 @@ mod tests {
     fn every_documented_key_has_an_action() {
         for k in [
             "w", "a", "s", "d", "q", "e", "shift", "tab", "r", "plus", "minus", "k", "f", "g", "h",
-            "c", "space", "enter", "p", "f12", "escape", "1", "9",
+            "l", "c", "space", "enter", "p", "f12", "escape", "1", "9",
         ] {
             assert!(action(k).is_some(), "{k}");
         }

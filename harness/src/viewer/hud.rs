@@ -24,6 +24,8 @@ pub struct HudState<'a> {
     pub info: &'a FrameInfo,
     /// The image shown.
     pub overlay: Overlay,
+    /// Chunks coloured by level.
+    pub levels: bool,
     /// Fly or orbit.
     pub mode: Mode,
     /// Fly speed, scene radii per second.
@@ -107,7 +109,11 @@ pub fn lines(s: &HudState<'_>) -> Vec<String> {
             mib(i.stats.upload_bytes),
             mib(i.stats.cache_bytes)
         ),
-        format!("{flip}  showing {}  {loader}", s.overlay.name()),
+        format!(
+            "{flip}  showing {}{}  {loader}",
+            s.overlay.name(),
+            if s.levels { ", levels coloured" } else { "" }
+        ),
         format!(
             "keyframes {} (Space add, Enter save, P play)  F12 screenshot  {}",
             s.keyframes, s.message
@@ -176,6 +182,7 @@ mod tests {
             settings: RenderSettings::default(),
             info: &info,
             overlay: Overlay::Holes,
+            levels: true,
             mode: Mode::Fly,
             speed: 0.5,
             keyframes: 2,
@@ -195,7 +202,10 @@ mod tests {
             "{}",
             l[3]
         );
-        assert!(l[4].contains("FLIP 0.0123 (frame 7)") && l[4].contains("showing holes"));
+        assert!(
+            l[4].contains("FLIP 0.0123 (frame 7)")
+                && l[4].contains("showing holes, levels coloured")
+        );
         assert!(l[5].starts_with("keyframes 2") && l[5].ends_with("saved"));
         let img = draw(&l, 600).expect("drawn");
         assert_eq!((img.width, img.height), (600, 16 * 6 + 8));

@@ -130,6 +130,7 @@ pub struct Session<'g> {
     recorder: Recorder,
     target: Target,
     overlay: Overlay,
+    levels: bool,
     shown: Option<(Image, u64)>,
     generation: u64,
     playback: Option<(PathSpec, usize)>,
@@ -202,6 +203,7 @@ impl<'g> Session<'g> {
             reference,
             recorder: Recorder::default(),
             overlay: Overlay::Method,
+            levels: false,
             shown: None,
             generation: 0,
             playback: None,
@@ -242,6 +244,11 @@ impl<'g> Session<'g> {
     /// The target in force.
     pub fn target(&self) -> Target {
         self.target
+    }
+
+    /// Whether chunks are coloured by level.
+    pub fn level_colours(&self) -> bool {
+        self.levels
     }
 
     /// The image shown.
@@ -317,6 +324,18 @@ impl<'g> Session<'g> {
             Action::Reference => self.toggle(Overlay::Reference),
             Action::FlipMap => self.toggle(Overlay::Flip),
             Action::Holes => self.toggle(Overlay::Holes),
+            Action::Levels => {
+                let slot = &self.slots[self.current];
+                if !self.levels && slot.method.chunk_level(0).is_none() {
+                    self.message = format!(
+                        "{} draws splats of every level together: no nodes to colour by level",
+                        slot.kind
+                    );
+                } else {
+                    self.levels = !self.levels;
+                    self.renderer.set_level_colours(self.levels);
+                }
+            }
             Action::Measure => self.pending_flip = true,
             Action::AddKey => {
                 let cam = self.camera();
@@ -352,6 +371,7 @@ impl<'g> Session<'g> {
         let kernel = all[(at + 1) % all.len()];
         let render = RenderSettings { kernel, ..s };
         self.renderer = Renderer::new(self.gpu, render)?;
+        self.renderer.set_level_colours(self.levels);
         self.reference = new_reference(self.gpu, self.scene, &self.cfg.cache, render);
         self.last = None;
         self.message = format!("kernel {}", kernel.name());
@@ -542,6 +562,7 @@ impl<'g> Session<'g> {
             settings: self.renderer.settings(),
             info: &self.info,
             overlay: self.overlay,
+            levels: self.levels,
             mode: self.control.mode,
             speed: self.control.speed,
             keyframes: self.recorder.len(),

@@ -153,6 +153,7 @@ pub fn key_name(code: KeyCode) -> Option<&'static str> {
         KeyCode::KeyF => "f",
         KeyCode::KeyG => "g",
         KeyCode::KeyH => "h",
+        KeyCode::KeyL => "l",
         KeyCode::KeyC => "c",
         KeyCode::Space => "space",
         KeyCode::Enter | KeyCode::NumpadEnter => "enter",

@@ -88,7 +88,7 @@ use queries::QueryPipeline;
 pub(crate) use readback::read_texture;
 use readback::{TIMESTAMP_READBACK_BYTES, Timestamps, read_buffer, zeroed_counters};
 pub use shading::{Shade, Shading};
-use splats::PhaseTarget;
+use splats::{PhaseItems, PhaseTarget};
 use upload::GpuBatch;
 pub use upload::splats_per_part;
 
@@ -579,10 +579,12 @@ impl<'g> Renderer<'g> {
         self.ensure_draw_capacity(&items, &streams)?;
         let mut enc = self.gpu.device.create_command_encoder(&Default::default());
         let counters1 = self.encode_splats(
-            method,
             shape,
-            &items,
-            &streams,
+            PhaseItems {
+                method,
+                items: &items,
+                streams: &streams,
+            },
             &mut stats,
             &mut enc,
             PhaseTarget {
@@ -639,10 +641,12 @@ impl<'g> Renderer<'g> {
             self.ensure_draw_capacity(&items3, &streams3)?;
             let mut enc = self.gpu.device.create_command_encoder(&Default::default());
             counters.push(self.encode_splats(
-                method,
                 shape,
-                &items3,
-                &streams3,
+                PhaseItems {
+                    method,
+                    items: &items3,
+                    streams: &streams3,
+                },
                 &mut stats,
                 &mut enc,
                 PhaseTarget {

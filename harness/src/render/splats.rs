@@ -4,6 +4,14 @@
 
 use super::*;
 
+/// What one phase draws: its items, the stream buffers uploaded for them (in order), and the
+/// method they came from (it decodes chunks and knows their levels).
+pub(super) struct PhaseItems<'a> {
+    pub(super) method: &'a dyn LodMethod,
+    pub(super) items: &'a [&'a DrawItem],
+    pub(super) streams: &'a [GpuBatch],
+}
+
 /// How one phase of splat draws treats the targets.
 #[derive(Debug, Clone, Copy)]
 pub(super) struct PhaseTarget {
@@ -22,10 +30,8 @@ impl Renderer<'_> {
     /// be cached ([`Self::upload_items`]) and the draw buffer large enough.
     pub(super) fn encode_splats(
         &self,
-        method: &dyn LodMethod,
         shape: Kernel,
-        items: &[&DrawItem],
-        streams: &[GpuBatch],
+        phase: PhaseItems<'_>,
         stats: &mut FrameStats,
         enc: &mut wgpu::CommandEncoder,
         target: PhaseTarget,
@@ -33,6 +39,11 @@ impl Renderer<'_> {
         // One draw per part of each item's batch (a batch over the storage binding limit is
         // uploaded in parts, upload.rs), with its own uniform: the splats of the part sent.
         // The draw buffer holds them all ([`Self::ensure_draw_capacity`]).
+        let PhaseItems {
+            method,
+            items,
+            streams,
+        } = phase;
         let stride = self.draw_stride as usize;
         let mut draws: Vec<u8> = Vec::with_capacity(stride * items.len().max(1));
         // (splat columns of the part, first splat sent in the part, splats sent).

@@ -84,6 +84,24 @@ fn methods_of(a: &ViewArgs) -> anyhow::Result<Vec<(MethodKind, Params)>> {
         .collect()
 }
 
+/// The flags that name the same scene to `run`.
+fn scene_flags(s: &SceneArgs) -> String {
+    let mut f = format!("--scene {}", s.scene);
+    if let Some(n) = s.sample {
+        f.push_str(&format!(" --sample {n}"));
+    }
+    if s.seed != 1 {
+        f.push_str(&format!(" --seed {}", s.seed));
+    }
+    if let Some(up) = s.up {
+        f.push_str(&format!(" --up {up}"));
+    }
+    if s.keep_attributes {
+        f.push_str(" --keep-attributes");
+    }
+    f
+}
+
 /// `splatbench view`.
 pub fn main(a: &ViewArgs) -> anyhow::Result<()> {
     // Flags and files first: a bad value is reported before any window or build.
@@ -147,7 +165,7 @@ pub fn main(a: &ViewArgs) -> anyhow::Result<()> {
             out: a.out.clone(),
             play,
             play_frames: a.play_frames,
-            scene_text: a.scene.scene.clone(),
+            scene_flags: scene_flags(&a.scene),
         },
         &bar,
     )?;

@@ -38,7 +38,7 @@ fn config(dir: &std::path::Path, methods: &[MethodKind]) -> SessionConfig {
         out: dir.join("out"),
         play: None,
         play_frames: 8,
-        scene_text: SCENE.into(),
+        scene_flags: format!("--scene {SCENE}"),
     }
 }
 
@@ -163,6 +163,15 @@ fn level_colours_tint_each_drawn_node_by_its_level() {
     s.frame(0.0, &NoProgress).unwrap();
     press(&mut s, "l");
     assert!(s.level_colours());
+    press(&mut s, "c");
+    press(&mut s, "g");
+    assert!(
+        s.message
+            .starts_with("FLIP compares the method's own colours"),
+        "{}",
+        s.message
+    );
+    assert_eq!(s.overlay(), Overlay::Method, "no FLIP map of tinted splats");
     press(&mut s, "f12");
     s.frame(0.0, &NoProgress).unwrap();
     let plain = harness::image::Image::load_png(&s.shots[0].frame).unwrap();

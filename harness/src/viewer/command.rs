@@ -35,7 +35,8 @@
 //! 30  quit
 //! ```
 //! Under a script the clock is virtual, [`SCRIPT_FPS`] frames per second, so a script moves
-//! the camera the same way on any machine.
+//! the camera the same way on any machine. A script without `quit` leaves the window open
+//! after its last event (the user takes over; `--frames N` quits after N frames instead).
 
 use super::control::{Input, Key};
 

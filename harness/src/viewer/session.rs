@@ -23,6 +23,10 @@ use crate::runner::{
     BuildSource, PreparedScene, Reference, check_gpu_budget, next_feedback, open_method,
 };
 
+/// Why FLIP is refused while levels are coloured.
+const FLIP_NEEDS_COLOURS: &str =
+    "FLIP compares the method's own colours with the reference: turn level colours off (L)";
+
 /// Factor per `+`/`−` press: ε ÷ / × √2, budget × / ÷ √2.
 pub const TARGET_STEP: f64 = std::f64::consts::SQRT_2;
 
@@ -43,8 +47,9 @@ pub struct SessionConfig {
     pub play: Option<PathSpec>,
     /// Frames a played path takes (`run --frames` of the same path draws the same poses).
     pub play_frames: usize,
-    /// The `--scene` text, for the run command written beside screenshots.
-    pub scene_text: String,
+    /// The scene's flags as `run` takes them (`--scene S [--sample N] [--seed N] [--up A]
+    /// [--keep-attributes]`), for the run command written beside screenshots.
+    pub scene_flags: String,
 }
 
 /// Which image the window shows.
@@ -322,11 +327,14 @@ impl<'g> Session<'g> {
             Action::Coarser => self.target = step_target(self.target, false)?,
             Action::Kernel => self.next_kernel()?,
             Action::Reference => self.toggle(Overlay::Reference),
+            Action::FlipMap if self.levels => self.message = FLIP_NEEDS_COLOURS.into(),
             Action::FlipMap => self.toggle(Overlay::Flip),
             Action::Holes => self.toggle(Overlay::Holes),
             Action::Levels => {
                 let slot = &self.slots[self.current];
-                if !self.levels && slot.method.chunk_level(0).is_none() {
+                if !self.levels && self.overlay == Overlay::Flip {
+                    self.message = FLIP_NEEDS_COLOURS.into();
+                } else if !self.levels && slot.method.chunk_level(0).is_none() {
                     self.message = format!(
                         "{} draws splats of every level together: no nodes to colour by level",
                         slot.kind
@@ -336,6 +344,7 @@ impl<'g> Session<'g> {
                     self.renderer.set_level_colours(self.levels);
                 }
             }
+            Action::Measure if self.levels => self.message = FLIP_NEEDS_COLOURS.into(),
             Action::Measure => self.pending_flip = true,
             Action::AddKey => {
                 let cam = self.camera();
@@ -521,13 +530,23 @@ impl<'g> Session<'g> {
             Target::Tolerance(e) => format!("--eps {e}"),
             Target::Budget(b) => format!("--budget {b}"),
         };
+        let build_dir = match &self.cfg.build_dir {
+            Some(d) => format!(" --build-dir {}", d.display()),
+            None => String::new(),
+        };
+        let tinted = if self.levels {
+            "# (Taken with levels coloured, the viewer's L: run draws the method's own colours.)\n"
+        } else {
+            ""
+        };
         let text = format!(
             "# A screenshot of `splatbench view` ({}): this pose as a camera path. The same\n\
              # image again:\n\
-             # splatbench run --scene {} --method {}{params} {target} --kernel {} --raster {} \
-             --width {} --height {} --shading {} --path {} --frames 1 --save-images --out OUT\n{}",
+             # splatbench run {} --method {}{build_dir}{params} {target} --kernel {} --raster {} \
+             --width {} --height {} --shading {} --path {} --frames 1 --save-images --out OUT\n\
+             {tinted}{}",
             frame.display(),
-            self.cfg.scene_text,
+            self.cfg.scene_flags,
             slot.kind,
             r.kernel.name(),
             r.raster.name(),

@@ -28,8 +28,10 @@ command -v xvfb-run >/dev/null || { echo "viewer-bench: xvfb-run missing (script
 echo "0 press p" >"$OUT/play.txt"
 {
   echo "0 press tab"
-  for ((f = 1; f < 10; f++)); do echo "$f drag 4 0"; done
-  echo "8 press c"
+  for ((f = 1; f < 10; f++)); do
+    echo "$f drag 4 0"
+    if ((f == 8)); then echo "$f press c"; fi
+  done
   echo "10 press l"
   echo "13 quit"
 } >"$OUT/shot.txt"

@@ -123,6 +123,26 @@ pub struct RenderArgs {
     pub raster: harness::render::Raster,
 }
 
+impl RenderArgs {
+    /// The renderer settings these flags name, shaded by `shading` (`--shading`).
+    pub fn settings(&self, shading: Shading) -> anyhow::Result<harness::render::RenderSettings> {
+        Ok(harness::render::RenderSettings {
+            width: self.width,
+            height: self.height,
+            kernel: self.kernel,
+            cache_bytes: self
+                .gpu_cache_mb
+                .checked_mul(1 << 20)
+                .ok_or_else(|| anyhow::anyhow!("--gpu-cache-mb is too large"))?,
+            shade: harness::render::Shade {
+                shading,
+                ..Default::default()
+            },
+            raster: self.raster,
+        })
+    }
+}
+
 #[derive(Args, Clone)]
 #[group(multiple = false)]
 pub struct TargetArgs {

@@ -3,9 +3,7 @@
 
 use std::path::PathBuf;
 
-use anyhow::Context as _;
 use clap::Args;
-use harness::render::RenderSettings;
 use harness::runner::RunConfig;
 use methods::Params;
 use scenes::paths::PathSpec;
@@ -67,21 +65,7 @@ pub fn run_config(a: &RunArgs) -> anyhow::Result<RunConfig> {
         path: PathSpec::parse(&a.path)?,
         frames: a.frames,
         target,
-        render: RenderSettings {
-            width: a.render.width,
-            height: a.render.height,
-            kernel: a.render.kernel,
-            cache_bytes: a
-                .render
-                .gpu_cache_mb
-                .checked_mul(1 << 20)
-                .context("--gpu-cache-mb is too large")?,
-            shade: harness::render::Shade {
-                shading: a.scene.shading,
-                ..Default::default()
-            },
-            raster: a.render.raster,
-        },
+        render: a.render.settings(a.scene.shading)?,
         seed: a.scene.seed,
         save_images: a.save_images,
         metrics: !a.no_metrics,

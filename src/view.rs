@@ -4,7 +4,6 @@ use std::path::PathBuf;
 
 use anyhow::Context as _;
 use clap::Args;
-use harness::render::RenderSettings;
 use harness::viewer::command::Script;
 use harness::viewer::session::{Session, SessionConfig};
 use harness::viewer::window::{self, Display, LoopConfig};
@@ -128,21 +127,7 @@ pub fn main(a: &ViewArgs) -> anyhow::Result<()> {
         .context("--play")?;
     let target = a.target.target()?;
     let spec = a.scene.spec()?;
-    let render = RenderSettings {
-        width: a.render.width,
-        height: a.render.height,
-        kernel: a.render.kernel,
-        cache_bytes: a
-            .render
-            .gpu_cache_mb
-            .checked_mul(1 << 20)
-            .context("--gpu-cache-mb is too large")?,
-        shade: harness::render::Shade {
-            shading: a.scene.shading,
-            ..Default::default()
-        },
-        raster: a.render.raster,
-    };
+    let render = a.render.settings(a.scene.shading)?;
     let display = Display::open()?;
     let gpu = display.gpu()?.context(
         "no GPU adapter found: install Mesa's software Vulkan driver (scripts/setup.sh) or run \

@@ -32,7 +32,8 @@ pub fn splat_px(size: SplatSize, radius: Option<f32>, w: f32, proj_scale: f32) -
     }
 }
 
-fn srgb_to_linear(c: f32) -> f32 {
+/// sRGB-encoded (0–1) → linear, as `splat.wgsl`'s `srgb_to_linear`.
+pub(crate) fn srgb_to_linear(c: f32) -> f32 {
     if c <= 0.04045 {
         c / 12.92
     } else {

@@ -93,14 +93,7 @@ pub const LEVEL_PALETTE: [[u8; 3]; 8] = [
 /// The tint of level `level` ([`LEVEL_PALETTE`], linear, alpha 1).
 pub fn level_tint(level: u32) -> [f32; 4] {
     let c = LEVEL_PALETTE[level as usize % LEVEL_PALETTE.len()];
-    let lin = |v: u8| {
-        let s = f32::from(v) / 255.0;
-        if s <= 0.04045 {
-            s / 12.92
-        } else {
-            ((s + 0.055) / 1.055).powf(2.4)
-        }
-    };
+    let lin = |v: u8| super::cpu::srgb_to_linear(f32::from(v) / 255.0);
     [lin(c[0]), lin(c[1]), lin(c[2]), 1.0]
 }
 

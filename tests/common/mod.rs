@@ -84,3 +84,25 @@ pub fn serve(dir: &std::path::Path, addr: &str, extra: &[&str]) -> (Serving, Str
         .to_string();
     (Serving(child), url)
 }
+
+/// Runs a command that must fail cleanly: exit 1, `Error:` naming `needle`, no panic.
+pub fn fails_with(args: &[&str], needle: &str) {
+    fails(bin().args(args), needle);
+}
+
+pub fn have_gpu(test: &str) -> bool {
+    harness::gpu::gpu_for_test(test).is_some()
+}
+
+pub fn csv_table(path: &std::path::Path) -> (Vec<String>, Vec<csv::StringRecord>) {
+    let mut r = csv::Reader::from_path(path).unwrap();
+    let h = r.headers().unwrap().iter().map(String::from).collect();
+    let rows = r.records().map(|r| r.unwrap()).collect();
+    (h, rows)
+}
+
+pub fn write_file(dir: &std::path::Path, name: &str, bytes: &[u8]) -> String {
+    let p = dir.join(name);
+    std::fs::write(&p, bytes).unwrap();
+    p.to_string_lossy().into_owned()
+}

@@ -121,6 +121,30 @@ pub fn lines(s: &HudState<'_>) -> Vec<String> {
     ]
 }
 
+/// Lines of [`lines`] that carry per-frame measurements (points, times, bytes): they are
+/// redrawn at most every [`REFRESH_S`]; a change in any other line (the method, the target,
+/// a message) is drawn at once.
+pub const MEASUREMENT_LINES: [usize; 2] = [2, 3];
+
+/// Seconds between redraws of the measurement lines: 4 a second, readable, and the HUD's text
+/// (≈ 19 ms on the CPU at 1280 px, `results/measurements/issue-19-viewer.md`) is then drawn
+/// on a fraction of the frames instead of every one.
+pub const REFRESH_S: f64 = 0.25;
+
+/// Whether the HUD drawn at `drawn_at` seconds from `drawn` must be redrawn at `now` to show
+/// `lines`.
+pub fn needs_redraw(drawn: Option<(&[String], f64)>, lines: &[String], now: f64) -> bool {
+    let Some((old, at)) = drawn else {
+        return true;
+    };
+    if old.len() != lines.len() {
+        return true;
+    }
+    let changed = |i: usize| old[i] != lines[i];
+    (0..lines.len()).any(|i| changed(i) && !MEASUREMENT_LINES.contains(&i))
+        || (now - at >= REFRESH_S && (0..lines.len()).any(changed))
+}
+
 /// Text height, pixels.
 pub const LINE_PX: u32 = 16;
 
@@ -158,6 +182,30 @@ pub fn draw(lines: &[String], width: u32) -> anyhow::Result<Image> {
 mod tests {
     use super::*;
     use crate::render::FrameStats;
+
+    #[test]
+    fn measurements_refresh_four_times_a_second_and_the_rest_at_once() {
+        let l = |a: &str, t: &str| -> Vec<String> {
+            ["m", "eps", a, t, "flip", "keys"]
+                .map(String::from)
+                .to_vec()
+        };
+        let old = l("points 1", "frame 1 ms");
+        assert!(needs_redraw(None, &old, 0.0));
+        let new_times = l("points 2", "frame 2 ms");
+        assert!(!needs_redraw(Some((&old, 0.0)), &new_times, 0.1));
+        assert!(needs_redraw(Some((&old, 0.0)), &new_times, REFRESH_S));
+        assert!(
+            !needs_redraw(Some((&old, 0.0)), &old, 10.0),
+            "nothing changed"
+        );
+        let mut message = old.clone();
+        message[5] = "keys saved".into();
+        assert!(
+            needs_redraw(Some((&old, 0.0)), &message, 0.01),
+            "a message shows at once"
+        );
+    }
 
     #[test]
     fn the_hud_reports_the_frame_and_draws_legibly() {

@@ -83,7 +83,6 @@ pub struct Presenter {
     decode_srgb: bool,
     image: Option<Uploaded>,
     hud: Option<Uploaded>,
-    hud_generation: u64,
 }
 
 impl Presenter {
@@ -135,23 +134,22 @@ impl Presenter {
             decode_srgb: format.is_srgb(),
             image: None,
             hud: None,
-            hud_generation: 0,
         }
     }
 
-    /// Draws `shown` (frame size `frame`) and `hud` into `target` (a surface texture of
-    /// `surface` pixels) and submits.
+    /// Draws `shown` (frame size `frame`) and `hud` (an image and a generation number that
+    /// changes with it: uploaded only then) into `target` (a surface texture of `surface`
+    /// pixels) and submits.
     pub fn present(
         &mut self,
         gpu: &Gpu,
         shown: Display<'_>,
         frame: (u32, u32),
-        hud: &Image,
+        (hud, hud_generation): (&Image, u64),
         target: &wgpu::TextureView,
         surface: (u32, u32),
     ) {
-        self.hud_generation += 1;
-        Uploaded::write(gpu, &mut self.hud, hud, self.hud_generation, "HUD");
+        Uploaded::write(gpu, &mut self.hud, hud, hud_generation, "HUD");
         let frame_view = match shown {
             Display::Target(v) => v,
             Display::Image(img, generation) => {
@@ -241,7 +239,7 @@ pub fn window_image(
         view_formats: &[],
     });
     let view = texture.create_view(&Default::default());
-    Presenter::new(gpu, COLOR_FORMAT).present(gpu, shown, frame, hud, &view, surface);
+    Presenter::new(gpu, COLOR_FORMAT).present(gpu, shown, frame, (hud, 0), &view, surface);
     crate::render::read_texture(gpu, &texture)
 }
 

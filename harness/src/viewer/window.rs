@@ -100,6 +100,11 @@ struct App<'s, 'g> {
     dragging: bool,
     error: Option<anyhow::Error>,
     times: LoopTimes,
+    started: Instant,
+    /// The HUD drawn last: its lines, when (seconds since start), the image.
+    hud: Option<(Vec<String>, f64, crate::image::Image)>,
+    /// Times the HUD was drawn (its image's generation for the presenter).
+    hud_draws: u64,
 }
 
 /// Opens the window and runs the viewer until quit (Esc, the window closed, a script's
@@ -124,6 +129,9 @@ pub fn run<'g>(
         dragging: false,
         error: None,
         times: LoopTimes::default(),
+        started: Instant::now(),
+        hud: None,
+        hud_draws: 0,
     };
     display
         .event_loop
@@ -265,12 +273,27 @@ impl App<'_, '_> {
         };
         let view = texture.texture.create_view(&Default::default());
         let s = self.session.settings();
-        let hud = super::hud::draw(&self.session.hud(), config.width.clamp(1, 1100))?;
+        let lines = self.session.hud();
+        let now = self.started.elapsed().as_secs_f64();
+        let width = config.width.clamp(1, 1100);
+        let drawn = self.hud.as_ref().map(|(l, at, _)| (l.as_slice(), *at));
+        let resized = self
+            .hud
+            .as_ref()
+            .is_some_and(|(_, _, img)| img.width != width);
+        if resized || super::hud::needs_redraw(drawn, &lines, now) {
+            let img = super::hud::draw(&lines, width)?;
+            self.hud = Some((lines, now, img));
+            self.hud_draws += 1;
+        }
+        let Some((_, _, hud)) = &self.hud else {
+            return Ok(());
+        };
         presenter.present(
             self.gpu,
             self.session.display(),
             (s.width, s.height),
-            &hud,
+            (hud, self.hud_draws),
             &view,
             (config.width, config.height),
         );

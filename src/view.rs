@@ -174,13 +174,14 @@ pub fn main(a: &ViewArgs) -> anyhow::Result<()> {
     };
     println!(
         "view: {} frames on '{}' ({}x{}): median frame {:.2} ms (select + draw + overlays), \
-         present {:.2} ms",
+         present {:.2} ms (HUD text {:.2} ms)",
         times.frame_ms.len(),
         gpu.adapter.name,
         render.width,
         render.height,
         median(&times.frame_ms),
-        median(&times.present_ms)
+        median(&times.present_ms),
+        median(&times.hud_ms)
     );
     for s in &session.shots {
         println!(

@@ -83,8 +83,10 @@ pub struct LoopConfig {
 pub struct LoopTimes {
     /// Select + draw + overlays ([`Session::frame`]).
     pub frame_ms: Vec<f64>,
-    /// The HUD drawn and the frame presented.
+    /// The HUD drawn (when due) and the frame presented.
     pub present_ms: Vec<f64>,
+    /// Of `present_ms`, drawing the HUD's text (0 when the last one was still current).
+    pub hud_ms: Vec<f64>,
 }
 
 struct App<'s, 'g> {
@@ -281,11 +283,13 @@ impl App<'_, '_> {
             .hud
             .as_ref()
             .is_some_and(|(_, _, img)| img.width != width);
+        let t = Instant::now();
         if resized || super::hud::needs_redraw(drawn, &lines, now) {
             let img = super::hud::draw(&lines, width)?;
             self.hud = Some((lines, now, img));
             self.hud_draws += 1;
         }
+        self.times.hud_ms.push(t.elapsed().as_secs_f64() * 1e3);
         let Some((_, _, hud)) = &self.hud else {
             return Ok(());
         };

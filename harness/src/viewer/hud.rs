@@ -126,9 +126,9 @@ pub fn lines(s: &HudState<'_>) -> Vec<String> {
 /// a message) is drawn at once.
 pub const MEASUREMENT_LINES: [usize; 2] = [2, 3];
 
-/// Seconds between redraws of the measurement lines: 4 a second, readable, and the HUD's text
-/// (≈ 19 ms on the CPU at 1280 px, `results/measurements/issue-19-viewer.md`) is then drawn
-/// on a fraction of the frames instead of every one.
+/// Seconds between redraws of the measurement lines: 4 a second, readable, and on a fast GPU
+/// the HUD's text (≈ 1.6 ms on the CPU at 1100 px, `results/measurements/issue-19-viewer.md`)
+/// is then drawn on a fraction of the frames instead of every one.
 pub const REFRESH_S: f64 = 0.25;
 
 /// Whether the HUD drawn at `drawn_at` seconds from `drawn` must be redrawn at `now` to show

@@ -436,9 +436,9 @@ impl<'g> Session<'g> {
             width: r.width,
             height: r.height,
         };
-        if let Some((path, i)) = &mut self.playback {
+        if let Some((_, i)) = &mut self.playback {
             // The controller follows, so the user takes over from the pose played last.
-            let c = path.camera(*i, self.cfg.play_frames, &self.scene.bounds);
+            let c = &view.camera;
             self.control
                 .look_from(c.position.as_dvec3(), c.target.as_dvec3());
             *i += 1;

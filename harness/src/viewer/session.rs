@@ -318,6 +318,7 @@ impl<'g> Session<'g> {
                     self.renderer.clear_cache();
                     self.last = None;
                     self.info.flip = None;
+                    self.info.failed_chunks = 0;
                 }
             }
             Action::Method(n) => {
@@ -459,11 +460,10 @@ impl<'g> Session<'g> {
         let (stats, img) = self
             .renderer
             .draw(&view, &list, slot.method.as_ref(), readback)?;
+        // Each failure once, when it first appears (the list only grows).
         let failed = slot.method.failed_chunks();
-        for (id, error) in &failed {
-            if self.info.failed_chunks == 0 {
-                eprintln!("error: {} chunk {id} failed to load: {error}", slot.kind);
-            }
+        for (id, error) in failed.iter().skip(self.info.failed_chunks) {
+            eprintln!("error: {} chunk {id} failed to load: {error}", slot.kind);
         }
         self.info.failed_chunks = failed.len();
         self.info.traffic = slot.method.loads_chunks().then(|| slot.method.traffic());

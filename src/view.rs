@@ -6,7 +6,7 @@ use anyhow::Context as _;
 use clap::Args;
 use harness::viewer::command::Script;
 use harness::viewer::session::{Session, SessionConfig};
-use harness::viewer::window::{self, Display, LoopConfig};
+use harness::viewer::window::{self, LoopConfig, WindowSystem};
 use methods::{MethodKind, Params};
 use scenes::paths::PathSpec;
 
@@ -128,7 +128,7 @@ pub fn main(a: &ViewArgs) -> anyhow::Result<()> {
     let target = a.target.target()?;
     let spec = a.scene.spec()?;
     let render = a.render.settings(a.scene.shading)?;
-    let display = Display::open()?;
+    let display = WindowSystem::open()?;
     let gpu = display.gpu()?.context(
         "no GPU adapter found: install Mesa's software Vulkan driver (scripts/setup.sh) or run \
          on a machine with a GPU",

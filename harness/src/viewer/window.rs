@@ -21,7 +21,7 @@ use super::session::Session;
 use crate::gpu::Gpu;
 
 /// The window system, opened before the GPU (the instance takes its display handle).
-pub struct Display {
+pub struct WindowSystem {
     event_loop: EventLoop<()>,
 }
 
@@ -42,16 +42,16 @@ pub fn missing_display() -> Option<String> {
     })
 }
 
-impl Display {
+impl WindowSystem {
     /// Connects to the X server named by `DISPLAY`.
-    pub fn open() -> anyhow::Result<Display> {
+    pub fn open() -> anyhow::Result<WindowSystem> {
         if let Some(why) = missing_display() {
             anyhow::bail!(why);
         }
         let name = std::env::var("DISPLAY").unwrap_or_default();
         let event_loop = EventLoop::new()
             .with_context(|| format!("cannot open the X11 display '{name}' (DISPLAY)"))?;
-        Ok(Display { event_loop })
+        Ok(WindowSystem { event_loop })
     }
 
     /// A GPU whose instance can present to this display's windows.
@@ -112,7 +112,7 @@ struct App<'s, 'g> {
 /// Opens the window and runs the viewer until quit (Esc, the window closed, a script's
 /// `quit` or `cfg.frames` frames).
 pub fn run<'g>(
-    display: Display,
+    display: WindowSystem,
     gpu: &'g Gpu,
     session: &mut Session<'g>,
     cfg: LoopConfig,

@@ -104,16 +104,7 @@ impl EdlPass {
             label: Some("edl.wgsl"),
             source: wgpu::ShaderSource::Wgsl(EDL_WGSL.into()),
         });
-        let texture = |binding, sample_type| wgpu::BindGroupLayoutEntry {
-            binding,
-            visibility: wgpu::ShaderStages::FRAGMENT,
-            ty: wgpu::BindingType::Texture {
-                sample_type,
-                view_dimension: wgpu::TextureViewDimension::D2,
-                multisampled: false,
-            },
-            count: None,
-        };
+        let texture = super::pipelines::fragment_texture;
         let bgl = d.create_bind_group_layout(&wgpu::BindGroupLayoutDescriptor {
             label: Some("edl"),
             entries: &[

@@ -93,7 +93,7 @@ use upload::GpuBatch;
 pub use upload::splats_per_part;
 
 pub use methods::SplatShape as Kernel;
-pub(crate) use pipelines::fullscreen_pipeline;
+pub(crate) use pipelines::{fragment_texture, fullscreen_pipeline};
 pub use uniforms::{
     AMBIENT, BASE_COLOR, DrawUniform, FrameUniform, GAUSS_DEPTH_OFFSET, LEVEL_PALETTE,
     frame_uniform, level_tint,

@@ -125,16 +125,10 @@ impl Renderer<'_> {
         let accum_view = accum.create_view(&Default::default());
         let bgl = d.create_bind_group_layout(&wgpu::BindGroupLayoutDescriptor {
             label: Some("normalize"),
-            entries: &[wgpu::BindGroupLayoutEntry {
-                binding: 0,
-                visibility: wgpu::ShaderStages::FRAGMENT,
-                ty: wgpu::BindingType::Texture {
-                    sample_type: wgpu::TextureSampleType::Float { filterable: false },
-                    view_dimension: wgpu::TextureViewDimension::D2,
-                    multisampled: false,
-                },
-                count: None,
-            }],
+            entries: &[fragment_texture(
+                0,
+                wgpu::TextureSampleType::Float { filterable: false },
+            )],
         });
         let normalize_bg = d.create_bind_group(&wgpu::BindGroupDescriptor {
             label: Some("normalize"),
@@ -161,6 +155,24 @@ impl Renderer<'_> {
             usage: wgpu::BufferUsages::UNIFORM | wgpu::BufferUsages::COPY_DST,
             mapped_at_creation: false,
         })
+    }
+}
+
+/// A 2-D, single-sampled texture binding of the fragment stage (the full-screen passes'
+/// inputs: the gaussian accumulation, EDL's colour and depth, the viewer's frame and HUD).
+pub(crate) fn fragment_texture(
+    binding: u32,
+    sample_type: wgpu::TextureSampleType,
+) -> wgpu::BindGroupLayoutEntry {
+    wgpu::BindGroupLayoutEntry {
+        binding,
+        visibility: wgpu::ShaderStages::FRAGMENT,
+        ty: wgpu::BindingType::Texture {
+            sample_type,
+            view_dimension: wgpu::TextureViewDimension::D2,
+            multisampled: false,
+        },
+        count: None,
     }
 }
 

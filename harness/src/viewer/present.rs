@@ -8,7 +8,7 @@ use bytemuck::{Pod, Zeroable};
 use super::session::Display;
 use crate::gpu::Gpu;
 use crate::image::Image;
-use crate::render::{COLOR_FORMAT, fullscreen_pipeline};
+use crate::render::{COLOR_FORMAT, fragment_texture, fullscreen_pipeline};
 
 /// The present shader.
 pub const PRESENT_WGSL: &str = include_str!("present.wgsl");
@@ -89,15 +89,11 @@ impl Presenter {
     /// A presenter drawing into `format` surfaces.
     pub fn new(gpu: &Gpu, format: wgpu::TextureFormat) -> Self {
         let d = &gpu.device;
-        let texture = |binding| wgpu::BindGroupLayoutEntry {
-            binding,
-            visibility: wgpu::ShaderStages::FRAGMENT,
-            ty: wgpu::BindingType::Texture {
-                sample_type: wgpu::TextureSampleType::Float { filterable: false },
-                view_dimension: wgpu::TextureViewDimension::D2,
-                multisampled: false,
-            },
-            count: None,
+        let texture = |binding| {
+            fragment_texture(
+                binding,
+                wgpu::TextureSampleType::Float { filterable: false },
+            )
         };
         let bgl = d.create_bind_group_layout(&wgpu::BindGroupLayoutDescriptor {
             label: Some("present"),

@@ -139,7 +139,6 @@ pub struct Session<'g> {
     shown: Option<(Image, u64)>,
     generation: u64,
     playback: Option<(PathSpec, usize)>,
-    last_saved: Option<PathBuf>,
     saved: Vec<PathBuf>,
     last: Option<(FrameStats, View)>,
     frame_no: u64,
@@ -212,7 +211,6 @@ impl<'g> Session<'g> {
             shown: None,
             generation: 0,
             playback: None,
-            last_saved: None,
             saved: Vec::new(),
             last: None,
             frame_no: 0,
@@ -333,6 +331,8 @@ impl<'g> Session<'g> {
             Action::Holes => self.toggle(Overlay::Holes),
             Action::Levels => {
                 let slot = &self.slots[self.current];
+                // Node-drawing methods number their root chunk 0; a method without levels
+                // answers None for every chunk.
                 if !self.levels && self.overlay == Overlay::Flip {
                     self.message = FLIP_NEEDS_COLOURS.into();
                 } else if !self.levels && slot.method.chunk_level(0).is_none() {
@@ -397,8 +397,7 @@ impl<'g> Session<'g> {
                     self.recorder.len(),
                     file.display()
                 );
-                self.saved.push(file.clone());
-                self.last_saved = Some(file);
+                self.saved.push(file);
                 self.recorder = Recorder::default();
             }
             Err(e) => self.message = e.to_string(),
@@ -407,7 +406,7 @@ impl<'g> Session<'g> {
     }
 
     fn play(&mut self) {
-        let path = match (&self.cfg.play, &self.last_saved) {
+        let path = match (&self.cfg.play, self.saved.last()) {
             (Some(p), _) => Ok(p.clone()),
             (None, Some(f)) => PathSpec::parse(&f.to_string_lossy()),
             (None, None) => {

@@ -28,6 +28,7 @@ pub mod paths;
 pub mod pcd;
 pub mod ply;
 pub mod progress;
+pub mod regularity;
 pub mod rng;
 pub mod scalar;
 pub mod screen;

@@ -1,7 +1,8 @@
 //! Scene specifications: what `--scene` accepts, and loading it.
 //!
-//! - `generator:points[:seed]`, e.g. `statue:200000` or `terrain:1000000:7` (seed defaults to
-//!   the run's `--seed`);
+//! - `generator:points[:seed[:sampling]]`, e.g. `statue:200000`, `terrain:1000000:7` or
+//!   `statue:1M:1:even` (seed defaults to the run's `--seed`; sampling `random` or `even`,
+//!   default [`Generator::default_sampling`]; see [`crate::generators::even`]);
 //! - a file: `.ply` (with `--sample N` to resample a mesh), `.las`, `.laz`, `.e57`, `.pcd`, or
 //!   a splatbench column file `.sbc`;
 //! - a scene file `.toml` (fields below, unknown keys are errors); relative `file` paths are
@@ -10,6 +11,7 @@
 //!   generator = "statue"   # or: file = "scan.ply"
 //!   points = 200000        # generators only
 //!   seed = 1               # optional
+//!   sampling = "even"      # optional, generators only: random | even
 //!   sample = 100000        # optional, meshes only
 //!   keep_attributes = true # optional: keep constant colour/normal columns (see screen)
 //!   up = "y"               # optional: the file's up axis, turned to +Z (see axis)
@@ -24,7 +26,7 @@
 
 use std::path::{Path, PathBuf};
 
-use crate::generators::Generator;
+use crate::generators::{Generator, Sampling};
 use crate::hash::Fnv64;
 use crate::{PointCloud, Progress, SceneError};
 
@@ -74,6 +76,8 @@ pub enum SceneSource {
         points: usize,
         /// Seed.
         seed: u64,
+        /// How the samples are placed.
+        sampling: Sampling,
     },
     /// A PLY file, optionally resampled.
     Ply {
@@ -160,6 +164,7 @@ struct SceneFile {
     points: Option<usize>,
     seed: Option<u64>,
     sample: Option<usize>,
+    sampling: Option<String>,
     keep_attributes: Option<bool>,
     up: Option<String>,
 }
@@ -214,13 +219,21 @@ impl SceneSpec {
                     .map_err(|_| err(format!("seed '{s}' is not a non-negative integer")))?,
                 None => seed,
             };
+            let sampling = match parts.next() {
+                Some(s) => Sampling::from_name(s)
+                    .ok_or_else(|| err(format!("sampling '{s}' is not one of: random, even")))?,
+                None => generator.default_sampling(),
+            };
             if parts.next().is_some() {
-                return Err(err("too many ':' fields (generator:points[:seed])".into()));
+                return Err(err(
+                    "too many ':' fields (generator:points[:seed[:sampling]])".into(),
+                ));
             }
             SceneSource::Generator {
                 generator,
                 points,
                 seed,
+                sampling,
             }
         };
         if sample.is_some() && !matches!(source, SceneSource::Ply { .. }) {
@@ -279,13 +292,23 @@ impl SceneSpec {
                         "`sample` applies only to PLY meshes",
                     ));
                 }
-                Self::parse(&format!("{g}:{points}:{seed}"), None, seed)
+                let text = match &f.sampling {
+                    Some(m) => format!("{g}:{points}:{seed}:{m}"),
+                    None => format!("{g}:{points}:{seed}"),
+                };
+                Self::parse(&text, None, seed)
             }
             (None, Some(file)) => {
                 if f.points.is_some() {
                     return Err(SceneError::format(
                         path,
                         "`points` applies to generators; use `sample` to resample a mesh",
+                    ));
+                }
+                if f.sampling.is_some() {
+                    return Err(SceneError::format(
+                        path,
+                        "`sampling` applies to generators (a file's samples are what they are)",
                     ));
                 }
                 let file = path.parent().unwrap_or(Path::new(".")).join(file);
@@ -321,7 +344,14 @@ impl SceneSpec {
                 generator,
                 points,
                 seed,
-            } => format!("{}:{points}:{seed}", generator.name()),
+                sampling,
+            } => {
+                if *sampling == generator.default_sampling() {
+                    format!("{}:{points}:{seed}", generator.name())
+                } else {
+                    format!("{}:{points}:{seed}:{}", generator.name(), sampling.name())
+                }
+            }
             SceneSource::Ply { path, sample, .. } => {
                 let name = file_name(path);
                 match sample {
@@ -345,11 +375,16 @@ impl SceneSpec {
                 generator,
                 points,
                 seed,
+                sampling,
             } => {
                 h.write_str(generator.name())
                     .write(&points.to_le_bytes())
                     .write(&seed.to_le_bytes())
                     .write(&GENERATOR_VERSION.to_le_bytes());
+                if *sampling != Sampling::Random {
+                    // Random scenes keep the hashes they had before there was a choice.
+                    h.write_str("sampling").write_str(sampling.name());
+                }
             }
             SceneSource::Ply { path, sample, seed } => {
                 hash_file(&mut h, path)?;
@@ -443,10 +478,15 @@ impl SceneSpec {
                 generator,
                 points,
                 seed,
+                sampling,
             } => match cache_dir {
                 Some(dir) if *points >= CACHE_MIN_POINTS => {
+                    let suffix = match sampling {
+                        Sampling::Random => "",
+                        Sampling::Even => "-even",
+                    };
                     let path = dir.join("scenes").join(format!(
-                        "{}-{points}-{seed}-v{GENERATOR_VERSION}.sbc",
+                        "{}-{points}-{seed}{suffix}-v{GENERATOR_VERSION}.sbc",
                         generator.name()
                     ));
                     if path.exists() {
@@ -454,10 +494,11 @@ impl SceneSpec {
                     } else {
                         std::fs::create_dir_all(path.parent().unwrap_or(dir))
                             .map_err(|e| SceneError::io(dir, e))?;
-                        generator.generate_to_file(*points, *seed, &path, progress)
+                        generator
+                            .generate_to_file_sampled(*points, *seed, *sampling, &path, progress)
                     }
                 }
-                _ => generator.generate(*points, *seed),
+                _ => generator.generate_sampled(*points, *seed, *sampling),
             },
             SceneSource::Ply { path, sample, seed } => {
                 let opts = crate::ply::PlyOptions {
@@ -603,10 +644,25 @@ mod tests {
             SceneSource::Generator {
                 generator: Generator::Statue,
                 points: 200_000,
-                seed: 9
+                seed: 9,
+                sampling: Sampling::Random,
             }
         );
         assert_eq!(s.label(), "statue:200000:9");
+        let even = SceneSpec::parse("statue:200k:9:even", None, 1).unwrap();
+        assert!(matches!(
+            even.source,
+            SceneSource::Generator {
+                sampling: Sampling::Even,
+                seed: 9,
+                ..
+            }
+        ));
+        assert_eq!(even.label(), "statue:200000:9:even");
+        assert_ne!(even.content_hash().unwrap(), s.content_hash().unwrap());
+        let random = SceneSpec::parse("statue:200k:9:random", None, 1).unwrap();
+        assert_eq!(random.label(), s.label());
+        assert_eq!(random.content_hash().unwrap(), s.content_hash().unwrap());
         let s = SceneSpec::parse("terrain:10M:3", None, 9).unwrap();
         assert!(matches!(
             s.source,
@@ -637,7 +693,8 @@ mod tests {
             ("statue:0", "at least 1"),
             ("statue:abc", "not a point count"),
             ("statue:10:x", "seed 'x'"),
-            ("statue:10:1:2", "too many"),
+            ("statue:10:1:2", "sampling '2'"),
+            ("statue:10:1:even:x", "too many"),
         ] {
             let e = SceneSpec::parse(spec, None, 1).unwrap_err().to_string();
             assert!(e.contains(needle), "{spec}: {e}");
@@ -660,6 +717,27 @@ mod tests {
         std::fs::write(&p, "generator = \"statue\"\npoints = 1000\nseed = 3\n").unwrap();
         let s = SceneSpec::parse(p.to_str().unwrap(), None, 1).unwrap();
         assert_eq!(s.label(), "statue:1000:3");
+        std::fs::write(
+            &p,
+            "generator = \"statue\"\npoints = 1000\nsampling = \"even\"\n",
+        )
+        .unwrap();
+        let s = SceneSpec::parse(p.to_str().unwrap(), None, 1).unwrap();
+        assert_eq!(s.label(), "statue:1000:1:even");
+        std::fs::write(
+            &p,
+            "generator = \"statue\"\npoints = 1000\nsampling = \"odd\"\n",
+        )
+        .unwrap();
+        let e = SceneSpec::parse(p.to_str().unwrap(), None, 1)
+            .unwrap_err()
+            .to_string();
+        assert!(e.contains("sampling 'odd'") && e.contains("s.toml"), "{e}");
+        std::fs::write(&p, "file = \"x.ply\"\nsampling = \"even\"\n").unwrap();
+        let e = SceneSpec::parse(p.to_str().unwrap(), None, 1)
+            .unwrap_err()
+            .to_string();
+        assert!(e.contains("`sampling` applies to generators"), "{e}");
         std::fs::write(&p, "file = \"x.ply\"\ngenerator = \"statue\"\n").unwrap();
         let e = SceneSpec::parse(p.to_str().unwrap(), None, 1)
             .unwrap_err()

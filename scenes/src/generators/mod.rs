@@ -23,6 +23,7 @@
 //! statue, the Richtmyer–Meshkov isosurface and LiDAR surveys; each module documents its
 //! construction.
 
+pub mod even;
 pub mod isosurface;
 pub mod statue;
 pub mod terrain;
@@ -36,6 +37,7 @@ use rayon::prelude::*;
 use crate::colfile::ColumnWriter;
 use crate::rng::Pcg32;
 use crate::{Attributes, PointCloud, Progress, SceneError};
+pub use even::Sampling;
 
 /// Points per block: the unit of seeding and of parallel work.
 pub const BLOCK: usize = 4096;
@@ -90,6 +92,13 @@ impl Generator {
         Self::ALL.iter().copied().find(|g| g.name() == name)
     }
 
+    /// The sampling `generator:points:seed` means when none is named. Every generator's
+    /// default is [`Sampling::Random`] (the first sampling; `terrain` keeps it: aerial LiDAR
+    /// is closer to it).
+    pub fn default_sampling(self) -> Sampling {
+        Sampling::Random
+    }
+
     /// The attributes this generator produces.
     pub fn attributes(self) -> Attributes {
         Attributes {
@@ -106,6 +115,74 @@ impl Generator {
             Generator::Statue => generate_with(&statue::Statue::new(seed), n, seed),
             Generator::Isosurface => generate_with(&isosurface::Isosurface::new(seed), n, seed),
             Generator::Terrain => generate_with(&terrain::Terrain::new(seed), n, seed),
+        }
+    }
+
+    /// `n` independent area-uniform points of the same surface as `seed`'s scene, from
+    /// random streams no scene uses (blocks from [`TEST_POINT_BLOCK`] on): test points that
+    /// share no sample with any scene of this seed ([`crate::regularity`]).
+    pub fn test_points(self, n: usize, seed: u64) -> Result<PointCloud, SceneError> {
+        check_n(self, n)?;
+        match self {
+            Generator::Statue => {
+                generate_from(&statue::Statue::new(seed), n, seed, TEST_POINT_BLOCK)
+            }
+            Generator::Isosurface => generate_from(
+                &isosurface::Isosurface::new(seed),
+                n,
+                seed,
+                TEST_POINT_BLOCK,
+            ),
+            Generator::Terrain => {
+                generate_from(&terrain::Terrain::new(seed), n, seed, TEST_POINT_BLOCK)
+            }
+        }
+    }
+
+    /// Generates `n` points with `seed` and `sampling`, in memory ([`Sampling::Even`]: from
+    /// [`even::OVERSAMPLING`]` · n` random candidates of the same seed, [`even`]).
+    pub fn generate_sampled(
+        self,
+        n: usize,
+        seed: u64,
+        sampling: Sampling,
+    ) -> Result<PointCloud, SceneError> {
+        match sampling {
+            Sampling::Random => self.generate(n, seed),
+            Sampling::Even => {
+                check_n(self, n)?;
+                even::check_count(n)?;
+                let candidates = self.generate(n * even::OVERSAMPLING, seed)?;
+                even::thin(&candidates, n)
+            }
+        }
+    }
+
+    /// [`generate_to_file`](Self::generate_to_file) with `sampling`. Even samples are made in
+    /// memory ([`even::EVEN_MAX_POINTS`]) and then written.
+    pub fn generate_to_file_sampled(
+        self,
+        n: usize,
+        seed: u64,
+        sampling: Sampling,
+        path: &Path,
+        progress: &dyn Progress,
+    ) -> Result<PointCloud, SceneError> {
+        match sampling {
+            Sampling::Random => self.generate_to_file(n, seed, path, progress),
+            Sampling::Even => {
+                progress.start(
+                    &format!("generating {n} evenly spaced points of {}", self.name()),
+                    0,
+                );
+                let cloud = self.generate_sampled(n, seed, sampling);
+                progress.finish();
+                let cloud = cloud?;
+                let mut w =
+                    ColumnWriter::create(path, cloud.attributes(), cloud.origin(), n as u64)?;
+                w.push(cloud.positions(), cloud.normals(), cloud.colors(), None)?;
+                w.finish()
+            }
         }
     }
 
@@ -200,14 +277,27 @@ fn try_vec<T: Clone>(n: usize, value: T, what: &str) -> Result<Vec<T>, SceneErro
     Ok(v)
 }
 
+/// The first block of [`Generator::test_points`]: far above any scene's blocks (a scene of
+/// 2⁴⁰ blocks would have 4.5 · 10¹⁵ points) and below [`PARAM_STREAM`].
+pub const TEST_POINT_BLOCK: u64 = 1 << 40;
+
 fn generate_with<S: BlockSampler>(s: &S, n: usize, seed: u64) -> Result<PointCloud, SceneError> {
+    generate_from(s, n, seed, 0)
+}
+
+fn generate_from<S: BlockSampler>(
+    s: &S,
+    n: usize,
+    seed: u64,
+    first_block: u64,
+) -> Result<PointCloud, SceneError> {
     let mut pos = try_vec(n, [0.0f32; 3], "positions")?;
     let mut nrm = try_vec(n, [0.0f32; 3], "normals")?;
     let mut col = match s.has_colors() {
         true => Some(try_vec(n, [0u8; 3], "colours")?),
         false => None,
     };
-    fill_blocks(s, seed, 0, &mut pos, &mut nrm, col.as_deref_mut());
+    fill_blocks(s, seed, first_block, &mut pos, &mut nrm, col.as_deref_mut());
     PointCloud::new(
         s.origin(),
         pos.into(),

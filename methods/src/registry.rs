@@ -186,6 +186,17 @@ impl MethodKind {
         }
     }
 
+    /// True for the methods that refine a view by loading chunks of several levels (LPC's
+    /// clouds and Potree's nodes, whose union is drawn; MWKD's nodes, a cut of them), frame
+    /// after frame as they arrive. Such a method must not get worse as it refines
+    /// (`tests/refinement.rs`).
+    pub fn draws_layers(self) -> bool {
+        match self {
+            MethodKind::Full | MethodKind::Qsplat | MethodKind::Spt => false,
+            MethodKind::Lpc | MethodKind::Mwkd | MethodKind::Potree => true,
+        }
+    }
+
     /// True if `dir` is another tool's output that this method reads as it is (no
     /// `method.json`): a PotreeConverter 2.0 directory for `potree`.
     pub fn reads_foreign(self, dir: &Path) -> bool {

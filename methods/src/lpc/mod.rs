@@ -71,6 +71,7 @@ pub const RUNTIME_PARAMS: &[&str] = &[
     "in_flight",
     "occlusion",
     "occlusion_threshold",
+    "enlarge",
 ];
 
 /// How the input spacing `r` of eqs. (1)–(2) is estimated from the samples (README,
@@ -133,6 +134,10 @@ pub struct LpcParams {
     pub occlusion: bool,
     /// Fragments a cloud's sphere must pass to count as visible.
     pub occlusion_threshold: u64,
+    /// Which clouds take the enlarged size of a node whose refinement stops above ε:
+    /// `layers` (default, the node and its drawn ancestors: the layers whose merged density
+    /// its spacing `r_j` is) or `cloud` (the literal reading: the node's cloud alone).
+    pub enlarge: traverse::Enlarge,
 }
 
 impl Default for LpcParams {
@@ -151,6 +156,7 @@ impl Default for LpcParams {
             in_flight: None,
             occlusion: false,
             occlusion_threshold: 0,
+            enlarge: traverse::Enlarge::Layers,
         }
     }
 }
@@ -307,7 +313,7 @@ impl Lpc {
         // it is read (and verified) now.
         access.get(0)?;
         Ok(Self {
-            traversal: Traversal::new(nodes.len()),
+            traversal: Traversal::with_enlarge(nodes.len(), params.enlarge),
             nodes,
             info,
             params,

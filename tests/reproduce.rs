@@ -168,11 +168,16 @@ fn quick_reproduction_of_small_tables_writes_their_rows() {
     ] {
         assert!(report.contains(row), "missing '{row}' in {report}");
     }
-    // QSplat Fig. 6 on the quick statue: 4 bytes per node exactly; the verdicts are words.
+    // QSplat Fig. 6 on the quick statue: 4 bytes per node, true by construction (shown, not
+    // counted as a verdict); the verdicts are words.
     assert!(
-        report.contains("| bytes per node (no colour) | 4 | 4 | 1.00 | exact | holds |"),
+        report.contains(
+            "| bytes per node (no colour) | 4 | 4 | 1.00 | by construction | by construction |"
+        ),
         "{report}"
     );
+    // The spec hashes are recorded (issue 35: reports that cannot go stale).
+    assert!(report.contains("- spec `qsplat-fig6`: `"), "{report}");
     assert!(report.contains("| interior nodes / leaves |"), "{report}");
     assert!(report.contains("commit: `"), "{report}");
     let results: serde_json::Value =
@@ -396,4 +401,101 @@ fn a_tiny_spec_runs_every_kind_of_measure() {
         report.contains("measure 'b' has no metric 'cloudz'"),
         "{report}"
     );
+}
+
+/// A relative-speed row end to end through the CLI (issue 35): LPC and QSplat on one view
+/// and ε, points drawn ÷ (selection + upload + draw), a one-sided band. On a CPU rasteriser
+/// the ratio is measured and shown, and the verdict is "CPU rasteriser: no verdict".
+const SPEED: &str = r#"
+id = "speed"
+paper = "LPC"
+title = "relative speed"
+source = "§6"
+
+[scenes.s]
+generator = "statue"
+points = 20000
+sampling = "even"
+
+[[measure]]
+id = "qs"
+kind = "run"
+method = "qsplat"
+scene = "s"
+path = "paper/paths/still-mid.toml"
+frames = 2
+eps = 2
+width = 96
+height = 96
+metrics = false
+
+[[measure]]
+id = "lpc"
+kind = "run"
+method = "lpc"
+scene = "s"
+params = { m = 512, fetch_per_frame = 100000 }
+path = "paper/paths/still-mid.toml"
+frames = 6
+skip = 5
+eps = 2
+width = 96
+height = 96
+metrics = false
+
+[[row]]
+what = "relative speed"
+paper = 11.1
+ours = "(lpc.median.points_drawn / (lpc.median.cpu_select_ms + lpc.median.wall_ms)) / (qs.median.points_drawn / (qs.median.cpu_select_ms + qs.median.wall_ms))"
+rule = "band"
+band = [8.9, inf]
+band_reason = "at least 11.1, less 20 % noise"
+judge_on_gpu = true
+"#;
+
+#[test]
+fn a_relative_speed_row_is_measured_and_judged_only_on_a_gpu() {
+    let Some(gpu) =
+        harness::gpu::gpu_for_test("a_relative_speed_row_is_measured_and_judged_only_on_a_gpu")
+    else {
+        return;
+    };
+    let d = tempfile::tempdir().unwrap();
+    let specs = d.path().join("specs");
+    std::fs::create_dir_all(&specs).unwrap();
+    std::fs::write(specs.join("speed.toml"), SPEED).unwrap();
+    let out = d.path().join("out");
+    bin()
+        .args([
+            "reproduce",
+            "--profile",
+            "quick",
+            "--only",
+            "speed",
+            "--specs",
+        ])
+        .arg(&specs)
+        .arg("--out")
+        .arg(&out)
+        .arg("--cache")
+        .arg(d.path().join("cache"))
+        .assert()
+        .success();
+    let results: serde_json::Value =
+        serde_json::from_str(&std::fs::read_to_string(out.join("results.json")).unwrap()).unwrap();
+    let row = &results["tables"][0]["rows"][0];
+    let ratio = row["ours"][0]
+        .as_f64()
+        .expect("the ratio is measured on every adapter");
+    assert!(ratio.is_finite() && ratio > 0.0, "{row}");
+    let verdict = row["verdict"]["verdict"].as_str().unwrap();
+    let cpu = gpu.adapter.device_type.eq_ignore_ascii_case("cpu");
+    if cpu {
+        assert_eq!(verdict, "no_verdict_cpu", "{row}");
+        let report = std::fs::read_to_string(out.join("report.md")).unwrap();
+        assert!(report.contains("CPU rasteriser: no verdict"), "{report}");
+        assert!(report.contains("band ≥ 8.9"), "{report}");
+    } else {
+        assert!(verdict == "holds" || verdict == "differs", "{row}");
+    }
 }

@@ -158,6 +158,32 @@ impl Checker<'_> {
         }
     }
 
+    /// A string, or `{ quick = "…", full = "…" }` resolved for the profile.
+    fn text(&self, field: &str, v: &toml::Value) -> Result<String, SpecError> {
+        let s = |v: &toml::Value, what: &str| match v {
+            toml::Value::String(s) => Ok(s.clone()),
+            _ => Err(self.err(
+                field,
+                format!("{what}must be a string or {{ quick = \"…\", full = \"…\" }}, not {v}"),
+            )),
+        };
+        match v {
+            toml::Value::Table(t) => {
+                if let Some(k) = t.keys().find(|k| *k != "quick" && *k != "full") {
+                    return Err(self.err(field, format!("unknown profile '{k}' (quick, full)")));
+                }
+                let Some(v) = t.get(self.profile.name()) else {
+                    return Err(self.err(
+                        field,
+                        format!("gives no value for profile '{}'", self.profile),
+                    ));
+                };
+                s(v, &format!("{}: ", self.profile))
+            }
+            v => s(v, ""),
+        }
+    }
+
     fn scene(&self, name: &str, s: &RawScene) -> Result<SceneSpec, SpecError> {
         let field = format!("scenes.{name}");
         let sample = s
@@ -186,9 +212,27 @@ impl Checker<'_> {
                 if n == 0 {
                     return Err(self.err(format!("{field}.points"), "must be at least 1"));
                 }
-                format!("{}:{n}:{seed}", generator.name())
+                match &s.sampling {
+                    None => format!("{}:{n}:{seed}", generator.name()),
+                    Some(v) => {
+                        let m = self.text(&format!("{field}.sampling"), v)?;
+                        if scenes::generators::Sampling::from_name(&m).is_none() {
+                            return Err(self.err(
+                                format!("{field}.sampling"),
+                                format!("'{m}' is not one of: random, even"),
+                            ));
+                        }
+                        format!("{}:{n}:{seed}:{m}", generator.name())
+                    }
+                }
             }
             (None, Some(f)) => {
+                if s.sampling.is_some() {
+                    return Err(self.err(
+                        format!("{field}.sampling"),
+                        "applies to generators (a file's samples are what they are)",
+                    ));
+                }
                 if s.points.is_some() {
                     return Err(self.err(
                         format!("{field}.points"),
@@ -529,6 +573,26 @@ impl Checker<'_> {
         };
         check_shape(r.rule, paper.as_ref(), ours.len(), r.tolerance)
             .map_err(|e| self.err(field("rule"), e))?;
+        let band = r.band.map(|[lo, hi]| (lo, hi));
+        super::verdict::check_band(r.rule, band).map_err(|e| self.err(field("band"), e))?;
+        match (
+            r.rule == Rule::Band,
+            r.band_reason.as_deref().map(str::trim),
+        ) {
+            (true, None | Some("")) => {
+                return Err(self.err(field("band_reason"), "rule 'band' needs its reason"));
+            }
+            (false, Some(_)) => {
+                return Err(self.err(field("band_reason"), "belongs to rule 'band' only"));
+            }
+            _ => {}
+        }
+        if r.judge_on_gpu && r.needs_gpu {
+            return Err(self.err(
+                field("judge_on_gpu"),
+                "a row is either a GPU's figure (needs_gpu) or measured everywhere and judged on a GPU (judge_on_gpu), not both",
+            ));
+        }
         let reason = r
             .reason
             .as_deref()
@@ -544,6 +608,9 @@ impl Checker<'_> {
             format: r.format,
             reason,
             needs_gpu: r.needs_gpu,
+            band,
+            band_reason: r.band_reason.clone(),
+            judge_on_gpu: r.judge_on_gpu,
         };
         // Every reference names a measure; points_at_flip names a sweep.
         let mut exprs: Vec<(&Expr, &str)> = row.ours.iter().map(|e| (e, "ours")).collect();

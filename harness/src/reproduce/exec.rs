@@ -88,6 +88,9 @@ pub struct RowResult {
     pub verdict: Verdict,
     /// The reason, filled in, when it differs.
     pub reason: Option<String>,
+    /// Rule `band`'s reason (why the band is what it is).
+    #[serde(default)]
+    pub band_reason: Option<String>,
 }
 
 /// The state of a reproduction: the GPU (opened when first needed), the builds made so far.
@@ -568,7 +571,7 @@ impl Results<'_> {
 /// GPU" without values.
 pub fn evaluate(row: &Row, env: &Results<'_>, real_gpu: bool) -> RowResult {
     let paper = paper_text(row);
-    let rule = row.rule.describe(row.tolerance);
+    let rule = row.rule.describe_band(row.tolerance, row.band);
     let base = RowResult {
         what: row.what.clone(),
         paper,
@@ -578,6 +581,7 @@ pub fn evaluate(row: &Row, env: &Results<'_>, real_gpu: bool) -> RowResult {
         rule,
         verdict: Verdict::NeedsGpu,
         reason: None,
+        band_reason: row.band_reason.clone(),
     };
     if row.needs_gpu && !real_gpu {
         return base;
@@ -608,8 +612,20 @@ pub fn evaluate(row: &Row, env: &Results<'_>, real_gpu: bool) -> RowResult {
             };
         }
     };
-    let verdict =
-        judge(row.rule, row.paper.as_ref(), &values, row.tolerance).unwrap_or_else(Verdict::Failed);
+    let verdict = judge(
+        row.rule,
+        row.paper.as_ref(),
+        &values,
+        row.tolerance,
+        row.band,
+    )
+    .unwrap_or_else(Verdict::Failed);
+    // A relative speed on a CPU rasteriser: shown, not judged.
+    let verdict = if row.judge_on_gpu && !real_gpu && verdict.is_verdict() {
+        Verdict::NoVerdictCpu
+    } else {
+        verdict
+    };
     let ratio = match (&row.paper, values.as_slice()) {
         (Some(Paper::Value(p)), [v]) if *p != 0.0 => Some(v / p),
         _ => None,

@@ -16,8 +16,10 @@
 //! (lavapipe), and measured when a real GPU is present.
 
 mod check;
+pub mod claims;
 pub mod exec;
 pub mod expr;
+pub mod inputs;
 mod raw;
 pub mod report;
 pub mod spec;
@@ -172,6 +174,12 @@ pub fn reproduce(opts: &Options, multi: &MultiProgress) -> anyhow::Result<Outcom
     for spec in &specs {
         tables.push(run_spec(spec, opts, &mut ctx, multi, &figures_dir)?);
     }
+    let mut spec_hashes = BTreeMap::new();
+    for spec in &specs {
+        let h =
+            inputs::spec_hash(spec).with_context(|| format!("hashing {}", spec.file.display()))?;
+        spec_hashes.insert(spec.id.clone(), h);
+    }
     let meta = report::Meta {
         profile: opts.profile,
         command: opts.command.clone(),
@@ -181,6 +189,8 @@ pub fn reproduce(opts: &Options, multi: &MultiProgress) -> anyhow::Result<Outcom
         cpus: std::thread::available_parallelism().map_or(1, |n| n.get()),
         seconds: t0.elapsed().as_secs_f64(),
         partial: opts.only.is_some(),
+        spec_hashes,
+        baseline_hash: baseline_hash(opts)?,
     };
     let report_path = opts.out.join("report.md");
     report::write(&report_path, &meta, &tables, "figures")?;
@@ -220,7 +230,7 @@ fn run_spec(
         bar.set_style(style.progress_chars("=> "));
     }
     bar.set_prefix(spec.id.clone());
-    let needs_gpu_rows = spec.rows.iter().any(|r| r.needs_gpu);
+    let needs_gpu_rows = spec.rows.iter().any(|r| r.needs_gpu || r.judge_on_gpu);
     let real_gpu = needs_gpu_rows && ctx.has_real_gpu().unwrap_or(false);
     let mut results: BTreeMap<String, MeasureResult> = BTreeMap::new();
     let mut lines = Vec::new();
@@ -406,6 +416,8 @@ pub fn merge(dirs: &[PathBuf], out: &Path) -> anyhow::Result<Outcome> {
     let mut tables = Vec::new();
     let mut adapter: Option<crate::gpu::AdapterDesc> = None;
     let (mut seconds, mut cpus) = (0.0, 0);
+    let mut spec_hashes = BTreeMap::new();
+    let mut baseline = None;
     for (spec, d) in first.specs.iter().zip(&by_spec) {
         let path = d.join("results.json");
         let v: serde_json::Value = crate::results::read_json(&path)?;
@@ -427,6 +439,8 @@ pub fn merge(dirs: &[PathBuf], out: &Path) -> anyhow::Result<Outcome> {
         }
         seconds += meta.seconds;
         cpus = cpus.max(meta.cpus);
+        spec_hashes.extend(meta.spec_hashes.clone());
+        baseline = baseline.or(meta.baseline_hash.clone());
         let t = part_tables
             .into_iter()
             .find(|t| &t.id == spec)
@@ -447,6 +461,8 @@ pub fn merge(dirs: &[PathBuf], out: &Path) -> anyhow::Result<Outcome> {
         cpus,
         seconds,
         partial: first.partial,
+        spec_hashes,
+        baseline_hash: baseline,
     };
     let report_path = out.join("report.md");
     report::write(&report_path, &meta, &tables, "figures")?;
@@ -460,6 +476,18 @@ pub fn merge(dirs: &[PathBuf], out: &Path) -> anyhow::Result<Outcome> {
         outcome.published = publish_complete(dir, &meta, &outcome, &out.join("figures"))?;
     }
     Ok(outcome)
+}
+
+/// The quick baseline's hash for a quick reproduction (`None` for other profiles, or where
+/// the root has no baseline: a reproduction outside the repository).
+fn baseline_hash(opts: &Options) -> anyhow::Result<Option<String>> {
+    let path = opts.root.join(inputs::QUICK_BASELINE);
+    if opts.profile != Profile::Quick || !path.is_file() {
+        return Ok(None);
+    }
+    Ok(Some(
+        inputs::file_hash(&path).with_context(|| format!("hashing {}", path.display()))?,
+    ))
 }
 
 /// Overlays the sweeps of `dirs` into `out/<stem>.png` and `.svg`.

@@ -34,6 +34,7 @@ pub(super) struct RawScene {
     pub(super) points: Option<toml::Value>,
     pub(super) seed: Option<u64>,
     pub(super) sample: Option<toml::Value>,
+    pub(super) sampling: Option<toml::Value>,
 }
 
 #[derive(Debug, serde::Deserialize)]
@@ -73,6 +74,10 @@ pub(super) struct RawRow {
     pub(super) reason: Option<String>,
     #[serde(default)]
     pub(super) needs_gpu: bool,
+    pub(super) band: Option<[f64; 2]>,
+    pub(super) band_reason: Option<String>,
+    #[serde(default)]
+    pub(super) judge_on_gpu: bool,
 }
 
 #[derive(Debug, serde::Deserialize)]

@@ -29,6 +29,12 @@ pub struct Meta {
     pub seconds: f64,
     /// Only some specs were run (`--only`).
     pub partial: bool,
+    /// Content hash of every spec run, by id ([`super::inputs`]).
+    #[serde(default)]
+    pub spec_hashes: std::collections::BTreeMap<String, String>,
+    /// Content hash of the quick regression baseline when a quick reproduction ran.
+    #[serde(default)]
+    pub baseline_hash: Option<String>,
 }
 
 /// `results.json`.
@@ -103,7 +109,15 @@ pub fn markdown(meta: &Meta, tables: &[TableResult], figures: &str) -> String {
     for t in tables {
         let count = |w: &str| t.rows.iter().filter(|r| r.verdict.word() == w).count();
         let mut parts = Vec::new();
-        for w in ["holds", "differs", "needs a GPU", "ours only", "failed"] {
+        for w in [
+            "holds",
+            "differs",
+            "needs a GPU",
+            "CPU rasteriser: no verdict",
+            "by construction",
+            "ours only",
+            "failed",
+        ] {
             let n = count(w);
             if n > 0 {
                 parts.push(format!("{n} {w}"));
@@ -170,6 +184,17 @@ pub fn markdown(meta: &Meta, tables: &[TableResult], figures: &str) -> String {
                 let _ = writeln!(o, "- *{}*: {}", r.what, why.trim());
             }
         }
+        let bands: Vec<_> = t
+            .rows
+            .iter()
+            .filter_map(|r| r.band_reason.as_ref().map(|x| (r, x)))
+            .collect();
+        if !bands.is_empty() {
+            let _ = writeln!(o, "\nBands:\n");
+            for (r, why) in bands {
+                let _ = writeln!(o, "- *{}* ({}): {}", r.what, r.rule, why.trim());
+            }
+        }
         if let Some(n) = &t.notes {
             let _ = writeln!(o, "\n{}", n.trim());
         }
@@ -215,6 +240,11 @@ pub fn markdown(meta: &Meta, tables: &[TableResult], figures: &str) -> String {
         }
         let _ = writeln!(o, "\n</details>");
     }
+    let _ = write!(
+        o,
+        "\n{}",
+        super::inputs::markdown(&meta.spec_hashes, meta.baseline_hash.as_deref())
+    );
     o
 }
 

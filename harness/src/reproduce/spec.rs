@@ -13,6 +13,7 @@
 //! generator = "statue"
 //! points = { quick = 1_000_000, full = 10_000_000 }   # any count may differ by profile
 //! seed = 1
+//! sampling = "even"                  # random (default) | even; may differ by profile
 //!
 //! [[measure]]
 //! id = "build"
@@ -43,7 +44,10 @@
 //! - `plan`: `splatbench plan`'s tree shape (`method = "mwkd"`, `points`, `params`).
 //!
 //! A row with `needs_gpu = true` is a GPU's figure (throughput): on a CPU adapter it is
-//! listed as "needs a GPU" and the measures only it uses are not run. `[[figure]]` tables
+//! listed as "needs a GPU" and the measures only it uses are not run. A row with
+//! `judge_on_gpu = true` (a relative speed, whose ratio a CPU rasteriser's costs distort) is
+//! measured on every adapter and judged only on a GPU ("CPU rasteriser: no verdict").
+//! Rule `band` takes `band = [lo, hi]` and `band_reason` (see [`super::verdict`]). `[[figure]]` tables
 //! (`name`, `title`, `sweeps = [ids]`) overlay sweeps in one plot.
 
 use std::collections::BTreeMap;
@@ -221,6 +225,13 @@ pub struct Row {
     pub reason: Option<Vec<Piece>>,
     /// A GPU's figure.
     pub needs_gpu: bool,
+    /// Rule `band`'s range.
+    pub band: Option<(f64, f64)>,
+    /// Why the band is what it is.
+    pub band_reason: Option<String>,
+    /// Measured on any adapter, judged on a GPU only (a relative speed: on a CPU rasteriser
+    /// "CPU rasteriser: no verdict").
+    pub judge_on_gpu: bool,
 }
 
 /// A piece of a reason template.

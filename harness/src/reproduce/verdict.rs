@@ -8,7 +8,13 @@
 //! | `at_most` | a number | ours ≤ paper |
 //! | `at_least` | a number | ours ≥ paper |
 //! | `order` | `[a, b, …]`, `ours` a list as long | every pair of rows is ordered as the paper's (pairs the paper ties impose nothing; a tie of ours where the paper has none differs) |
+//! | `band` | a number or `[lo, hi]`, shown; `band = [lo, hi]` and `band_reason` | lo ≤ ours ≤ hi: the band the spec derives from the paper's value, with its reason (`inf` for a one-sided claim) |
+//! | `by_construction` | optional | never judged: true by construction (a format's fixed size, a monotone ordering), shown and not counted as a verdict |
 //! | `report` | none | never judged: a figure of ours with no paper counterpart |
+//!
+//! A paper's value is one measurement; `at_most` / `at_least` are for claims that are
+//! themselves one-sided. Where the paper gives a value ("up to 10 % more"), `band` states the
+//! two-sided range that counts as the same shape and why.
 //!
 //! Comparisons allow a relative slack of 10⁻¹² so that a value printed at a boundary (1.15
 //! against 1 ± 15 %) is judged as written, not by its last binary digit.
@@ -32,6 +38,10 @@ pub enum Rule {
     AtLeast,
     /// The rows' ordering equals the paper's.
     Order,
+    /// Inside the spec's band around the paper's value (`band`, `band_reason`).
+    Band,
+    /// True by construction: shown, never judged.
+    ByConstruction,
     /// Ours only.
     Report,
 }
@@ -46,7 +56,19 @@ impl Rule {
             Rule::AtMost => "at most the paper's".into(),
             Rule::AtLeast => "at least the paper's".into(),
             Rule::Order => "same ordering".into(),
+            Rule::Band => "inside the band".into(),
+            Rule::ByConstruction => "by construction".into(),
             Rule::Report => "ours only".into(),
+        }
+    }
+
+    /// How the rule reads with its band (`band [0.95, 1.15]`, `band ≥ 8.3`).
+    pub fn describe_band(self, tolerance: Option<f64>, band: Option<(f64, f64)>) -> String {
+        match (self, band) {
+            (Rule::Band, Some((lo, hi))) if hi.is_infinite() => format!("band ≥ {lo}"),
+            (Rule::Band, Some((lo, hi))) if lo.is_infinite() => format!("band ≤ {hi}"),
+            (Rule::Band, Some((lo, hi))) => format!("band [{lo}, {hi}]"),
+            _ => self.describe(tolerance),
         }
     }
 }
@@ -74,6 +96,10 @@ pub enum Verdict {
     OursOnly,
     /// Not measured: the adapter is a CPU rasteriser and the figure is a GPU's.
     NeedsGpu,
+    /// Measured, not judged: a relative speed on a CPU rasteriser (`judge_on_gpu`).
+    NoVerdictCpu,
+    /// True by construction: shown, not counted.
+    ByConstruction,
     /// The measurement or the evaluation failed (the message says why).
     Failed(String),
 }
@@ -86,18 +112,31 @@ impl Verdict {
             Verdict::Differs => "differs",
             Verdict::OursOnly => "ours only",
             Verdict::NeedsGpu => "needs a GPU",
+            Verdict::NoVerdictCpu => "CPU rasteriser: no verdict",
+            Verdict::ByConstruction => "by construction",
             Verdict::Failed(_) => "failed",
         }
     }
 
+    /// Whether the row counts as a verdict on the paper (holds or differs).
+    pub fn is_verdict(&self) -> bool {
+        matches!(self, Verdict::Holds | Verdict::Differs)
+    }
+
     /// A table's verdict from its rows': failed if any failed, else differs if any differs,
-    /// else holds if any holds, else needs a GPU if any does, else ours only.
+    /// else holds if any holds, else needs a GPU if any does, else no verdict on a CPU if
+    /// any, else ours only (by-construction rows count as ours only).
     pub fn of_table<'a>(rows: impl IntoIterator<Item = &'a Verdict>) -> Verdict {
         let rows: Vec<&Verdict> = rows.into_iter().collect();
         if let Some(f) = rows.iter().find(|v| matches!(v, Verdict::Failed(_))) {
             return (*f).clone();
         }
-        for v in [Verdict::Differs, Verdict::Holds, Verdict::NeedsGpu] {
+        for v in [
+            Verdict::Differs,
+            Verdict::Holds,
+            Verdict::NeedsGpu,
+            Verdict::NoVerdictCpu,
+        ] {
             if rows.contains(&&v) {
                 return v;
             }
@@ -115,12 +154,19 @@ pub fn judge(
     paper: Option<&Paper>,
     ours: &[f64],
     tolerance: Option<f64>,
+    band: Option<(f64, f64)>,
 ) -> Result<Verdict, String> {
     check_shape(rule, paper, ours.len(), tolerance)?;
+    check_band(rule, band)?;
     let holds = |b: bool| if b { Verdict::Holds } else { Verdict::Differs };
     let le = |a: f64, b: f64| a <= b + SLACK * b.abs().max(a.abs());
     Ok(match (rule, paper) {
         (Rule::Report, _) => Verdict::OursOnly,
+        (Rule::ByConstruction, _) => Verdict::ByConstruction,
+        (Rule::Band, Some(_)) => {
+            let (lo, hi) = band.unwrap_or((f64::NAN, f64::NAN));
+            holds(ours[0].is_finite() && le(lo, ours[0]) && le(ours[0], hi))
+        }
         (Rule::Exact, Some(Paper::Value(p))) => {
             holds((ours[0] - p).abs() <= 1e-9 * p.abs().max(1.0))
         }
@@ -191,6 +237,14 @@ pub fn check_shape(
             "rule 'order' needs ≥ 2 paper values and as many `ours` expressions (paper {}, ours {ours})",
             p.len()
         )),
+        (Rule::Band, Some(Paper::Value(_) | Paper::Range(..))) => one("band"),
+        (Rule::ByConstruction, _) => {
+            if ours >= 1 {
+                Ok(())
+            } else {
+                Err("a row needs `ours`".into())
+            }
+        }
         (Rule::Report, None) => {
             if ours >= 1 {
                 Ok(())
@@ -228,7 +282,26 @@ fn rule_name(r: Rule) -> &'static str {
         Rule::AtMost => "at_most",
         Rule::AtLeast => "at_least",
         Rule::Order => "order",
+        Rule::Band => "band",
+        Rule::ByConstruction => "by_construction",
         Rule::Report => "report",
+    }
+}
+
+/// Checks that `band` is given exactly for rule `band`, ordered and not NaN.
+pub fn check_band(rule: Rule, band: Option<(f64, f64)>) -> Result<(), String> {
+    match (rule, band) {
+        (Rule::Band, Some((lo, hi))) if lo <= hi => Ok(()),
+        (Rule::Band, Some((lo, hi))) => Err(format!("band [{lo}, {hi}] is reversed or NaN")),
+        (Rule::Band, None) => Err(
+            "rule 'band' needs `band = [lo, hi]` (`inf` for no upper bound) and `band_reason`"
+                .into(),
+        ),
+        (_, Some(_)) => Err(format!(
+            "`band` belongs to rule 'band' only, not '{}'",
+            rule_name(rule)
+        )),
+        (_, None) => Ok(()),
     }
 }
 
@@ -237,7 +310,73 @@ mod tests {
     use super::*;
 
     fn j(rule: Rule, paper: Paper, ours: &[f64], tol: Option<f64>) -> Verdict {
-        judge(rule, Some(&paper), ours, tol).unwrap()
+        judge(rule, Some(&paper), ours, tol, None).unwrap()
+    }
+
+    #[test]
+    fn bands_fail_outside_and_by_construction_is_no_verdict() {
+        let b = |ours, band| {
+            judge(
+                Rule::Band,
+                Some(&Paper::Value(1.10)),
+                &[ours],
+                None,
+                Some(band),
+            )
+            .unwrap()
+        };
+        // LPC's "up to 10 % more points than QSplat": [0.95, 1.15].
+        assert_eq!(b(1.0, (0.95, 1.15)), Verdict::Holds);
+        assert_eq!(b(1.15, (0.95, 1.15)), Verdict::Holds);
+        assert_eq!(
+            b(0.24, (0.95, 1.15)),
+            Verdict::Differs,
+            "0.24× QSplat's points"
+        );
+        assert_eq!(b(1.2, (0.95, 1.15)), Verdict::Differs);
+        assert_eq!(b(f64::NAN, (0.95, 1.15)), Verdict::Differs);
+        // One-sided: "an order of magnitude faster", at least 8.3×.
+        assert_eq!(b(100.0, (8.3, f64::INFINITY)), Verdict::Holds);
+        assert_eq!(b(8.2, (8.3, f64::INFINITY)), Verdict::Differs);
+        assert!(judge(Rule::Band, Some(&Paper::Value(1.0)), &[1.0], None, None).is_err());
+        assert!(
+            judge(
+                Rule::Band,
+                Some(&Paper::Value(1.0)),
+                &[1.0],
+                None,
+                Some((2.0, 1.0))
+            )
+            .is_err()
+        );
+        assert!(
+            judge(
+                Rule::AtMost,
+                Some(&Paper::Value(1.0)),
+                &[1.0],
+                None,
+                Some((0.0, 2.0))
+            )
+            .is_err()
+        );
+        let c = judge(
+            Rule::ByConstruction,
+            Some(&Paper::Value(4.0)),
+            &[4.0],
+            None,
+            None,
+        )
+        .unwrap();
+        assert_eq!(c, Verdict::ByConstruction);
+        assert!(!c.is_verdict());
+        assert_eq!(
+            Verdict::of_table(&[c, Verdict::OursOnly]),
+            Verdict::OursOnly
+        );
+        assert_eq!(
+            Verdict::of_table(&[Verdict::NoVerdictCpu, Verdict::OursOnly]),
+            Verdict::NoVerdictCpu
+        );
     }
 
     #[test]
@@ -326,7 +465,7 @@ mod tests {
         assert!(e(Rule::AtMost, None, 1, None).contains("needs a `paper`"));
         assert!(e(Rule::Exact, Some(Paper::Value(1.0)), 2, None).contains("one `ours`"));
         assert_eq!(
-            judge(Rule::Report, None, &[3.0], None).unwrap(),
+            judge(Rule::Report, None, &[3.0], None, None).unwrap(),
             Verdict::OursOnly
         );
     }

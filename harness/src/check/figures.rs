@@ -80,8 +80,9 @@ pub fn column_class(column: &str, traits: RunTraits) -> Class {
         "psnr_db" | "ssim" | "flip_mean" | "hole_ratio" | "extra_coverage" | "popping_flip" => {
             Class::Image
         }
-        // Resident memory is the machine's; the loader's queue length is thread timing.
-        "rss_bytes" | "loader_pending" => Class::Machine,
+        // Resident memory is the machine's; the loader's queue length is thread timing; the
+        // bandwidth estimate is bytes over the loader's measured busy time.
+        "rss_bytes" | "loader_pending" | "bandwidth_est_bytes_per_s" => Class::Machine,
         // Counted on the GPU.
         "gpu_passed" | "gpu_culled_fraction" | "clouds_queried" | "clouds_occluded" => {
             Class::Adapter
@@ -138,6 +139,11 @@ mod tests {
         assert_eq!(column_class("flip_mean", none), Class::Image);
         assert_eq!(column_class("popping_flip", none), Class::Image);
         assert_eq!(column_class("gpu_ms", none), Class::Timing);
+        assert_eq!(
+            column_class("bandwidth_est_bytes_per_s", none),
+            Class::Machine,
+            "a rate the loader measures from its thread's timing"
+        );
         assert_eq!(column_class("rss_bytes", none), Class::Machine);
         let spt = RunTraits::of("spt", &Default::default(), &cols(&["gpu_passed"]));
         assert_eq!(column_class("points_drawn", spt), Class::Adapter);

@@ -26,14 +26,20 @@ fn every_spec_loads_for_every_profile() {
     }
 }
 
+/// Every committed report is current; the quick one must exist (the full one is removed
+/// while stale and published again by its command: "re-measured or removed").
 #[test]
 fn committed_reports_match_their_specs_and_the_baseline() {
     let root = root();
+    assert!(root.join("paper/report-quick.md").is_file());
     for (profile, baseline) in [
         (Profile::Quick, Some(root.join(QUICK_BASELINE))),
         (Profile::Full, None),
     ] {
         let report = root.join(format!("paper/report-{}.md", profile.name()));
+        if !report.exists() {
+            continue;
+        }
         let stale = inputs::stale(&report, &specs_at(&root, profile), baseline.as_deref());
         assert!(
             stale.is_empty(),

@@ -93,3 +93,31 @@ fn even_samples_are_regular_and_random_ones_are_poisson() {
         );
     }
 }
+
+/// Even scenes are cached at any size (their elimination costs ≈ 20 s per million samples;
+/// random scenes only from `CACHE_MIN_POINTS` on), and the cached file holds the same samples.
+#[test]
+fn even_scenes_are_cached_at_any_size() {
+    let dir = tempfile::tempdir().unwrap();
+    let spec = scenes::SceneSpec::parse("statue:5000:2:even", None, 1).unwrap();
+    let first = spec
+        .load(Some(dir.path()), &scenes::NoProgress)
+        .unwrap()
+        .cloud;
+    let file = dir.path().join("scenes/statue-5000-2-even-v1.sbc");
+    assert!(file.is_file(), "{} was not written", file.display());
+    let again = spec
+        .load(Some(dir.path()), &scenes::NoProgress)
+        .unwrap()
+        .cloud;
+    assert!(again.is_mapped(), "read back from the cache");
+    assert_eq!(first.positions(), again.positions());
+    let direct = Generator::Statue
+        .generate_sampled(5000, 2, Sampling::Even)
+        .unwrap();
+    assert_eq!(direct.positions(), first.positions());
+    // A small random scene is not cached.
+    let random = scenes::SceneSpec::parse("statue:5000:2", None, 1).unwrap();
+    random.load(Some(dir.path()), &scenes::NoProgress).unwrap();
+    assert!(!dir.path().join("scenes/statue-5000-2-v1.sbc").exists());
+}

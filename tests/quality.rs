@@ -6,50 +6,12 @@
 //! orbit, the terrain orbit and a close still view.
 #![allow(clippy::unwrap_used)]
 
+mod common;
+
+use common::config;
 use harness::render::{Kernel, RenderSettings};
 use harness::runner::{RunConfig, run};
-use methods::{MethodKind, Params, Target};
-use scenes::SceneSpec;
-use scenes::paths::PathSpec;
-
-/// A run at 1 px with metrics, a square kernel, a 64 MiB GPU cache and seed 1, building into
-/// `dir/name` (scene cache in `dir/cache`); tests override fields with `..config(…)`.
-#[allow(clippy::too_many_arguments)]
-fn config(
-    method: MethodKind,
-    params: &[&str],
-    scene: &str,
-    path: &str,
-    frames: usize,
-    size: u32,
-    dir: &std::path::Path,
-    name: &str,
-) -> RunConfig {
-    RunConfig {
-        method,
-        params: Params::parse(params).unwrap(),
-        scene: SceneSpec::parse(scene, None, 1).unwrap(),
-        path: PathSpec::parse(path).unwrap(),
-        frames,
-        target: Target::tolerance(1.0).unwrap(),
-        render: RenderSettings {
-            width: size,
-            height: size,
-            kernel: Kernel::Square,
-            cache_bytes: 64 << 20,
-            shade: Default::default(),
-            raster: Default::default(),
-        },
-        seed: 1,
-        save_images: false,
-        metrics: true,
-        out: dir.join(name),
-        cache: dir.join("cache"),
-        build_dir: None,
-        build_url: None,
-        allow_missing_chunks: false,
-    }
-}
+use methods::MethodKind;
 
 /// A bound on the hole ratio of every frame, and why.
 struct HoleBound {

@@ -22,11 +22,10 @@
 //! fail, and Potree with `point_size=2` (the viewer's size slider) to pass.
 #![allow(clippy::unwrap_used)]
 
-use harness::render::{Kernel, RenderSettings};
-use harness::runner::{RunConfig, run};
-use methods::{MethodKind, Params, Target};
-use scenes::SceneSpec;
-use scenes::paths::PathSpec;
+mod common;
+
+use harness::runner::run;
+use methods::MethodKind;
 
 /// Holes a converged frame may add to the first frame's (and to QSplat's), as a fraction of
 /// the reference's covered pixels: the measured 1.04 %, doubled.
@@ -48,34 +47,8 @@ fn run_close(
     frames: usize,
 ) -> Frames {
     let name = format!("{method}-{}", params.join("-"));
-    let cfg = RunConfig {
-        method,
-        params: Params::parse(params).unwrap(),
-        scene: SceneSpec::parse(SCENE, None, 1).unwrap(),
-        path: PathSpec::parse(concat!(
-            env!("CARGO_MANIFEST_DIR"),
-            "/paper/paths/still-close.toml"
-        ))
-        .unwrap(),
-        frames,
-        target: Target::tolerance(1.0).unwrap(),
-        render: RenderSettings {
-            width: SIZE,
-            height: SIZE,
-            kernel: Kernel::Square,
-            cache_bytes: 64 << 20,
-            shade: Default::default(),
-            raster: Default::default(),
-        },
-        seed: 1,
-        save_images: false,
-        metrics: true,
-        out: dir.join(&name),
-        cache: dir.join("cache"),
-        build_dir: None,
-        build_url: None,
-        allow_missing_chunks: false,
-    };
+    let path = concat!(env!("CARGO_MANIFEST_DIR"), "/paper/paths/still-close.toml");
+    let cfg = common::config(method, params, SCENE, path, frames, SIZE, dir, &name);
     run(&cfg, gpu, &scenes::NoProgress).unwrap_or_else(|e| panic!("{name}: {e:#}"));
     let rows = read(&cfg.out.join("frames.csv"));
     let col = |c: &str| rows.iter().map(|r| r[c].parse::<f64>().unwrap()).collect();

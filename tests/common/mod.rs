@@ -1,4 +1,4 @@
-//! What the CLI test files share: the binary, and the check for a clean failure.
+//! What the test files share: the binary, the check for a clean failure, a run's config.
 #![allow(clippy::unwrap_used, dead_code)]
 
 use assert_cmd::Command;
@@ -105,4 +105,43 @@ pub fn write_file(dir: &std::path::Path, name: &str, bytes: &[u8]) -> String {
     let p = dir.join(name);
     std::fs::write(&p, bytes).unwrap();
     p.to_string_lossy().into_owned()
+}
+
+/// A run at 1 px with metrics, a square kernel, a 64 MiB GPU cache and seed 1, building into
+/// `dir/name` (scene cache in `dir/cache`); tests override fields with `..config(…)`.
+#[allow(clippy::too_many_arguments)]
+pub fn config(
+    method: methods::MethodKind,
+    params: &[&str],
+    scene: &str,
+    path: &str,
+    frames: usize,
+    size: u32,
+    dir: &std::path::Path,
+    name: &str,
+) -> harness::runner::RunConfig {
+    harness::runner::RunConfig {
+        method,
+        params: methods::Params::parse(params).unwrap(),
+        scene: scenes::SceneSpec::parse(scene, None, 1).unwrap(),
+        path: scenes::paths::PathSpec::parse(path).unwrap(),
+        frames,
+        target: methods::Target::tolerance(1.0).unwrap(),
+        render: harness::render::RenderSettings {
+            width: size,
+            height: size,
+            kernel: harness::render::Kernel::Square,
+            cache_bytes: 64 << 20,
+            shade: Default::default(),
+            raster: Default::default(),
+        },
+        seed: 1,
+        save_images: false,
+        metrics: true,
+        out: dir.join(name),
+        cache: dir.join("cache"),
+        build_dir: None,
+        build_url: None,
+        allow_missing_chunks: false,
+    }
 }

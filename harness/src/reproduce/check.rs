@@ -134,39 +134,13 @@ impl Checker<'_> {
     }
 
     /// An integer that may differ by profile: `N` or `{ quick = N, full = M }`.
-    fn count(&self, field: &str, v: &toml::Value) -> Result<u64, SpecError> {
-        let int = |v: &toml::Value, what: &str| match v {
-            toml::Value::Integer(i) if *i >= 0 => Ok(*i as u64),
-            _ => Err(self.err(
-                field,
-                format!(
-                    "{what}must be a non-negative integer or {{ quick = N, full = M }}, not {v}"
-                ),
-            )),
-        };
-        match v {
-            toml::Value::Table(t) => {
-                if let Some(k) = t.keys().find(|k| *k != "quick" && *k != "full") {
-                    return Err(self.err(field, format!("unknown profile '{k}' (quick, full)")));
-                }
-                let Some(v) = t.get(self.profile.name()) else {
-                    return Err(self.err(field, "gives no value for profile '{profile}'"));
-                };
-                int(v, &format!("{}: ", self.profile))
-            }
-            v => int(v, ""),
-        }
-    }
-
-    /// A string, or `{ quick = "…", full = "…" }` resolved for the profile.
-    fn text(&self, field: &str, v: &toml::Value) -> Result<String, SpecError> {
-        let s = |v: &toml::Value, what: &str| match v {
-            toml::Value::String(s) => Ok(s.clone()),
-            _ => Err(self.err(
-                field,
-                format!("{what}must be a string or {{ quick = \"…\", full = \"…\" }}, not {v}"),
-            )),
-        };
+    /// `v` itself, or its entry for the profile when it is `{ quick = …, full = … }`, with
+    /// the prefix (`"full: "`) an error about the value names.
+    fn for_profile<'v>(
+        &self,
+        field: &str,
+        v: &'v toml::Value,
+    ) -> Result<(&'v toml::Value, String), SpecError> {
         match v {
             toml::Value::Table(t) => {
                 if let Some(k) = t.keys().find(|k| *k != "quick" && *k != "full") {
@@ -178,9 +152,32 @@ impl Checker<'_> {
                         format!("gives no value for profile '{}'", self.profile),
                     ));
                 };
-                s(v, &format!("{}: ", self.profile))
+                Ok((v, format!("{}: ", self.profile)))
             }
-            v => s(v, ""),
+            v => Ok((v, String::new())),
+        }
+    }
+
+    fn count(&self, field: &str, v: &toml::Value) -> Result<u64, SpecError> {
+        match self.for_profile(field, v)? {
+            (toml::Value::Integer(i), _) if *i >= 0 => Ok(*i as u64),
+            (v, what) => Err(self.err(
+                field,
+                format!(
+                    "{what}must be a non-negative integer or {{ quick = N, full = M }}, not {v}"
+                ),
+            )),
+        }
+    }
+
+    /// A string, or `{ quick = "…", full = "…" }` resolved for the profile.
+    fn text(&self, field: &str, v: &toml::Value) -> Result<String, SpecError> {
+        match self.for_profile(field, v)? {
+            (toml::Value::String(s), _) => Ok(s.clone()),
+            (v, what) => Err(self.err(
+                field,
+                format!("{what}must be a string or {{ quick = \"…\", full = \"…\" }}, not {v}"),
+            )),
         }
     }
 

@@ -168,17 +168,20 @@ pub fn reproduce(opts: &Options, multi: &MultiProgress) -> anyhow::Result<Outcom
         }
     }
     let figures_dir = opts.out.join("figures");
-    let phase = crate::progress::Bar::under(multi);
-    let mut ctx = Context::new(&opts.out, &opts.cache, opts.exe.clone(), &phase);
-    let mut tables = Vec::new();
-    for spec in &specs {
-        tables.push(run_spec(spec, opts, &mut ctx, multi, &figures_dir)?);
-    }
+    // The inputs as they are when the run starts: an edit made while it runs is not what
+    // produced its numbers.
     let mut spec_hashes = BTreeMap::new();
     for spec in &specs {
         let h =
             inputs::spec_hash(spec).with_context(|| format!("hashing {}", spec.file.display()))?;
         spec_hashes.insert(spec.id.clone(), h);
+    }
+    let baseline_hash = baseline_hash(opts)?;
+    let phase = crate::progress::Bar::under(multi);
+    let mut ctx = Context::new(&opts.out, &opts.cache, opts.exe.clone(), &phase);
+    let mut tables = Vec::new();
+    for spec in &specs {
+        tables.push(run_spec(spec, opts, &mut ctx, multi, &figures_dir)?);
     }
     let meta = report::Meta {
         profile: opts.profile,
@@ -190,7 +193,7 @@ pub fn reproduce(opts: &Options, multi: &MultiProgress) -> anyhow::Result<Outcom
         seconds: t0.elapsed().as_secs_f64(),
         partial: opts.only.is_some(),
         spec_hashes,
-        baseline_hash: baseline_hash(opts)?,
+        baseline_hash,
     };
     let report_path = opts.out.join("report.md");
     report::write(&report_path, &meta, &tables, "figures")?;

@@ -173,28 +173,23 @@ pub fn markdown(meta: &Meta, tables: &[TableResult], figures: &str) -> String {
                 }
             );
         }
-        let reasons: Vec<_> = t
-            .rows
-            .iter()
-            .filter_map(|r| r.reason.as_ref().map(|x| (r, x)))
-            .collect();
-        if !reasons.is_empty() {
-            let _ = writeln!(o, "\nWhere it differs:\n");
-            for (r, why) in reasons {
-                let _ = writeln!(o, "- *{}*: {}", r.what, why.trim());
-            }
-        }
-        let bands: Vec<_> = t
-            .rows
-            .iter()
-            .filter_map(|r| r.band_reason.as_ref().map(|x| (r, x)))
-            .collect();
-        if !bands.is_empty() {
-            let _ = writeln!(o, "\nBands:\n");
-            for (r, why) in bands {
-                let _ = writeln!(o, "- *{}* ({}): {}", r.what, r.rule, why.trim());
-            }
-        }
+        bullets(
+            &mut o,
+            "Where it differs",
+            t.rows
+                .iter()
+                .filter_map(|r| Some((format!("*{}*", r.what), r.reason.as_ref()?))),
+        );
+        bullets(
+            &mut o,
+            "Bands",
+            t.rows.iter().filter_map(|r| {
+                Some((
+                    format!("*{}* ({})", r.what, r.rule),
+                    r.band_reason.as_ref()?,
+                ))
+            }),
+        );
         if let Some(n) = &t.notes {
             let _ = writeln!(o, "\n{}", n.trim());
         }
@@ -246,6 +241,18 @@ pub fn markdown(meta: &Meta, tables: &[TableResult], figures: &str) -> String {
         super::inputs::markdown(&meta.spec_hashes, meta.baseline_hash.as_deref())
     );
     o
+}
+
+/// A titled list `- label: text` of the rows that have a text (nothing when none has).
+fn bullets<'a>(o: &mut String, title: &str, items: impl Iterator<Item = (String, &'a String)>) {
+    let items: Vec<_> = items.collect();
+    if items.is_empty() {
+        return;
+    }
+    let _ = writeln!(o, "\n{title}:\n");
+    for (label, text) in items {
+        let _ = writeln!(o, "- {label}: {}", text.trim());
+    }
 }
 
 /// A measure in words: kind, method and parameters, scene, path, frames, target, size.

@@ -88,7 +88,8 @@ fn broken(f: &Frames, qsplat_holes: f64) -> Option<String> {
                 f.flip[i], f.flip[0]
             ));
         }
-        let bound = f.holes[0].max(qsplat_holes) + HOLE_MARGIN;
+        // Both: within the margin of the first frame's *and* of QSplat's.
+        let bound = f.holes[0].min(qsplat_holes) + HOLE_MARGIN;
         if f.holes[i] > bound {
             return Some(format!(
                 "frame {i}: holes {:.4} > {bound:.4} (first {:.4}, QSplat {qsplat_holes:.4}, + {HOLE_MARGIN})",

@@ -20,7 +20,7 @@ mkdir -p "$out"
   echo "\`scripts/sampling-measurements.sh $bin $out $n\`, commit $(git -C "$here" rev-parse --short=12 HEAD), $(date -u +%F)."
   echo
   NODEVICE_SELECT=1 "$bin" sampling --cache "$out/cache" \
-    "statue:$n:1" "statue:$n:1:even" "isosurface:$n:1" "isosurface:$n:1:even" \
-    "terrain:$n:1" "terrain:$n:1:even" "$real/bunny.ply" "$real/plane.laz" "$real/pipeSpherical.e57" 2>/dev/null
+    "statue:$n:1:random" "statue:$n:1:even" "isosurface:$n:1:random" "isosurface:$n:1:even" \
+    "terrain:$n:1:random" "terrain:$n:1:even" "isosurface-deep:$n:1:even" "$real/bunny.ply" "$real/plane.laz" "$real/pipeSpherical.e57" 2>/dev/null
 } > "$out/sampling.md"
 cat "$out/sampling.md"

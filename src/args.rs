@@ -52,8 +52,9 @@ impl RemoteArgs {
 
 #[derive(Args, Clone)]
 pub struct SceneArgs {
-    /// Scene: `generator:points[:seed[:sampling]]` (e.g. statue:200000, statue:1M:1:even;
-    /// sampling random or even), or a .ply/.las/.laz/.e57/.pcd/.sbc/.toml file.
+    /// Scene: `generator:points[:seed[:sampling]]` (e.g. statue:200000, statue:1M:1:random;
+    /// sampling even — statue's and the isosurfaces' default — or random, terrain's), or a
+    /// .ply/.las/.laz/.e57/.pcd/.sbc/.toml file.
     #[arg(long)]
     pub scene: String,
     /// Resample a PLY mesh surface to this many points.

@@ -14,8 +14,11 @@ use crate::args::CacheArgs;
 pub enum ProfileArg {
     /// Small scenes: every table in minutes on 2 cores with lavapipe.
     Quick,
-    /// The real sizes (10–100 M points).
+    /// The middle ground (10–100 M points).
     Full,
+    /// The papers' own sizes and resolutions (127–369 M samples, out of core: hours; see
+    /// paper/README.md for the time and disk it takes).
+    Paper,
 }
 
 #[derive(Args, Clone)]
@@ -41,7 +44,7 @@ pub struct ReproduceArgs {
     pub publish: Option<PathBuf>,
     #[command(flatten)]
     pub cache: CacheArgs,
-    /// Load and check every spec for both profiles, list them, and run nothing.
+    /// Load and check every spec for every profile, list them, and run nothing.
     #[arg(long)]
     pub check: bool,
     /// Write one command line per spec (its builds and runs) to this file instead of
@@ -59,6 +62,7 @@ pub fn main(a: &ReproduceArgs) -> anyhow::Result<()> {
     let profile = match a.profile {
         ProfileArg::Quick => Profile::Quick,
         ProfileArg::Full => Profile::Full,
+        ProfileArg::Paper => Profile::Paper,
     };
     let mut opts = Options {
         specs: a.specs.clone(),

@@ -394,7 +394,7 @@ pub struct ColumnWriter {
 /// the file is sparse until written, so without this a 100-billion-point scene would fill
 /// the disk at write speed before failing. Where the free space cannot be read (not unix,
 /// or the call fails) the write goes ahead and fails as the OS says.
-fn check_free_space(path: &Path, bytes: u64) -> Result<(), SceneError> {
+pub(crate) fn check_free_space(path: &Path, bytes: u64) -> Result<(), SceneError> {
     #[cfg(unix)]
     {
         let dir = match path.parent() {

@@ -38,6 +38,9 @@ pub const MAX_SAMPLE: usize = 500_000_000;
 pub const CACHE_MIN_POINTS: usize = 2_000_000;
 /// Bumped whenever a generator's output changes, so cached scenes and references refresh.
 pub const GENERATOR_VERSION: u32 = 1;
+/// Bumped whenever even sampling's output changes (its scenes' keys carry both versions;
+/// random scenes keep theirs). 2: tiles from the first candidates, out of core (issue 35).
+pub const EVEN_SAMPLING_VERSION: u32 = 2;
 /// Bumped whenever the LAS reader's output changes, so cached LAS scenes refresh.
 pub const LAS_CACHE_VERSION: u32 = 1;
 
@@ -385,6 +388,9 @@ impl SceneSpec {
                 if *sampling != Sampling::Random {
                     // Random scenes keep the hashes they had before there was a choice.
                     h.write_str("sampling").write_str(sampling.name());
+                    if *sampling == Sampling::Even && EVEN_SAMPLING_VERSION > 1 {
+                        h.write(&EVEN_SAMPLING_VERSION.to_le_bytes());
+                    }
                 }
             }
             SceneSource::Ply { path, sample, seed } => {
@@ -467,6 +473,32 @@ impl SceneSpec {
         }
     }
 
+    /// The column file under `cache_dir` that a generated scene is cached in: scenes of at
+    /// least [`CACHE_MIN_POINTS`], and even ones of any size (their sample elimination is
+    /// the slow part, ≈ 8 s per million); `None` for other scenes.
+    pub fn cache_file(&self, cache_dir: &Path) -> Option<PathBuf> {
+        let SceneSource::Generator {
+            generator,
+            points,
+            seed,
+            sampling,
+        } = &self.source
+        else {
+            return None;
+        };
+        if *points < CACHE_MIN_POINTS && *sampling != Sampling::Even {
+            return None;
+        }
+        let suffix = match sampling {
+            Sampling::Random => String::new(),
+            Sampling::Even => format!("-even{EVEN_SAMPLING_VERSION}"),
+        };
+        Some(cache_dir.join("scenes").join(format!(
+            "{}-{points}-{seed}{suffix}-v{GENERATOR_VERSION}.sbc",
+            generator.name()
+        )))
+    }
+
     /// Reads the scene as its source holds it, with the scalar [`Self::colour_from`] names
     /// when that is set and the file has it.
     fn read(
@@ -480,17 +512,8 @@ impl SceneSpec {
                 points,
                 seed,
                 sampling,
-            } => match cache_dir {
-                // Even samples cost ≈ 20 s per million to make: cached at any size.
-                Some(dir) if *points >= CACHE_MIN_POINTS || *sampling == Sampling::Even => {
-                    let suffix = match sampling {
-                        Sampling::Random => "",
-                        Sampling::Even => "-even",
-                    };
-                    let path = dir.join("scenes").join(format!(
-                        "{}-{points}-{seed}{suffix}-v{GENERATOR_VERSION}.sbc",
-                        generator.name()
-                    ));
+            } => match cache_dir.and_then(|dir| self.cache_file(dir).map(|p| (dir, p))) {
+                Some((dir, path)) => {
                     if path.exists() {
                         crate::colfile::open(&path)
                     } else {
@@ -647,24 +670,35 @@ mod tests {
                 generator: Generator::Statue,
                 points: 200_000,
                 seed: 9,
-                sampling: Sampling::Random,
+                sampling: Sampling::Even,
             }
         );
         assert_eq!(s.label(), "statue:200000:9");
+        // Even is the statue's default: naming it changes nothing.
         let even = SceneSpec::parse("statue:200k:9:even", None, 1).unwrap();
+        assert_eq!(even.source, s.source);
+        assert_eq!(even.label(), "statue:200000:9");
+        assert_eq!(even.content_hash().unwrap(), s.content_hash().unwrap());
+        let random = SceneSpec::parse("statue:200k:9:random", None, 1).unwrap();
         assert!(matches!(
-            even.source,
+            random.source,
             SceneSource::Generator {
-                sampling: Sampling::Even,
+                sampling: Sampling::Random,
                 seed: 9,
                 ..
             }
         ));
-        assert_eq!(even.label(), "statue:200000:9:even");
-        assert_ne!(even.content_hash().unwrap(), s.content_hash().unwrap());
-        let random = SceneSpec::parse("statue:200k:9:random", None, 1).unwrap();
-        assert_eq!(random.label(), s.label());
-        assert_eq!(random.content_hash().unwrap(), s.content_hash().unwrap());
+        assert_eq!(random.label(), "statue:200000:9:random");
+        assert_ne!(random.content_hash().unwrap(), s.content_hash().unwrap());
+        // Terrain stays random by default (aerial LiDAR).
+        let t = SceneSpec::parse("terrain:1000:2", None, 1).unwrap();
+        assert_eq!(t.label(), "terrain:1000:2");
+        assert_eq!(
+            SceneSpec::parse("terrain:1000:2:even", None, 1)
+                .unwrap()
+                .label(),
+            "terrain:1000:2:even"
+        );
         let s = SceneSpec::parse("terrain:10M:3", None, 9).unwrap();
         assert!(matches!(
             s.source,
@@ -725,7 +759,14 @@ mod tests {
         )
         .unwrap();
         let s = SceneSpec::parse(p.to_str().unwrap(), None, 1).unwrap();
-        assert_eq!(s.label(), "statue:1000:1:even");
+        assert_eq!(s.label(), "statue:1000:1");
+        std::fs::write(
+            &p,
+            "generator = \"statue\"\npoints = 1000\nsampling = \"random\"\n",
+        )
+        .unwrap();
+        let s = SceneSpec::parse(p.to_str().unwrap(), None, 1).unwrap();
+        assert_eq!(s.label(), "statue:1000:1:random");
         std::fs::write(
             &p,
             "generator = \"statue\"\npoints = 1000\nsampling = \"odd\"\n",

@@ -46,13 +46,35 @@ fn counts_are_exact_and_the_seed_decides() {
 fn too_many_even_samples_are_an_error_naming_the_limit() {
     let e = Generator::Statue
         .generate_sampled(
-            scenes::generators::even::EVEN_MAX_POINTS + 1,
+            scenes::generators::even::EVEN_MAX_IN_MEMORY + 1,
             1,
             Sampling::Even,
         )
         .unwrap_err()
         .to_string();
-    assert!(e.contains("even sampling") && e.contains("40000000"), "{e}");
+    assert!(
+        e.contains("even sampling") && e.contains("40000000") && e.contains("column file"),
+        "{e}"
+    );
+    // Out of core the limit is the 32-bit candidate index; refused before anything is written.
+    let dir = tempfile::tempdir().unwrap();
+    let path = dir.path().join("big.sbc");
+    let e = Generator::Statue
+        .generate_to_file_sampled(
+            scenes::generators::even::EVEN_MAX_POINTS + 1,
+            1,
+            Sampling::Even,
+            &path,
+            &scenes::NoProgress,
+        )
+        .unwrap_err()
+        .to_string();
+    assert!(e.contains("1073741823") && e.contains("32 bits"), "{e}");
+    assert_eq!(
+        std::fs::read_dir(dir.path()).unwrap().count(),
+        0,
+        "nothing written"
+    );
 }
 
 /// Random samples of the statue (smooth at the sample scale) have the Poisson values —
@@ -94,7 +116,7 @@ fn even_samples_are_regular_and_random_ones_are_poisson() {
     }
 }
 
-/// Even scenes are cached at any size (their elimination costs ≈ 20 s per million samples;
+/// Even scenes are cached at any size (their elimination costs ≈ 8 s per million samples;
 /// random scenes only from `CACHE_MIN_POINTS` on), and the cached file holds the same samples.
 #[test]
 fn even_scenes_are_cached_at_any_size() {
@@ -104,7 +126,9 @@ fn even_scenes_are_cached_at_any_size() {
         .load(Some(dir.path()), &scenes::NoProgress)
         .unwrap()
         .cloud;
-    let file = dir.path().join("scenes/statue-5000-2-even-v1.sbc");
+    // Named by both versions: the generator's and even sampling's.
+    let file = dir.path().join("scenes/statue-5000-2-even2-v1.sbc");
+    assert_eq!(spec.cache_file(dir.path()), Some(file.clone()));
     assert!(file.is_file(), "{} was not written", file.display());
     let again = spec
         .load(Some(dir.path()), &scenes::NoProgress)

@@ -114,6 +114,13 @@ impl Checker<'_> {
             title: raw.title.clone(),
             source: raw.source.clone(),
             notes: raw.notes.clone(),
+            profiles: match &raw.profiles {
+                None => Profile::ALL.to_vec(),
+                Some(p) if p.is_empty() => {
+                    return Err(self.err("profiles", "lists no profile (omit it for all)"));
+                }
+                Some(p) => p.clone(),
+            },
             scenes,
             measures,
             rows,
@@ -133,9 +140,9 @@ impl Checker<'_> {
         Ok(spec)
     }
 
-    /// An integer that may differ by profile: `N` or `{ quick = N, full = M }`.
-    /// `v` itself, or its entry for the profile when it is `{ quick = …, full = … }`, with
-    /// the prefix (`"full: "`) an error about the value names.
+    /// A value that may differ by profile: `v` itself, or its entry for the profile when it
+    /// is `{ quick = …, full = …, paper = … }` (`paper` falls back to `full`), with the
+    /// prefix (`"full: "`) an error about the value names.
     fn for_profile<'v>(
         &self,
         field: &str,
@@ -143,16 +150,24 @@ impl Checker<'_> {
     ) -> Result<(&'v toml::Value, String), SpecError> {
         match v {
             toml::Value::Table(t) => {
-                if let Some(k) = t.keys().find(|k| *k != "quick" && *k != "full") {
-                    return Err(self.err(field, format!("unknown profile '{k}' (quick, full)")));
+                let names = Profile::ALL.map(Profile::name);
+                if let Some(k) = t.keys().find(|k| !names.contains(&k.as_str())) {
+                    return Err(self.err(
+                        field,
+                        format!("unknown profile '{k}' ({})", names.join(", ")),
+                    ));
                 }
-                let Some(v) = t.get(self.profile.name()) else {
+                let (key, what) = match (self.profile, t.contains_key("paper")) {
+                    (Profile::Paper, false) => ("full", "paper (full's value): ".to_owned()),
+                    (p, _) => (p.name(), format!("{p}: ")),
+                };
+                let Some(v) = t.get(key) else {
                     return Err(self.err(
                         field,
                         format!("gives no value for profile '{}'", self.profile),
                     ));
                 };
-                Ok((v, format!("{}: ", self.profile)))
+                Ok((v, what))
             }
             v => Ok((v, String::new())),
         }
@@ -164,13 +179,13 @@ impl Checker<'_> {
             (v, what) => Err(self.err(
                 field,
                 format!(
-                    "{what}must be a non-negative integer or {{ quick = N, full = M }}, not {v}"
+                    "{what}must be a non-negative integer or {{ quick = N, full = M, paper = P }}, not {v}"
                 ),
             )),
         }
     }
 
-    /// A string, or `{ quick = "…", full = "…" }` resolved for the profile.
+    /// A string, or `{ quick = "…", full = "…", paper = "…" }` resolved for the profile.
     fn text(&self, field: &str, v: &toml::Value) -> Result<String, SpecError> {
         match self.for_profile(field, v)? {
             (toml::Value::String(s), _) => Ok(s.clone()),
@@ -192,6 +207,8 @@ impl Checker<'_> {
         let seed = s.seed.unwrap_or(1);
         let text = match (&s.generator, &s.file) {
             (Some(g), None) => {
+                let g = self.text(&format!("{field}.generator"), g)?;
+                let g = &g;
                 let generator = Generator::ALL
                     .iter()
                     .find(|x| x.name() == g)
@@ -280,6 +297,7 @@ impl Checker<'_> {
         // Parameters: TOML values as `--param` text, split into build and runtime keys.
         let mut pairs = Vec::new();
         for (k, v) in &m.params {
+            let (v, _) = self.for_profile(&field(&format!("params.{k}")), v)?;
             let text = match v {
                 toml::Value::String(s) => s.clone(),
                 toml::Value::Integer(_) | toml::Value::Float(_) | toml::Value::Boolean(_) => {
@@ -411,7 +429,10 @@ impl Checker<'_> {
         if is_render && frames == 0 {
             return Err(self.err(field("frames"), "must be at least 1"));
         }
-        let skip = m.skip.unwrap_or(0) as usize;
+        let skip = match &m.skip {
+            Some(v) => self.count(&field("skip"), v)? as usize,
+            None => 0,
+        };
         if is_render && skip >= frames {
             return Err(self.err(
                 field("skip"),
@@ -483,12 +504,7 @@ impl Checker<'_> {
                 ));
             }
         };
-        let v = match v {
-            toml::Value::Table(t) if t.keys().all(|k| k == "quick" || k == "full") => t
-                .get(self.profile.name())
-                .ok_or_else(|| self.err(field(name), "gives no value for profile '{profile}'"))?,
-            v => v,
-        };
+        let (v, _) = self.for_profile(&field(name), v)?;
         let items: Vec<&toml::Value> = match (v, m.kind) {
             (toml::Value::Array(a), MeasureKind::Sweep) => a.iter().collect(),
             (toml::Value::Array(_), _) => {

@@ -50,6 +50,9 @@ pub struct MeasureResult {
     pub error: Option<String>,
     /// Wall seconds.
     pub seconds: f64,
+    /// What this measure had to make first, with its time and size (`scene made: 980 s,
+    /// 3.05 GB`): the phases of its wall time. Empty when it reused everything.
+    pub made: Vec<String>,
 }
 
 /// One target of a sweep as the report lists it.
@@ -162,9 +165,13 @@ impl<'a> Context<'a> {
             return plan(m);
         }
         let scene = scene_of(spec, m)?;
-        let (build_dir, stats) = self.build(m, scene)?;
+        let mut made = Vec::new();
+        let (build_dir, stats) = self.build(m, scene, &mut made)?;
         let build_metrics = build_metrics(&stats);
-        let mut r = MeasureResult::default();
+        let mut r = MeasureResult {
+            made,
+            ..MeasureResult::default()
+        };
         if m.kind == MeasureKind::Build {
             r.metrics = build_metrics;
             return Ok(r);
@@ -226,7 +233,13 @@ impl<'a> Context<'a> {
 
     /// The build of `m` on `scene`: made once per key, or reused from `OUT/builds/` when an
     /// earlier reproduction made it with this same clean commit.
-    fn build(&mut self, m: &Measure, scene: &SceneSpec) -> anyhow::Result<(PathBuf, BuildStats)> {
+    /// What it had to make (the scene, the build) is added to `made` with its time and size.
+    fn build(
+        &mut self,
+        m: &Measure,
+        scene: &SceneSpec,
+        made: &mut Vec<String>,
+    ) -> anyhow::Result<(PathBuf, BuildStats)> {
         let key = build_key(m.method, &m.build_params, scene);
         if let Some(b) = self.builds.get(&key) {
             return Ok(b.clone());
@@ -253,14 +266,31 @@ impl<'a> Context<'a> {
                     std::fs::remove_dir_all(&dir)
                         .with_context(|| format!("removing the old {}", dir.display()))?;
                 }
+                let file = scene.cache_file(&self.cache);
+                let cached = file.as_ref().is_some_and(|f| f.is_file());
+                let t = Instant::now();
                 let cloud = scene
                     .load(Some(&self.cache), self.progress)
                     .with_context(|| format!("loading scene '{}'", scene.text))?
                     .warn();
+                if let (Some(f), false) = (&file, cached) {
+                    let bytes = std::fs::metadata(f).map_or(0, |m| m.len());
+                    made.push(format!(
+                        "scene made: {:.0} s, {}",
+                        t.elapsed().as_secs_f64(),
+                        gigabytes(bytes)
+                    ));
+                }
+                let t = Instant::now();
                 let stats = m
                     .method
                     .build(&cloud, &m.build_params, &scene.label(), &dir, self.progress)
                     .with_context(|| format!("building {} on {}", m.method, scene.label()))?;
+                made.push(format!(
+                    "build made: {:.0} s, {}",
+                    t.elapsed().as_secs_f64(),
+                    gigabytes(dir_bytes(&dir))
+                ));
                 crate::results::write_json(
                     &stamp,
                     &serde_json::json!({ "key": key, "commit": GIT_COMMIT }),
@@ -270,6 +300,48 @@ impl<'a> Context<'a> {
         };
         self.builds.insert(key, (dir.clone(), stats.clone()));
         Ok((dir, stats))
+    }
+
+    /// Deletes what `done` used and no spec of `later` uses: its builds (under
+    /// `OUT/builds/`) and, with `scenes`, its scenes' cached column files. What the paper
+    /// profile does between specs, so that its disk use is the largest spec's, not the sum
+    /// (paper/README.md). Returns the bytes freed.
+    pub fn prune(&mut self, done: &Spec, later: &[Spec], scenes: bool) -> anyhow::Result<u64> {
+        let mut keep_builds = std::collections::HashSet::new();
+        let mut keep_scenes = std::collections::HashSet::new();
+        for spec in later {
+            for m in &spec.measures {
+                if let Ok(scene) = scene_of(spec, m) {
+                    keep_builds.insert(build_key(m.method, &m.build_params, scene));
+                    keep_scenes.extend(scene.cache_file(&self.cache));
+                }
+            }
+        }
+        let mut freed = 0;
+        let gone: Vec<String> = self
+            .builds
+            .keys()
+            .filter(|k| !keep_builds.contains(*k))
+            .cloned()
+            .collect();
+        for key in gone {
+            if let Some((dir, _)) = self.builds.remove(&key) {
+                freed += dir_bytes(&dir);
+                std::fs::remove_dir_all(&dir)
+                    .with_context(|| format!("removing the build {}", dir.display()))?;
+            }
+        }
+        for scene in done.scenes.values().filter(|_| scenes) {
+            let Some(file) = scene.cache_file(&self.cache) else {
+                continue;
+            };
+            if !keep_scenes.contains(&file) && file.is_file() {
+                freed += std::fs::metadata(&file).map_or(0, |m| m.len());
+                std::fs::remove_file(&file)
+                    .with_context(|| format!("removing the cached scene {}", file.display()))?;
+            }
+        }
+        Ok(freed)
     }
 
     fn run_config(
@@ -387,6 +459,25 @@ fn no_adapter() -> anyhow::Error {
         "no GPU adapter found: install Mesa's software Vulkan driver (scripts/setup.sh) or run \
          on a machine with a GPU"
     )
+}
+
+/// `1.23 GB`.
+fn gigabytes(bytes: u64) -> String {
+    format!("{:.2} GB", bytes as f64 / 1e9)
+}
+
+/// Bytes of the files under `dir` (0 where it cannot be read).
+fn dir_bytes(dir: &Path) -> u64 {
+    let Ok(entries) = std::fs::read_dir(dir) else {
+        return 0;
+    };
+    entries
+        .filter_map(Result::ok)
+        .map(|e| match e.file_type() {
+            Ok(t) if t.is_dir() => dir_bytes(&e.path()),
+            _ => e.metadata().map_or(0, |m| m.len()),
+        })
+        .sum()
 }
 
 fn scene_of<'s>(spec: &'s Spec, m: &Measure) -> anyhow::Result<&'s SceneSpec> {

@@ -180,8 +180,16 @@ pub fn reproduce(opts: &Options, multi: &MultiProgress) -> anyhow::Result<Outcom
     let phase = crate::progress::Bar::under(multi);
     let mut ctx = Context::new(&opts.out, &opts.cache, opts.exe.clone(), &phase);
     let mut tables = Vec::new();
-    for spec in &specs {
+    for (i, spec) in specs.iter().enumerate() {
         tables.push(run_spec(spec, opts, &mut ctx, multi, &figures_dir)?);
+        if opts.profile == Profile::Paper {
+            // The papers' sizes do not all fit the disk at once: each spec's builds go once
+            // no later spec needs them, and so do its scenes when this run is the whole
+            // profile (a run of some specs, or a job's part, keeps the cached scenes for the
+            // others: making one takes up to half an hour).
+            ctx.prune(spec, &specs[i + 1..], opts.only.is_none())
+                .with_context(|| format!("pruning after {}", spec.id))?;
+        }
     }
     let meta = report::Meta {
         profile: opts.profile,
@@ -254,7 +262,8 @@ fn run_spec(
             status: match (&r.error, r.skipped_for_gpu) {
                 (Some(e), _) => format!("failed: {e}"),
                 (None, true) => "needs a GPU (not run)".into(),
-                (None, false) => "ok".into(),
+                (None, false) if r.made.is_empty() => "ok".into(),
+                (None, false) => format!("ok; {}", r.made.join("; ")),
             },
             seconds: r.seconds,
         });

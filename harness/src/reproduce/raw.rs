@@ -5,7 +5,7 @@
 use std::collections::BTreeMap;
 use std::path::PathBuf;
 
-use super::spec::{Format, MeasureKind};
+use super::spec::{Format, MeasureKind, Profile};
 use super::verdict::Rule;
 #[derive(Debug, serde::Deserialize)]
 #[serde(deny_unknown_fields)]
@@ -16,6 +16,8 @@ pub(super) struct RawSpec {
     pub(super) source: String,
     #[serde(default)]
     pub(super) notes: Option<String>,
+    #[serde(default)]
+    pub(super) profiles: Option<Vec<Profile>>,
     #[serde(default)]
     pub(super) scenes: BTreeMap<String, RawScene>,
     #[serde(default, rename = "measure")]
@@ -29,7 +31,7 @@ pub(super) struct RawSpec {
 #[derive(Debug, serde::Deserialize)]
 #[serde(deny_unknown_fields)]
 pub(super) struct RawScene {
-    pub(super) generator: Option<String>,
+    pub(super) generator: Option<toml::Value>,
     pub(super) file: Option<PathBuf>,
     pub(super) points: Option<toml::Value>,
     pub(super) seed: Option<u64>,
@@ -48,7 +50,7 @@ pub(super) struct RawMeasure {
     pub(super) params: toml::Table,
     pub(super) path: Option<String>,
     pub(super) frames: Option<toml::Value>,
-    pub(super) skip: Option<u64>,
+    pub(super) skip: Option<toml::Value>,
     pub(super) eps: Option<toml::Value>,
     pub(super) budget: Option<toml::Value>,
     pub(super) width: Option<toml::Value>,

@@ -11,16 +11,24 @@
 //!
 //! [scenes.statue]                    # a generator (points and seed), or file = "…"
 //! generator = "statue"
-//! points = { quick = 1_000_000, full = 10_000_000 }   # any count may differ by profile
+//! points = { quick = 1_000_000, full = 10_000_000, paper = 127_072_827 }  # may differ by profile
 //! seed = 1
-//! sampling = "even"                  # random (default) | even; may differ by profile
+//! sampling = "even"                  # even (statue, isosurface default) | random; by profile
+//! ```
+//!
+//! Any count, string or size may be `{ quick = …, full = …, paper = … }`; a table without
+//! `paper` gives the `paper` profile its `full` value (the spec then says so in its notes).
+//! `profiles = ["quick", "full"]` at the top keeps a spec out of the other profiles (our own
+//! tables with no paper size to reproduce); every spec is checked for every profile.
+//!
+//! ```toml
 //!
 //! [[measure]]
 //! id = "build"
 //! kind = "build"                     # build | run | sweep | plan
 //! method = "qsplat"
 //! scene = "statue"
-//! params = { }                       # --param key = value (build and runtime keys)
+//! params = { }                       # --param key = value (build and runtime keys; by profile)
 //!
 //! [[row]]
 //! what = "interior / leaf"
@@ -71,19 +79,22 @@ use crate::sweep::SweepTarget;
 pub enum Profile {
     /// Small scenes: the whole reproduction in minutes on 2 cores with lavapipe.
     Quick,
-    /// The real sizes (10–100 M points).
+    /// The middle ground (10–100 M points).
     Full,
+    /// The papers' own sizes and resolutions (127 M – 369 M samples; hours, out of core).
+    Paper,
 }
 
 impl Profile {
-    /// Both profiles.
-    pub const ALL: [Profile; 2] = [Profile::Quick, Profile::Full];
+    /// Every profile.
+    pub const ALL: [Profile; 3] = [Profile::Quick, Profile::Full, Profile::Paper];
 
-    /// `quick` or `full`.
+    /// `quick`, `full` or `paper`.
     pub fn name(self) -> &'static str {
         match self {
             Profile::Quick => "quick",
             Profile::Full => "full",
+            Profile::Paper => "paper",
         }
     }
 }
@@ -153,6 +164,8 @@ pub struct Spec {
     pub source: String,
     /// Notes printed under the table.
     pub notes: Option<String>,
+    /// The profiles it belongs to (all unless the spec says).
+    pub profiles: Vec<Profile>,
     /// Scenes by name, resolved for the profile.
     pub scenes: BTreeMap<String, SceneSpec>,
     /// Measures in file order.
@@ -286,7 +299,8 @@ impl Spec {
 }
 
 /// Loads every `*.toml` in `dir` (sorted by file name), paths inside them relative to
-/// `root`, resolved for `profile`. Each spec is checked for both profiles.
+/// `root`, resolved for `profile`. Each spec is checked for every profile; the specs whose
+/// `profiles` leave `profile` out are not returned.
 pub fn load_dir(dir: &Path, root: &Path, profile: Profile) -> Result<Vec<Spec>, SpecError> {
     let err = |m: String| SpecError {
         file: dir.to_path_buf(),
@@ -305,11 +319,14 @@ pub fn load_dir(dir: &Path, root: &Path, profile: Profile) -> Result<Vec<Spec>, 
     let specs: Vec<Spec> = files
         .iter()
         .map(|f| load(f, root, profile))
-        .collect::<Result<_, _>>()?;
+        .collect::<Result<Vec<_>, _>>()?
+        .into_iter()
+        .filter(|s| s.profiles.contains(&profile))
+        .collect();
     Ok(specs)
 }
 
-/// Loads one spec file for `profile` (checking it for both).
+/// Loads one spec file for `profile` (checking it for every profile).
 pub fn load(file: &Path, root: &Path, profile: Profile) -> Result<Spec, SpecError> {
     let text = std::fs::read_to_string(file).map_err(|e| SpecError {
         file: file.to_path_buf(),

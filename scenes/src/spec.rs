@@ -475,7 +475,7 @@ impl SceneSpec {
 
     /// The column file under `cache_dir` that a generated scene is cached in: scenes of at
     /// least [`CACHE_MIN_POINTS`], and even ones of any size (their sample elimination is
-    /// the slow part, ≈ 8 s per million); `None` for other scenes.
+    /// the slow part, ≈ 6 s per million); `None` for other scenes.
     pub fn cache_file(&self, cache_dir: &Path) -> Option<PathBuf> {
         let SceneSource::Generator {
             generator,

@@ -116,7 +116,7 @@ fn even_samples_are_regular_and_random_ones_are_poisson() {
     }
 }
 
-/// Even scenes are cached at any size (their elimination costs ≈ 8 s per million samples;
+/// Even scenes are cached at any size (their elimination costs ≈ 6 s per million samples;
 /// random scenes only from `CACHE_MIN_POINTS` on), and the cached file holds the same samples.
 #[test]
 fn even_scenes_are_cached_at_any_size() {

@@ -43,15 +43,16 @@
 //! **Out of core** ([`Generator::generate_to_file_sampled`](super::Generator::generate_to_file_sampled)):
 //! the tiles are grouped into partitions of about [`PART_CANDIDATES`] candidates (contiguous
 //! runs of tiles in grid order, cut at quantiles of the first candidates' tiles). One pass
-//! over the candidates counts every tile and spills each candidate's position and index to
-//! its partition's file (16 bytes per candidate: 64 bytes per sample, on the output's file
-//! system, checked before it starts); each partition is then read back, eliminated tile by
-//! tile and deleted; a second pass over the candidates writes the kept ones in candidate
-//! order to a temporary column file, which is finally permuted into tile order. Memory: one
-//! partition (≈ 0.5 GB) plus 12 bytes per sample for the permutation; the permutation pass
-//! reads the temporary file in random order, fast while it fits the page cache (24 bytes a
-//! sample). The partitioning changes nothing in the result: the in-memory and the
-//! out-of-core paths give the same bytes (unit-tested with partitions of a few tiles).
+//! over the candidates counts every tile and spills each candidate to its partition's file;
+//! each partition is then read back, eliminated tile by tile, written out and deleted. Where
+//! the output's file system has room for 32 bytes a candidate (128 a sample: position,
+//! normal, colour, index) that is all — one pass over the candidates. Otherwise the spill
+//! holds positions and indices only (16 bytes a candidate), and a second pass over the
+//! candidates writes the kept ones in candidate order to a staged column file, finally
+//! permuted into tile order (that permutation reads the staged file in random order: fast
+//! while it fits the page cache, 24 bytes a sample). Memory: one partition (≈ 0.5 GB). The
+//! partitioning and the path change nothing in the result: the in-memory, one-pass and
+//! two-pass paths give the same bytes (unit-tested with partitions of a few tiles).
 //!
 //! **Measured** (`scripts/sampling-measurements.sh`, `results/measurements/issue-35-sampling.md`;
 //! `scenes/tests/even_sampling.rs` states the bounds), 240 k samples, nearest-neighbour CV /
@@ -60,8 +61,9 @@
 //! Stanford bunny's mesh vertices (a real scan) 0.153 / 0.165. Even sampling is the closer
 //! stand-in for the papers' scans.
 //!
-//! **Cost**: see `results/measurements/issue-35-reproduction.md` (generating the candidates
-//! twice and the elimination, on 2 cores).
+//! **Cost**: ≈ 6 s per million samples on 2 cores in one pass, ≈ 8.6 in two
+//! (`results/measurements/issue-35-reproduction.md`): generating the candidates and the
+//! elimination.
 //!
 //! **Limits**: candidates are indexed by `u32`, so at most [`EVEN_MAX_POINTS`] samples; in
 //! memory ([`Generator::generate_sampled`](super::Generator::generate_sampled), which holds
@@ -78,7 +80,7 @@ use rayon::prelude::*;
 use crate::colfile::ColumnWriter;
 use crate::{Attributes, PointCloud, Progress, SceneError};
 use eliminate::{KeyMap, allocate, eliminate, mean_spacing};
-use spill::{REC_BYTES, Rec, Spill};
+use spill::Spill;
 
 /// How a generator places its samples on its surface.
 #[derive(Debug, Clone, Copy, Default, PartialEq, Eq, Hash)]
@@ -263,6 +265,9 @@ pub(crate) struct Options {
     pub part_candidates: usize,
     /// Where partitions spill when there are several (`None`: in memory).
     pub spill_dir: Option<PathBuf>,
+    /// Writing a file: one pass (attributes spilled) or two; `None`: one where the disk
+    /// has room.
+    pub one_pass: Option<bool>,
 }
 
 impl Options {
@@ -270,6 +275,7 @@ impl Options {
         Self {
             part_candidates: PART_CANDIDATES,
             spill_dir: None,
+            one_pass: None,
         }
     }
 
@@ -280,6 +286,7 @@ impl Options {
         Self {
             part_candidates: PART_CANDIDATES,
             spill_dir: Some(dir.into()),
+            one_pass: None,
         }
     }
 }
@@ -324,6 +331,66 @@ impl Grid {
     }
 }
 
+/// What a spilled candidate carries: at least its position and its index in candidate order.
+trait SpillRec: bytemuck::Pod + Send + Sync {
+    /// Candidate `i` of batch `b`.
+    fn of(b: &Batch<'_>, i: usize) -> Self;
+    fn pos(&self) -> [f32; 3];
+    fn idx(&self) -> u32;
+}
+
+/// Position and index (16 bytes): the two-pass path's record.
+#[derive(Debug, Clone, Copy, PartialEq, bytemuck::Pod, bytemuck::Zeroable)]
+#[repr(C)]
+struct Rec {
+    pos: [f32; 3],
+    idx: u32,
+}
+
+impl SpillRec for Rec {
+    fn of(b: &Batch<'_>, i: usize) -> Self {
+        Rec {
+            pos: b.pos[i],
+            idx: (b.first + i) as u32,
+        }
+    }
+    fn pos(&self) -> [f32; 3] {
+        self.pos
+    }
+    fn idx(&self) -> u32 {
+        self.idx
+    }
+}
+
+/// Position, normal, colour and index (32 bytes): the one-pass path's record, which is
+/// written out as it is kept.
+#[derive(Debug, Clone, Copy, PartialEq, bytemuck::Pod, bytemuck::Zeroable)]
+#[repr(C)]
+struct FullRec {
+    pos: [f32; 3],
+    nrm: [f32; 3],
+    idx: u32,
+    col: [u8; 4],
+}
+
+impl SpillRec for FullRec {
+    fn of(b: &Batch<'_>, i: usize) -> Self {
+        let c = b.col.map_or([0; 3], |c| c[i]);
+        FullRec {
+            pos: b.pos[i],
+            nrm: b.nrm.map_or([0.0; 3], |c| c[i]),
+            idx: (b.first + i) as u32,
+            col: [c[0], c[1], c[2], 0],
+        }
+    }
+    fn pos(&self) -> [f32; 3] {
+        self.pos
+    }
+    fn idx(&self) -> u32 {
+        self.idx
+    }
+}
+
 /// The candidate indices kept, in output order: steps 2–5 of the module docs.
 fn select_order(
     src: &dyn Candidates,
@@ -331,17 +398,37 @@ fn select_order(
     opts: &Options,
     progress: &dyn Progress,
 ) -> Result<Vec<u32>, SceneError> {
+    let mut order: Vec<u32> = Vec::with_capacity(n.min(src.len()));
+    select_kept::<Rec>(src, n, opts, progress, &mut |kept| {
+        order.extend(kept.iter().map(|r| r.idx));
+        Ok(())
+    })?;
+    Ok(order)
+}
+
+/// Steps 2–5 of the module docs: `emit` receives the kept candidates' records in output
+/// order, a partition at a time.
+fn select_kept<R: SpillRec>(
+    src: &dyn Candidates,
+    n: usize,
+    opts: &Options,
+    progress: &dyn Progress,
+    emit: &mut dyn FnMut(&[R]) -> Result<(), SceneError>,
+) -> Result<(), SceneError> {
     let total = src.len();
     if total > u32::MAX as usize {
         return Err(SceneError::InvalidCloud(format!(
             "even sampling indexes candidates by 32 bits: {total} candidates"
         )));
     }
-    if n >= total {
-        return Ok((0..total as u32).collect());
-    }
     if n == 0 {
-        return Ok(Vec::new());
+        return Ok(());
+    }
+    if n >= total {
+        return src.each_batch(&mut |b| {
+            let recs: Vec<R> = (0..b.pos.len()).map(|i| R::of(&b, i)).collect();
+            emit(&recs)
+        });
     }
     let head = src.head(HEAD)?;
     let grid = Grid::new(&head, total);
@@ -354,9 +441,10 @@ fn select_order(
         .collect();
     cuts.dedup();
     let part_of = |key: u64| cuts.partition_point(|&c| c <= key);
-    let mut spill = match &opts.spill_dir {
+    let mut spill: Spill<R> = match &opts.spill_dir {
         Some(dir) if cuts.len() + 1 > 1 => {
-            crate::colfile::check_free_space(dir, total as u64 * REC_BYTES)?;
+            let bytes = total as u64 * std::mem::size_of::<R>() as u64;
+            crate::colfile::check_free_space(dir, bytes)?;
             Spill::files(dir.clone(), cuts.len() + 1)?
         }
         _ => Spill::memory(cuts.len() + 1),
@@ -368,10 +456,9 @@ fn select_order(
     let mut counts: KeyMap<u64> = KeyMap::default();
     src.each_batch(&mut |b| {
         let keys: Vec<u64> = b.pos.par_iter().map(|p| grid.key(p)).collect();
-        for (i, (p, &k)) in b.pos.iter().zip(&keys).enumerate() {
+        for (i, &k) in keys.iter().enumerate() {
             *counts.entry(k).or_insert(0) += 1;
-            let idx = (b.first + i) as u32;
-            spill.push(part_of(k), Rec { pos: *p, idx })?;
+            spill.push(part_of(k), R::of(&b, i))?;
         }
         progress.inc(b.pos.len() as u64);
         Ok(())
@@ -389,26 +476,24 @@ fn select_order(
         &format!("even sampling: eliminating down to {n}"),
         (cuts.len() + 1) as u64,
     );
-    let mut order: Vec<u32> = Vec::with_capacity(n);
     for part in 0..=cuts.len() {
-        let recs = spill.take(part)?;
-        let mut keyed: Vec<(u64, u32, [f32; 3])> = recs
-            .par_iter()
-            .map(|r| (grid.key(&r.pos), r.idx, r.pos))
+        let mut recs: Vec<(u64, R)> = spill
+            .take(part)?
+            .into_par_iter()
+            .map(|r| (grid.key(&r.pos()), r))
             .collect();
-        drop(recs);
-        keyed.par_sort_unstable_by_key(|r| (r.0, r.1));
-        let mut runs: Vec<&[(u64, u32, [f32; 3])]> = Vec::new();
-        let mut rest = &keyed[..];
+        recs.par_sort_unstable_by_key(|r| (r.0, r.1.idx()));
+        let mut runs: Vec<&[(u64, R)]> = Vec::new();
+        let mut rest = &recs[..];
         while let Some(first) = rest.first() {
             let len = rest.partition_point(|r| r.0 == first.0);
             runs.push(&rest[..len]);
             rest = &rest[len..];
         }
-        let kept: Vec<Vec<u32>> = runs
+        let kept: Vec<Vec<R>> = runs
             .par_iter()
             .map(|t| {
-                let pts: Vec<Vec3> = t.iter().map(|r| Vec3::from(r.2)).collect();
+                let pts: Vec<Vec3> = t.iter().map(|r| Vec3::from(r.1.pos())).collect();
                 let keep = targets.get(&t[0].0).copied().unwrap_or(0) as usize;
                 let alive = eliminate(&pts, keep);
                 t.iter()
@@ -417,16 +502,72 @@ fn select_order(
                     .collect()
             })
             .collect();
-        order.extend(kept.into_iter().flatten());
+        drop(runs);
+        drop(recs);
+        for k in &kept {
+            emit(k)?;
+        }
         progress.inc(1);
     }
     progress.finish();
-    Ok(order)
+    Ok(())
 }
 
 /// Keeps `n` of `src`'s candidates, evenly spaced, straight into the column file `path`
-/// (out of core: see the module docs).
+/// (out of core: see the module docs): in one pass over the candidates where the disk holds
+/// their attributes (32 bytes each), else in two.
 pub(crate) fn sample_to_file(
+    src: &dyn Candidates,
+    n: usize,
+    path: &Path,
+    opts: &Options,
+    progress: &dyn Progress,
+) -> Result<PointCloud, SceneError> {
+    let one_pass = opts.one_pass.unwrap_or_else(|| {
+        let need = src.len() as u64 * std::mem::size_of::<FullRec>() as u64 + n as u64 * 27;
+        match &opts.spill_dir {
+            Some(dir) => crate::colfile::check_free_space(dir, need).is_ok(),
+            None => true,
+        }
+    });
+    if one_pass {
+        one_pass_to_file(src, n, path, opts, progress)
+    } else {
+        two_pass_to_file(src, n, path, opts, progress)
+    }
+}
+
+/// The kept candidates' records carry their attributes: written out as each partition is
+/// eliminated, in output order.
+fn one_pass_to_file(
+    src: &dyn Candidates,
+    n: usize,
+    path: &Path,
+    opts: &Options,
+    progress: &dyn Progress,
+) -> Result<PointCloud, SceneError> {
+    let attrs = src.attributes();
+    let mut w = ColumnWriter::create(path, attrs, src.origin(), n.min(src.len()) as u64)?;
+    select_kept::<FullRec>(src, n, opts, progress, &mut |kept| {
+        let pos: Vec<[f32; 3]> = kept.iter().map(|r| r.pos).collect();
+        let nrm: Vec<[f32; 3]> = kept.iter().map(|r| r.nrm).collect();
+        let col: Vec<[u8; 3]> = kept
+            .iter()
+            .map(|r| [r.col[0], r.col[1], r.col[2]])
+            .collect();
+        w.push(
+            &pos,
+            attrs.normals.then_some(&nrm[..]),
+            attrs.colors.then_some(&col[..]),
+            None,
+        )
+    })?;
+    w.finish()
+}
+
+/// Positions only in the spill (16 bytes a candidate); a second pass over the candidates
+/// gathers the kept ones' attributes into a staged file, permuted into output order.
+fn two_pass_to_file(
     src: &dyn Candidates,
     n: usize,
     path: &Path,
@@ -535,11 +676,20 @@ mod tests {
 
     #[test]
     fn out_of_core_partitions_give_the_in_memory_bytes() {
-        // 200 k candidates in partitions of ≈ 20 k (a few tiles each) spilled to files, and
-        // written through the staged permutation: the same samples, in the same order, as
-        // the in-memory path with one partition.
-        let g = super::super::Generator::Statue;
-        let n = 50_000;
+        // 200 k statue candidates in partitions of ≈ 20 k (a few tiles each) spilled to
+        // files, and written in one pass or through the staged permutation: the same
+        // samples, in the same order, as the in-memory path with one partition; the same
+        // for a terrain's (colours too).
+        use super::super::Generator;
+        for (g, n, part) in [
+            (Generator::Statue, 50_000, 20_000),
+            (Generator::Terrain, 30_000, 15_000),
+        ] {
+            out_of_core_equals_in_memory(g, n, part);
+        }
+    }
+
+    fn out_of_core_equals_in_memory(g: super::super::Generator, n: usize, part: usize) {
         let cand = g.generate(n * OVERSAMPLING, 7).unwrap();
         let want = thin(&cand, n).unwrap();
         let dir = tempfile::tempdir().unwrap();
@@ -550,22 +700,28 @@ mod tests {
             col: cand.colors(),
             origin: cand.origin(),
         };
-        let opts = Options {
-            part_candidates: 20_000,
-            spill_dir: Some(dir.path().join("spill")),
-        };
-        let got = sample_to_file(&src, n, &path, &opts, &crate::NoProgress).unwrap();
-        assert_eq!(got.positions(), want.positions());
-        assert_eq!(got.normals(), want.normals());
-        assert_eq!(got.origin(), want.origin());
-        let left: Vec<_> = std::fs::read_dir(dir.path())
-            .unwrap()
-            .map(|e| e.unwrap().file_name())
-            .collect();
-        assert_eq!(
-            left,
-            vec![std::ffi::OsString::from("even.sbc")],
-            "spill and staging removed"
-        );
+        for one_pass in [false, true] {
+            let opts = Options {
+                part_candidates: part,
+                spill_dir: Some(dir.path().join("spill")),
+                one_pass: Some(one_pass),
+            };
+            let got = sample_to_file(&src, n, &path, &opts, &crate::NoProgress).unwrap();
+            assert_eq!(got.positions(), want.positions(), "one pass: {one_pass}");
+            assert_eq!(got.normals(), want.normals(), "one pass: {one_pass}");
+            assert_eq!(got.colors(), want.colors(), "one pass: {one_pass}");
+            assert_eq!(got.origin(), want.origin());
+            drop(got);
+            let left: Vec<_> = std::fs::read_dir(dir.path())
+                .unwrap()
+                .map(|e| e.unwrap().file_name())
+                .collect();
+            assert_eq!(
+                left,
+                vec![std::ffi::OsString::from("even.sbc")],
+                "spill and staging removed"
+            );
+            std::fs::remove_file(&path).unwrap();
+        }
     }
 }

@@ -1,6 +1,6 @@
 //! Where the candidates wait between the pass that sorts them into partitions of tiles and
 //! the passes that eliminate one partition at a time: in memory, or out of core in one file
-//! per partition (16 bytes per candidate), each file deleted once its partition is done.
+//! per partition (a record per candidate), each file deleted once its partition is done.
 
 use std::fs::File;
 use std::io::{BufWriter, Read, Write};
@@ -8,20 +8,9 @@ use std::path::PathBuf;
 
 use crate::SceneError;
 
-/// One waiting candidate: its position and its index in candidate order.
-#[derive(Debug, Clone, Copy, PartialEq, bytemuck::Pod, bytemuck::Zeroable)]
-#[repr(C)]
-pub(super) struct Rec {
-    pub pos: [f32; 3],
-    pub idx: u32,
-}
-
-/// Bytes a file spill needs per candidate.
-pub(super) const REC_BYTES: u64 = std::mem::size_of::<Rec>() as u64;
-
-/// The partitions' waiting candidates.
-pub(super) enum Spill {
-    Memory(Vec<Vec<Rec>>),
+/// The partitions' waiting candidates, records of type `R`.
+pub(super) enum Spill<R> {
+    Memory(Vec<Vec<R>>),
     Files {
         dir: SpillDir,
         writers: Vec<Option<BufWriter<File>>>,
@@ -29,7 +18,7 @@ pub(super) enum Spill {
     },
 }
 
-impl Spill {
+impl<R: bytemuck::Pod> Spill<R> {
     /// `parts` partitions held in memory.
     pub fn memory(parts: usize) -> Self {
         Spill::Memory(vec![Vec::new(); parts])
@@ -55,7 +44,7 @@ impl Spill {
     }
 
     /// Adds `rec` to partition `part`.
-    pub fn push(&mut self, part: usize, rec: Rec) -> Result<(), SceneError> {
+    pub fn push(&mut self, part: usize, rec: R) -> Result<(), SceneError> {
         match self {
             Spill::Memory(parts) => {
                 parts[part].push(rec);
@@ -77,7 +66,7 @@ impl Spill {
     }
 
     /// Partition `part`'s candidates, in the order they were pushed; its file is deleted.
-    pub fn take(&mut self, part: usize) -> Result<Vec<Rec>, SceneError> {
+    pub fn take(&mut self, part: usize) -> Result<Vec<R>, SceneError> {
         match self {
             Spill::Memory(parts) => Ok(std::mem::take(&mut parts[part])),
             Spill::Files {
@@ -93,13 +82,7 @@ impl Spill {
                 let n = usize::try_from(counts[part]).map_err(|_| {
                     SceneError::format(&path, "spill partition larger than memory can address")
                 })?;
-                let mut recs = vec![
-                    Rec {
-                        pos: [0.0; 3],
-                        idx: 0
-                    };
-                    n
-                ];
+                let mut recs = vec![R::zeroed(); n];
                 File::open(&path)
                     .and_then(|mut f| f.read_exact(bytemuck::cast_slice_mut(&mut recs)))
                     .map_err(|e| SceneError::io(&path, e))?;

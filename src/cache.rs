@@ -7,8 +7,6 @@
 //! from. `--clear` removes exactly those three folders, never anything else a mistyped
 //! `--cache` might point at.
 
-use std::path::Path;
-
 use anyhow::Context;
 use clap::Args;
 
@@ -35,7 +33,8 @@ pub fn main(a: &CacheCommandArgs) -> anyhow::Result<()> {
     println!("cache: {}", a.cache.dir.display());
     for (name, what) in ENTRIES {
         let dir = a.cache.dir.join(name);
-        let (files, bytes) = size(&dir).with_context(|| format!("reading {}", dir.display()))?;
+        let (files, bytes) = harness::results::dir_size(&dir)
+            .with_context(|| format!("reading {}", dir.display()))?;
         total = (total.0 + files, total.1 + bytes);
         println!(
             "  {:<8} {:>10}  {files:>6} files  {what}",
@@ -60,26 +59,4 @@ pub fn main(a: &CacheCommandArgs) -> anyhow::Result<()> {
 
 fn mib(bytes: u64) -> String {
     format!("{:.1} MiB", bytes as f64 / (1024.0 * 1024.0))
-}
-
-/// Files and bytes under `dir` (0 for a folder that does not exist). Symbolic links are
-/// counted as links, never followed.
-fn size(dir: &Path) -> std::io::Result<(u64, u64)> {
-    let mut total = (0, 0);
-    let entries = match std::fs::read_dir(dir) {
-        Ok(e) => e,
-        Err(e) if e.kind() == std::io::ErrorKind::NotFound => return Ok(total),
-        Err(e) => return Err(e),
-    };
-    for e in entries {
-        let e = e?;
-        let t = e.file_type()?;
-        if t.is_dir() {
-            let (f, b) = size(&e.path())?;
-            total = (total.0 + f, total.1 + b);
-        } else {
-            total = (total.0 + 1, total.1 + e.metadata()?.len());
-        }
-    }
-    Ok(total)
 }

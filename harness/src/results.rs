@@ -288,6 +288,28 @@ pub fn median(values: impl IntoIterator<Item = f64>) -> Option<f64> {
     })
 }
 
+/// Files and bytes under `dir` (0 for a folder that does not exist). Symbolic links are
+/// counted as links, never followed.
+pub fn dir_size(dir: &std::path::Path) -> std::io::Result<(u64, u64)> {
+    let mut total = (0, 0);
+    let entries = match std::fs::read_dir(dir) {
+        Ok(e) => e,
+        Err(e) if e.kind() == std::io::ErrorKind::NotFound => return Ok(total),
+        Err(e) => return Err(e),
+    };
+    for e in entries {
+        let e = e?;
+        let t = e.file_type()?;
+        if t.is_dir() {
+            let (f, b) = dir_size(&e.path())?;
+            total = (total.0 + f, total.1 + b);
+        } else {
+            total = (total.0 + 1, total.1 + e.metadata()?.len());
+        }
+    }
+    Ok(total)
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;

@@ -466,18 +466,9 @@ fn gigabytes(bytes: u64) -> String {
     format!("{:.2} GB", bytes as f64 / 1e9)
 }
 
-/// Bytes of the files under `dir` (0 where it cannot be read).
+/// Bytes of the files under `dir` (0 where it cannot be read: a figure for the report).
 fn dir_bytes(dir: &Path) -> u64 {
-    let Ok(entries) = std::fs::read_dir(dir) else {
-        return 0;
-    };
-    entries
-        .filter_map(Result::ok)
-        .map(|e| match e.file_type() {
-            Ok(t) if t.is_dir() => dir_bytes(&e.path()),
-            _ => e.metadata().map_or(0, |m| m.len()),
-        })
-        .sum()
+    crate::results::dir_size(dir).map_or(0, |(_, bytes)| bytes)
 }
 
 fn scene_of<'s>(spec: &'s Spec, m: &Measure) -> anyhow::Result<&'s SceneSpec> {

@@ -17,7 +17,8 @@
 //! ```
 //!
 //! Any count, string or size may be `{ quick = …, full = …, paper = … }`; a table without
-//! `paper` gives the `paper` profile its `full` value (the spec then says so in its notes).
+//! `paper` gives the `paper` profile its `full` value (the report's measure lines show the
+//! sizes used).
 //! `profiles = ["quick", "full"]` at the top keeps a spec out of the other profiles (our own
 //! tables with no paper size to reproduce); every spec is checked for every profile.
 //!

@@ -229,19 +229,18 @@ pub fn thin(candidates: &PointCloud, n: usize) -> Result<PointCloud, SceneError>
         origin: candidates.origin(),
     };
     let order = select_order(&src, n, &Options::in_memory(), &crate::NoProgress)?;
-    let gather = |c: &[[f32; 3]]| order.iter().map(|&i| c[i as usize]).collect::<Vec<_>>();
-    let pos = gather(candidates.positions());
-    let nrm = candidates.normals().map(gather);
-    let col = candidates
-        .colors()
-        .map(|c| order.iter().map(|&i| c[i as usize]).collect::<Vec<_>>());
     PointCloud::new(
         candidates.origin(),
-        pos.into(),
-        nrm.map(Into::into),
-        col.map(Into::into),
+        gather(candidates.positions(), &order).into(),
+        candidates.normals().map(|c| gather(c, &order).into()),
+        candidates.colors().map(|c| gather(c, &order).into()),
         None,
     )
+}
+
+/// `column[i]` for each `i` of `idx`.
+fn gather<T: Copy>(column: &[T], idx: &[u32]) -> Vec<T> {
+    idx.iter().map(|&i| column[i as usize]).collect()
 }
 
 /// The indices of the `n` kept candidates of `positions`, in output order (tiles in grid
@@ -624,12 +623,9 @@ fn two_pass_to_file(
     drop(kept);
     let mut w = ColumnWriter::create(path, attrs, src.origin(), n as u64)?;
     for chunk in rank.chunks(HEAD) {
-        let pick = |c: &[[f32; 3]]| chunk.iter().map(|&j| c[j as usize]).collect::<Vec<_>>();
-        let pos = pick(staged_cloud.positions());
-        let nrm = staged_cloud.normals().map(pick);
-        let col = staged_cloud
-            .colors()
-            .map(|c| chunk.iter().map(|&j| c[j as usize]).collect::<Vec<_>>());
+        let pos = gather(staged_cloud.positions(), chunk);
+        let nrm = staged_cloud.normals().map(|c| gather(c, chunk));
+        let col = staged_cloud.colors().map(|c| gather(c, chunk));
         w.push(&pos, nrm.as_deref(), col.as_deref(), None)?;
         progress.inc(chunk.len() as u64);
     }
@@ -689,6 +685,27 @@ mod tests {
         }
     }
 
+    /// Records each phase's name and total.
+    #[derive(Default)]
+    struct Phases(std::sync::Mutex<Vec<(String, u64)>>);
+
+    impl Phases {
+        fn total_of(&self, prefix: &str) -> u64 {
+            let p = self.0.lock().unwrap();
+            p.iter()
+                .find(|(w, _)| w.starts_with(prefix))
+                .map_or(0, |(_, t)| *t)
+        }
+    }
+
+    impl Progress for Phases {
+        fn start(&self, what: &str, total: u64) {
+            self.0.lock().unwrap().push((what.to_owned(), total));
+        }
+        fn inc(&self, _: u64) {}
+        fn finish(&self) {}
+    }
+
     fn out_of_core_equals_in_memory(g: super::super::Generator, n: usize, part: usize) {
         let cand = g.generate(n * OVERSAMPLING, 7).unwrap();
         let want = thin(&cand, n).unwrap();
@@ -706,7 +723,11 @@ mod tests {
                 spill_dir: Some(dir.path().join("spill")),
                 one_pass: Some(one_pass),
             };
-            let got = sample_to_file(&src, n, &path, &opts, &crate::NoProgress).unwrap();
+            let phases = Phases::default();
+            let got = sample_to_file(&src, n, &path, &opts, &phases).unwrap();
+            // The run really was out of core: several partitions were eliminated in turn.
+            let parts = phases.total_of("even sampling: eliminating");
+            assert!(parts > 1, "{:?}: one partition", g.name());
             assert_eq!(got.positions(), want.positions(), "one pass: {one_pass}");
             assert_eq!(got.normals(), want.normals(), "one pass: {one_pass}");
             assert_eq!(got.colors(), want.colors(), "one pass: {one_pass}");

@@ -7,10 +7,16 @@ mod common;
 
 use methods::qsplat::build::{BuildOptions, Combine, Split};
 use methods::qsplat::ooc::{self, UNIT_BYTES_PER_SAMPLE};
+use methods::qsplat::stats::QuantStats;
 use scenes::generators::Generator;
 use scenes::{NoProgress, PointCloud};
 
-fn build(cloud: &PointCloud, opt: BuildOptions, cap: u64, out: &std::path::Path) -> (Vec<u8>, u64) {
+fn build(
+    cloud: &PointCloud,
+    opt: BuildOptions,
+    cap: u64,
+    out: &std::path::Path,
+) -> (Vec<u8>, u64, QuantStats) {
     std::fs::create_dir_all(out).unwrap();
     let path = out.join("tree.qs");
     let t = ooc::build_file(
@@ -25,7 +31,7 @@ fn build(cloud: &PointCloud, opt: BuildOptions, cap: u64, out: &std::path::Path)
         &NoProgress,
     )
     .unwrap();
-    (std::fs::read(&path).unwrap(), t.units)
+    (std::fs::read(&path).unwrap(), t.units, t.quant)
 }
 
 #[test]
@@ -35,16 +41,37 @@ fn units_give_the_in_memory_file_byte_for_byte() {
         let cloud = g.generate(n, 3).unwrap();
         for split in [Split::Midpoint, Split::Median] {
             for combine in [Combine::Fewest, Combine::Pairs] {
-                let opt = BuildOptions { split, combine };
-                let (whole, units) = build(&cloud, opt, n as u64, &tmp.path().join("a"));
+                let opt = BuildOptions {
+                    split,
+                    combine,
+                    ..Default::default()
+                };
+                let (whole, units, wq) = build(&cloud, opt, n as u64, &tmp.path().join("a"));
                 assert_eq!(units, 1);
                 for cap in [700u64, 3000] {
-                    let (parts, units) = build(&cloud, opt, cap, &tmp.path().join("b"));
+                    let (parts, units, pq) = build(&cloud, opt, cap, &tmp.path().join("b"));
                     assert!(
                         units >= (n as u64).div_ceil(cap),
                         "{g:?} {opt:?} cap {cap}: {units} units"
                     );
                     assert!(whole == parts, "{g:?} {opt:?} cap {cap}: files differ");
+                    // The quantisation figures count the same nodes (their sums differ
+                    // by the order of addition only).
+                    let ((a, b), what) = ((&wq, &pq), format!("{g:?} {opt:?} cap {cap}"));
+                    assert_eq!(
+                        (a.spheres, a.not_enclosed, a.normals, a.children),
+                        (b.spheres, b.not_enclosed, b.normals, b.children),
+                        "{what}"
+                    );
+                    for (x, y) in [
+                        (a.centre_error, b.centre_error),
+                        (a.radius_error, b.radius_error),
+                        (a.radius_error_l1, b.radius_error_l1),
+                        (a.normal_error, b.normal_error),
+                    ] {
+                        assert!((x - y).abs() <= 1e-9 * x.abs().max(1.0), "{what}");
+                    }
+                    assert_eq!(a.normal_error_max, b.normal_error_max, "{what}");
                 }
             }
         }
@@ -59,8 +86,8 @@ fn leaf_radii_by_units_are_the_in_memory_ones_with_fallback_cap_and_given_radii(
     assert!(radii.capped >= 6, "{} capped", radii.capped);
     let n = cloud.len() as u64;
     let opt = BuildOptions::default();
-    let (whole, _) = build(&cloud, opt, n, &tmp.path().join("a"));
-    let (parts, units) = build(&cloud, opt, 900, &tmp.path().join("b"));
+    let (whole, _, _) = build(&cloud, opt, n, &tmp.path().join("a"));
+    let (parts, units, _) = build(&cloud, opt, 900, &tmp.path().join("b"));
     assert!(units >= 10);
     assert!(whole == parts, "k-NN radii by units differ");
     // A scene with its own radii carries them in the records.
@@ -68,8 +95,8 @@ fn leaf_radii_by_units_are_the_in_memory_ones_with_fallback_cap_and_given_radii(
         .map(|i| 0.001 + (i % 7) as f32 * 1e-4)
         .collect();
     let cloud = cloud.with_radii(given).unwrap();
-    let (whole, _) = build(&cloud, opt, n, &tmp.path().join("c"));
-    let (parts, _) = build(&cloud, opt, 900, &tmp.path().join("d"));
+    let (whole, _, _) = build(&cloud, opt, n, &tmp.path().join("c"));
+    let (parts, _, _) = build(&cloud, opt, 900, &tmp.path().join("d"));
     assert!(whole == parts, "given radii by units differ");
 }
 

@@ -20,6 +20,7 @@
 use glam::Vec3;
 use scenes::PointCloud;
 
+use super::stats::QuantStats;
 use crate::MethodError;
 use crate::spill::{Spill, SpillDir};
 
@@ -84,6 +85,8 @@ pub struct Built {
     /// True unit normal per node per level (zero without normals), for tests: at a leaf,
     /// the sample's normal.
     pub true_normals: Vec<Vec<Vec3>>,
+    /// What quantisation did to the nodes (§3.1's figures).
+    pub quant: QuantStats,
 }
 
 /// Where a range is split (`--param split=`).
@@ -125,6 +128,8 @@ pub struct BuildOptions {
     pub split: Split,
     /// Combine rule.
     pub combine: Combine,
+    /// Sphere-code choice.
+    pub fit: super::quant::Fit,
 }
 
 /// The binary partition tree, indexed by split position: the binary node covering
@@ -454,7 +459,7 @@ pub(super) fn build_in_memory(
     let forest = part.forest(Roots::Whole);
     let truth = forest.truths(&part.perm, s);
     let attrs = (s.normals.is_some(), s.colors.is_some());
-    let q = forest.quantise(&truth, Parent::Root, attrs, 0, debug)?;
+    let q = forest.quantise(&truth, Parent::Root, attrs, opt.fit, 0, debug)?;
     if !debug {
         return Ok(Built {
             tree: QTree {
@@ -466,6 +471,7 @@ pub(super) fn build_in_memory(
             true_spheres: Vec::new(),
             decoded_spheres: Vec::new(),
             true_normals: Vec::new(),
+            quant: q.stats,
         });
     }
     Ok(Built {
@@ -484,6 +490,7 @@ pub(super) fn build_in_memory(
             .iter()
             .map(|l| l.iter().map(|t| t.n).collect())
             .collect(),
+        quant: q.stats,
     })
 }
 
@@ -545,7 +552,11 @@ mod tests {
         let radii = vec![0.01f32; cloud.len()];
         for split in [Split::Midpoint, Split::Median] {
             for combine in [Combine::Fewest, Combine::Pairs] {
-                let opt = BuildOptions { split, combine };
+                let opt = BuildOptions {
+                    split,
+                    combine,
+                    ..Default::default()
+                };
                 let t = build_tree_with(&cloud, &radii, opt).unwrap().tree;
                 assert_eq!(t.leaves(), 507, "{opt:?}");
                 assert!(

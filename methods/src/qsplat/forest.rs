@@ -8,6 +8,7 @@ use rayon::prelude::*;
 
 use super::build::{Binary, QNode};
 use super::quant;
+use super::stats::QuantStats;
 use crate::MethodError;
 
 pub(super) use crate::spill::samples::SampleView as Samples;
@@ -204,10 +205,11 @@ pub(super) fn encode_child(
     t: &TrueNode,
     (pc, pr): (Vec3, f32),
     pmargin: f64,
+    fit: quant::Fit,
     what: impl FnOnce() -> String,
 ) -> Result<Encoded, MethodError> {
     let margin = sphere_margin(t).min(pmargin);
-    quant::encode_sphere(pc, pr, t.c, t.r, margin)
+    quant::encode_sphere(pc, pr, t.c, t.r, margin, fit)
         .map(|(code, c, r)| (code as u16, (c, r), margin))
         .ok_or_else(|| {
             MethodError::Limit(format!(
@@ -255,6 +257,8 @@ pub(super) struct Quantised {
     /// The header's root sphere ([`Parent::Root`] only).
     pub root: [f32; 4],
     pub decoded: Vec<Vec<(Vec3, f32)>>,
+    /// What quantisation did to these nodes.
+    pub stats: QuantStats,
 }
 
 impl Forest {
@@ -265,6 +269,7 @@ impl Forest {
         truth: &[Vec<TrueNode>],
         parent: Parent,
         (has_n, has_c): (bool, bool),
+        fit: quant::Fit,
         base_level: usize,
         debug: bool,
     ) -> Result<Quantised, MethodError> {
@@ -272,6 +277,7 @@ impl Forest {
         let mut decoded: Vec<Vec<(Vec3, f32)>> = Vec::new();
         let mut margins: Vec<Vec<f64>> = Vec::new();
         let mut levels: Vec<Vec<QNode>> = Vec::with_capacity(self.ranges.len());
+        let mut stats = QuantStats::default();
         for l in 0..self.ranges.len() {
             let res: Vec<Encoded> = if l == 0 {
                 match parent {
@@ -280,13 +286,19 @@ impl Forest {
                         root = [c.x, c.y, c.z, r];
                         vec![(0, (c, r), m)]
                     }
-                    Parent::Node(pd, pm) => truth[0]
-                        .iter()
-                        .enumerate()
-                        .map(|(i, t)| {
-                            encode_child(t, pd, pm, || format!("node {i} of level {base_level}"))
-                        })
-                        .collect::<Result<_, _>>()?,
+                    Parent::Node(pd, pm) => {
+                        let res: Vec<Encoded> = truth[0]
+                            .iter()
+                            .enumerate()
+                            .map(|(i, t)| {
+                                encode_child(t, pd, pm, fit, || {
+                                    format!("node {i} of level {base_level}")
+                                })
+                            })
+                            .collect::<Result<_, _>>()?;
+                        stats.merge(&QuantStats::spheres(&truth[0], &res, |_| pd));
+                        res
+                    }
                 }
             } else {
                 let starts = &self.child_start[l - 1];
@@ -298,19 +310,24 @@ impl Forest {
                     ));
                 }
                 let (pdec, pmargin) = (&decoded[l - 1], &margins[l - 1]);
-                truth[l]
+                let res: Vec<Encoded> = truth[l]
                     .par_iter()
                     .zip(parent.par_iter())
                     .enumerate()
                     .map(|(i, (t, &p))| {
-                        encode_child(t, pdec[p as usize], pmargin[p as usize], || {
+                        encode_child(t, pdec[p as usize], pmargin[p as usize], fit, || {
                             format!("node {i} of level {}", base_level + l)
                         })
                     })
-                    .collect::<Result<_, _>>()?
+                    .collect::<Result<_, _>>()?;
+                stats.merge(&QuantStats::spheres(&truth[l], &res, |i| {
+                    pdec[parent[i] as usize]
+                }));
+                res
             };
             let codes: Vec<u16> = res.iter().map(|e| e.0).collect();
             levels.push(self.stored_level(l, truth, &codes, has_n, has_c));
+            stats.merge(&QuantStats::nodes(&truth[l], &levels[l], has_n));
             decoded.push(res.iter().map(|e| e.1).collect());
             margins.push(res.iter().map(|e| e.2).collect());
             // The level above is no longer needed (its children are encoded).
@@ -323,6 +340,7 @@ impl Forest {
             levels,
             root,
             decoded,
+            stats,
         })
     }
 

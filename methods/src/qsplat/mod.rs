@@ -20,6 +20,7 @@ pub mod format;
 pub mod ooc;
 pub mod quant;
 pub mod select;
+pub mod stats;
 
 use std::path::Path;
 use std::time::Instant;
@@ -61,6 +62,10 @@ pub struct QsplatParams {
     /// Combine rule of the build (`fewest`, the default: the fewest interior nodes, the
     /// purpose the paper states; or `pairs`, binary levels paired from the top).
     pub combine: build::Combine,
+    /// How each child's sphere code is chosen: `nearest` (the paper's §3.1: nearest centre,
+    /// radius rounded up) or `smallest` (a departure: the smallest enclosing sphere of the
+    /// centres around, tighter spheres).
+    pub fit: quant::Fit,
     /// Draw back faces too (`two_sided=true`, a departure): no normal-cone culling. The
     /// paper culls back-facing subtrees (§3.2), which from inside a closed model — the last
     /// frames of `zoom`, the `extremes` and `flythrough` paths — culls every node, since all
@@ -79,6 +84,7 @@ impl Default for QsplatParams {
             target_ms: None,
             split: build::Split::default(),
             combine: build::Combine::default(),
+            fit: quant::Fit::default(),
             two_sided: false,
             // As LPC's and MWKD's builds.
             mem_mb: 256,
@@ -136,6 +142,7 @@ pub fn build(
     let opt = build::BuildOptions {
         split: p.split,
         combine: p.combine,
+        fit: p.fit,
     };
     let t0 = Instant::now();
     let n = cloud.len();
@@ -173,6 +180,7 @@ pub fn build(
         "combine",
         serde_json::to_value(opt.combine).unwrap_or_default(),
     );
+    put("fit", serde_json::to_value(opt.fit).unwrap_or_default());
     put("leaves", leaves.into());
     put("units", t.units.into());
     put("interior", interior.into());
@@ -190,6 +198,9 @@ pub fn build(
         "table_entries",
         (quant::sphere_table().entries.len() as u64).into(),
     );
+    for (k, v) in t.quant.extras() {
+        put(k, v);
+    }
     Ok(BuildStats {
         points_in: n as u64,
         nodes,

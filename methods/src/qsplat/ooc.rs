@@ -44,6 +44,7 @@ use super::build::{
     self, BuildOptions, Combine, Parent, Partitioned, QNode, Roots, Split, TrueNode,
 };
 use super::format::{self, FileStats, Levels};
+use super::stats::QuantStats;
 use crate::MethodError;
 pub use crate::spill::Budget;
 use crate::spill::samples::{self, SampleColumns, SampleLayout as Layout, f32_at};
@@ -77,6 +78,8 @@ pub struct TreeStats {
     pub units: u64,
     /// Leaf radii capped as isolated ([`crate::leaf`]).
     pub radii_capped: u64,
+    /// What quantisation did to the nodes (§3.1's figures).
+    pub quant: QuantStats,
 }
 
 /// Builds the tree of `cloud` into `path` within `budget`, with the leaf radii of
@@ -112,6 +115,7 @@ pub fn build_file(
             file,
             units: 1,
             radii_capped: radii.capped,
+            quant: built.quant,
         });
     }
     let spill = SpillDir::create(dir, "qsplat-spill")?;
@@ -190,11 +194,12 @@ pub fn build_file(
     }
     progress.finish();
     let attrs = (layout.normals, layout.colors);
-    let quantised = combined.quantise(&roots, attrs, &top)?;
+    let quantised = combined.quantise(&roots, attrs, opt.fit, &top)?;
 
     progress.start("qsplat: unit nodes", n as u64);
     let nb = format::node_bytes(layout.colors);
     let mut nodes = quantised.nodes.len() as u64;
+    let mut quant = quantised.stats;
     let mut segments: Vec<Segment> = quantised
         .nodes
         .iter()
@@ -208,8 +213,16 @@ pub fn build_file(
         let (forest, truth) = unit_forest(i, &mut 0)?;
         let first_level = combined.unit_level[i];
         let (pd, pm) = quantised.unit_parent[i];
-        let q = forest.quantise(&truth, Parent::Node(pd, pm), attrs, first_level, false)?;
+        let q = forest.quantise(
+            &truth,
+            Parent::Node(pd, pm),
+            attrs,
+            opt.fit,
+            first_level,
+            false,
+        )?;
         nodes += q.levels.iter().map(|l| l.len() as u64).sum::<u64>();
+        quant.merge(&q.stats);
         let mut files = Vec::with_capacity(q.levels.len());
         let mut rec = Vec::with_capacity(nb);
         for level in &q.levels {
@@ -244,6 +257,7 @@ pub fn build_file(
         file,
         units: top.units.len() as u64,
         radii_capped: capped,
+        quant,
     })
 }
 
@@ -551,6 +565,8 @@ struct TopQuantised {
     root: [f32; 4],
     /// Per unit: the decoded sphere and margin of its forest roots' parent.
     unit_parent: Vec<((Vec3, f32), f64)>,
+    /// What quantisation did to the top nodes.
+    stats: QuantStats,
 }
 
 impl Combined {
@@ -560,6 +576,7 @@ impl Combined {
         &self,
         roots: &[Vec<TrueNode>],
         (has_n, has_c): (bool, bool),
+        fit: super::quant::Fit,
         top: &Top,
     ) -> Result<TopQuantised, MethodError> {
         let mut truth: std::collections::HashMap<CNode, TrueNode> = Default::default();
@@ -589,6 +606,7 @@ impl Combined {
             nodes: Vec::new(),
             root: [0.0; 4],
             unit_parent: vec![((Vec3::ZERO, 0.0), 0.0); top.units.len()],
+            stats: QuantStats::default(),
         };
         let mut decoded: std::collections::HashMap<CNode, ((Vec3, f32), f64)> = Default::default();
         let (rd, rm) = build::root_sphere(&truth[&CNode::Top(0)]);
@@ -605,9 +623,15 @@ impl Combined {
                 for &k in &buf {
                     match k {
                         CNode::Top(_) => {
-                            let (code, d, m) = build::encode_child(&truth[&k], pd, pm, || {
-                                format!("a child of node {i} of level {l}")
-                            })?;
+                            let (code, d, m) =
+                                build::encode_child(&truth[&k], pd, pm, fit, || {
+                                    format!("a child of node {i} of level {l}")
+                                })?;
+                            out.stats.merge(&QuantStats::spheres(
+                                &[truth[&k]],
+                                &[(code, d, m)],
+                                |_| pd,
+                            ));
                             codes.insert(k, code);
                             decoded.insert(k, (d, m));
                         }
@@ -625,6 +649,8 @@ impl Combined {
                     has_n,
                     has_c,
                 );
+                out.stats
+                    .merge(&QuantStats::nodes(&[truth[&node]], &[qn], has_n));
                 out.nodes.push((top.nodes[t].lo, l, qn));
             }
         }

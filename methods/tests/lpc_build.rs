@@ -28,11 +28,23 @@ fn build_read(
     std::fs::create_dir_all(dir).unwrap();
     let lp = params(p);
     let mem = budget.unwrap_or(lp.mem_mb << 20);
-    build::build_with_budget(cloud, &lp, "test", dir, &scenes::NoProgress, mem)
-        .unwrap()
-        .write(dir) // as the registry does
-        .unwrap();
+    let stats =
+        build::build_with_budget(cloud, &lp, "test", dir, &scenes::NoProgress, mem).unwrap();
+    stats.write(dir).unwrap(); // as the registry does
     let nodes = index::read(&dir.join(lpc::INDEX_FILE)).unwrap();
+    // The build's §3 figures recount from the index.
+    let inner_not_m = nodes
+        .iter()
+        .filter(|x| !x.is_leaf() && x.points != lp.m)
+        .count() as u64;
+    let leaf_over_m = nodes
+        .iter()
+        .filter(|x| x.is_leaf() && x.points > lp.m)
+        .count() as u64;
+    let stored: u64 = nodes.iter().map(|x| u64::from(x.points)).sum();
+    assert_eq!(stats.extra["samples_stored"], stored);
+    assert_eq!(stats.extra["inner_clouds_not_m"], inner_not_m);
+    assert_eq!(stats.extra["leaf_clouds_over_m"], leaf_over_m);
     let repo = Repository::open(&dir.join(lpc::REPO_FILE)).unwrap();
     let src = LocalSource::new(repo, nodes.iter().map(|n| n.chunk).collect(), "cloud");
     let clouds = (0..nodes.len() as u32)

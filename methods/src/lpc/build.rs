@@ -352,6 +352,25 @@ pub fn build_with_budget(
     put("memory_budget_bytes", mem_bytes.into());
     put("peak_bytes_held", peak.into());
     put("clouds", (out.len() as u64).into());
+    // §3: the model keeps exactly the input samples; an inner cloud holds `M`, a leaf at
+    // most `M` (`N_j < M`, or `N_j = M` with nothing left to split).
+    let is_leaf = |nd: &Node| nd.children.iter().all(|&c| c == NONE);
+    let stored: u64 = out.iter().map(|nd| u64::from(nd.points)).sum();
+    put("samples_stored", stored.into());
+    put(
+        "inner_clouds_not_m",
+        (out.iter()
+            .filter(|nd| !is_leaf(nd) && nd.points != params.m)
+            .count() as u64)
+            .into(),
+    );
+    put(
+        "leaf_clouds_over_m",
+        (out.iter()
+            .filter(|nd| is_leaf(nd) && nd.points > params.m)
+            .count() as u64)
+            .into(),
+    );
     put("index_bytes", index_bytes.into());
     put("repo_bytes", repo_bytes.into());
     let stats = BuildStats {

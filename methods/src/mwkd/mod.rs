@@ -160,6 +160,30 @@ pub fn build(
         (nodes.iter().filter(|n| n.child_count == 0).count() as u64).into(),
     );
     put("samples_stored", samples_stored.into());
+    // Fig. 1 and §3: leaves at one depth holding "almost the same number of points", inner
+    // nodes of a constant output size s (the VBO size).
+    let range = |it: &mut dyn Iterator<Item = u64>| {
+        it.fold((u64::MAX, 0), |(lo, hi), x| (lo.min(x), hi.max(x)))
+    };
+    let leaves = || nodes.iter().filter(|n| n.child_count == 0);
+    let (lmin, lmax) = range(&mut leaves().map(|n| n.len as u64));
+    let (dmin, dmax) = range(&mut leaves().map(|n| u64::from(n.level)));
+    put("leaf_points_min", lmin.into());
+    put("leaf_points_max", lmax.into());
+    put("leaf_level_min", dmin.into());
+    put("leaf_level_max", dmax.into());
+    let (imin, imax) = range(
+        &mut written
+            .index
+            .iter()
+            .zip(&nodes)
+            .filter(|(_, n)| n.child_count > 0)
+            .map(|(x, _)| u64::from(x.points)),
+    );
+    if imin <= imax {
+        put("inner_points_min", imin.into());
+        put("inner_points_max", imax.into());
+    }
     put("raw_bytes", written.raw_bytes.into());
     put("repo_bytes", written.repo_bytes.into());
     put("index_bytes", index_bytes.into());

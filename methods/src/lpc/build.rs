@@ -85,7 +85,7 @@ use scenes::{PointCloud, Progress};
 
 use super::cloud::{self, Sample};
 use super::index::{self, NONE, Node};
-use super::{INDEX_FILE, INFO_FILE, Info, LpcParams, REPO_FILE, SpacingRule};
+use super::{INDEX_FILE, INFO_FILE, Info, LpcParams, Quantise, REPO_FILE, SpacingRule};
 use crate::store::{self, RepoWriter};
 use crate::{BuildStats, MethodError};
 
@@ -182,6 +182,11 @@ pub fn build_with_budget(
 
     let n = cloud.len() as u64;
     let bounds = cloud.bounds();
+    // Positions quantised in the model's box (the paper's) or in each cloud's own.
+    let frame = match params.quantise {
+        Quantise::Model => Some((bounds.min.to_array(), bounds.max.to_array())),
+        Quantise::Cloud => None,
+    };
     let probe_count = probes.len() as u64;
     let (r_est, nn_est) = spacing_estimates(&mut probes, params.spacing_rule);
     let r_est = match params.spacing_rule {
@@ -300,7 +305,7 @@ pub fn build_with_budget(
         let enc: Vec<(Vec<u8>, usize, [u8; 3])> = raw
             .par_iter()
             .map(|c| {
-                let (bytes, bits) = cloud::encode(c, attrs, nn);
+                let (bytes, bits) = cloud::encode_in(c, attrs, nn, frame);
                 (store::compress(&bytes), bytes.len(), bits)
             })
             .collect();
@@ -344,6 +349,10 @@ pub fn build_with_budget(
     put("input_spacing", (r as f64).into());
     put("nn_spacing", (nn as f64).into());
     put("input_spacing_probes", probe_count.into());
+    put(
+        "quantise",
+        serde_json::to_value(params.quantise).unwrap_or_default(),
+    );
     put("position_bits_min", bits_min.min(bits_max).into());
     put("position_bits_max", bits_max.into());
     put("normal_bits", (if attrs.normals { 16 } else { 0 }).into());

@@ -2,8 +2,9 @@
 //! compression and the checksum are added by [`crate::store::RepoWriter`]).
 //!
 //! Each cloud is spatially sorted (Morton order of its quantised positions), positions are
-//! quantised relative to the cloud's bounding box with per-axis bit counts chosen so that the
-//! error on every axis stays below half the input spacing `r`, normals take 16 bits
+//! quantised relative to a box — the model's (the paper's, `quantise = model`) or the cloud's
+//! own (`quantise = cloud`, the paper's future work) — with per-axis bit counts chosen so that
+//! the error on every axis stays below half the input spacing `r`, normals take 16 bits
 //! (octahedral, 8 + 8), colours 24 bits (only if the scene has colours), radii never.
 //!
 //! Layout (little-endian):
@@ -179,16 +180,27 @@ fn put_varint(out: &mut Vec<u8>, mut v: u128) {
     out.push(v as u8);
 }
 
-/// Encodes one cloud (`samples`, at least one) for input spacing `spacing`, keeping the
-/// columns `attrs` declares (radii are never stored). Returns the bytes and the bits per
-/// axis used.
+/// Encodes one cloud (`samples`, at least one) for input spacing `spacing`, quantised in its
+/// own bounding box ([`encode_in`] with no frame).
 pub fn encode(samples: &[Sample], attrs: Attributes, spacing: f32) -> (Vec<u8>, [u8; 3]) {
+    encode_in(samples, attrs, spacing, None)
+}
+
+/// Encodes one cloud (`samples`, at least one) for input spacing `spacing`, keeping the
+/// columns `attrs` declares (radii are never stored), with positions quantised in the box
+/// `frame` (`(min, max)`, which must hold every sample: the model's) or, without one, in
+/// the cloud's own bounding box. Returns the bytes and the bits per axis used.
+pub fn encode_in(
+    samples: &[Sample],
+    attrs: Attributes,
+    spacing: f32,
+    frame: Option<([f32; 3], [f32; 3])>,
+) -> (Vec<u8>, [u8; 3]) {
     let n = samples.len();
-    let (min, max) = bounds(samples);
-    let (min, max) = if n == 0 {
-        ([0.0; 3], [0.0; 3])
-    } else {
-        (min, max)
+    let (min, max) = match frame {
+        Some(f) => f,
+        None if n == 0 => ([0.0; 3], [0.0; 3]),
+        None => bounds(samples),
     };
     let (bits, step) = quantisation(min, max, spacing);
     let mut keyed: Vec<(u128, u32)> = samples

@@ -138,6 +138,22 @@ pub struct LpcParams {
     /// `layers` (default, the node and its drawn ancestors: the layers whose merged density
     /// its spacing `r_j` is) or `cloud` (the literal reading: the node's cloud alone).
     pub enlarge: traverse::Enlarge,
+    /// The box positions are quantised in: `model` (the paper's: "a position quantization
+    /// ensuring a quantization error inferior to half of the input sampling distance" over
+    /// the model, 3 × 13–15 bits) or `cloud` (a departure, the paper's future work:
+    /// "quantizing attributes relative to each cluster's contents"; fewer bits per sample).
+    pub quantise: Quantise,
+}
+
+/// The box an LPC cloud's positions are quantised in (`--param quantise=`).
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Default, serde::Deserialize, serde::Serialize)]
+#[serde(rename_all = "lowercase")]
+pub enum Quantise {
+    /// The model's bounding box (the paper's, §6).
+    #[default]
+    Model,
+    /// Each cloud's own bounding box (a departure; the paper's §6 future work).
+    Cloud,
 }
 
 impl Default for LpcParams {
@@ -157,6 +173,7 @@ impl Default for LpcParams {
             occlusion: false,
             occlusion_threshold: 0,
             enlarge: traverse::Enlarge::Layers,
+            quantise: Quantise::Model,
         }
     }
 }

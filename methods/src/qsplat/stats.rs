@@ -46,45 +46,54 @@ impl QuantStats {
         res: &[Encoded],
         parent: impl Fn(usize) -> (Vec3, f32) + Sync,
     ) -> Self {
-        truth
-            .par_iter()
-            .zip(res.par_iter())
-            .enumerate()
-            .fold(Self::default, |mut s, (i, (t, e))| {
-                let (_, pr) = parent(i);
-                let (c, r) = e.1;
-                let (pr, r) = (f64::from(pr), f64::from(r));
-                let d = (c.as_dvec3() - t.c.as_dvec3()).abs();
-                s.spheres += 1;
-                s.centre_error += (d.x + d.y + d.z) / pr;
-                s.radius_error += (r - f64::from(t.r)) / pr;
-                let grown = (f64::from(t.r) + d.x + d.y + d.z) / pr;
-                s.radius_error_l1 += (grown * 13.0).ceil() / 13.0 - f64::from(t.r) / pr;
-                if d.length() + f64::from(t.r) > r {
-                    s.not_enclosed += 1;
-                }
-                s
-            })
-            .reduce(Self::default, |a, b| a.merged(&b))
+        Self::sum_chunks(truth.len(), |i, s| {
+            let (t, e) = (&truth[i], &res[i]);
+            let (_, pr) = parent(i);
+            let (c, r) = e.1;
+            let (pr, r) = (f64::from(pr), f64::from(r));
+            let d = (c.as_dvec3() - t.c.as_dvec3()).abs();
+            s.spheres += 1;
+            s.centre_error += (d.x + d.y + d.z) / pr;
+            s.radius_error += (r - f64::from(t.r)) / pr;
+            let grown = (f64::from(t.r) + d.x + d.y + d.z) / pr;
+            s.radius_error_l1 += (grown * 13.0).ceil() / 13.0 - f64::from(t.r) / pr;
+            if d.length() + f64::from(t.r) > r {
+                s.not_enclosed += 1;
+            }
+        })
     }
 
     /// The stored nodes `stored` of `truth` (same order): normals and children.
     pub(super) fn nodes(truth: &[TrueNode], stored: &[QNode], has_normals: bool) -> Self {
-        truth
-            .par_iter()
-            .zip(stored.par_iter())
-            .fold(Self::default, |mut s, (t, q)| {
-                s.children[usize::from(q.children).min(5)] += 1;
-                if has_normals && t.n.length_squared() > 0.25 {
-                    let n = quant::decode_normal(u32::from(q.normal)).unwrap_or(Vec3::ZERO);
-                    let a = quant::angle(t.n.as_dvec3(), n.as_dvec3());
-                    s.normals += 1;
-                    s.normal_error += a;
-                    s.normal_error_max = s.normal_error_max.max(a);
+        Self::sum_chunks(truth.len(), |i, s| {
+            let (t, q) = (&truth[i], &stored[i]);
+            s.children[usize::from(q.children).min(5)] += 1;
+            if has_normals && t.n.length_squared() > 0.25 {
+                let n = quant::decode_normal(u32::from(q.normal)).unwrap_or(Vec3::ZERO);
+                let a = quant::angle(t.n.as_dvec3(), n.as_dvec3());
+                s.normals += 1;
+                s.normal_error += a;
+                s.normal_error_max = s.normal_error_max.max(a);
+            }
+        })
+    }
+
+    /// `add(i, sums)` for `i` in `0..n`, in parallel over fixed chunks whose sums are added
+    /// in order: the same `f64` sums for any thread count and schedule (a report compares
+    /// them across runs).
+    fn sum_chunks(n: usize, add: impl Fn(usize, &mut Self) + Sync) -> Self {
+        const CHUNK: usize = 4096;
+        let parts: Vec<Self> = (0..n.div_ceil(CHUNK))
+            .into_par_iter()
+            .map(|c| {
+                let mut s = Self::default();
+                for i in c * CHUNK..((c + 1) * CHUNK).min(n) {
+                    add(i, &mut s);
                 }
                 s
             })
-            .reduce(Self::default, |a, b| a.merged(&b))
+            .collect();
+        parts.iter().fold(Self::default(), |a, b| a.merged(b))
     }
 
     /// Adds `o`'s sums to these.

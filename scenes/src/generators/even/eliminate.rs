@@ -61,14 +61,18 @@ pub(super) fn eliminate(pts: &[Vec3], keep: usize) -> Vec<bool> {
         0.0
     };
     let reach = 2.0 * r_max;
-    let neighbours = if reach > 0.0 {
+    let mut neighbours = if reach > 0.0 {
         Neighbours::within(pts, reach)
     } else {
         Neighbours::none(m)
     };
-    let weight_of = |d: f32| (1.0 - d / reach).powi(ALPHA);
+    // Each pair's weight, computed once: the initial sums and the decrements below use the
+    // same `f32` values as when each computed it from the distance (the same bytes out).
+    for e in &mut neighbours.list {
+        e.1 = (1.0 - e.1 / reach).powi(ALPHA);
+    }
     let mut weight: Vec<f32> = (0..m)
-        .map(|i| neighbours.of(i).iter().map(|&(_, d)| weight_of(d)).sum())
+        .map(|i| neighbours.of(i).iter().map(|&(_, w)| w).sum())
         .collect();
     let mut alive = vec![true; m];
     let mut heap = WeightHeap::new(&weight);
@@ -77,10 +81,10 @@ pub(super) fn eliminate(pts: &[Vec3], keep: usize) -> Vec<bool> {
             break;
         };
         alive[i] = false;
-        for &(j, d) in neighbours.of(i) {
+        for &(j, w) in neighbours.of(i) {
             let j = j as usize;
             if alive[j] {
-                weight[j] -= weight_of(d);
+                weight[j] -= w;
                 heap.lowered(j, &weight);
             }
         }
@@ -231,6 +235,8 @@ pub(super) type KeyMap<V> = HashMap<u64, V, BuildHasherDefault<KeyHasher>>;
 struct Neighbours {
     /// Per candidate: its list's first entry and length.
     span: Vec<(u32, u32)>,
+    /// `(neighbour, distance)` as [`Neighbours::within`] finds them; [`eliminate`] turns
+    /// each distance into the pair's weight in place.
     list: Vec<(u32, f32)>,
 }
 

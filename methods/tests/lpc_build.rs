@@ -546,11 +546,12 @@ fn a_cloud_quantised_in_the_model_box_round_trips() {
     let b = cloud::decode(0, &raw).unwrap();
     assert_eq!(b.len(), s.len());
     let half_step = 20.0 / 32767.0 / 2.0 + 1e-6;
+    let near = |p: &[f32; 3], q: &[f32; 3]| (0..3).all(|a| (p[a] - q[a]).abs() <= half_step);
+    // Every decoded position is near a sample, and every sample near a decoded position.
     for p in &b.positions {
-        assert!(
-            s.iter()
-                .any(|q| (0..3).all(|a| (p[a] - q.p[a]).abs() <= half_step)),
-            "{p:?}"
-        );
+        assert!(s.iter().any(|q| near(p, &q.p)), "{p:?}");
+    }
+    for q in &s {
+        assert!(b.positions.iter().any(|p| near(p, &q.p)), "{:?}", q.p);
     }
 }

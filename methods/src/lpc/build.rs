@@ -363,20 +363,19 @@ pub fn build_with_budget(
     put("clouds", (out.len() as u64).into());
     // §3: the model keeps exactly the input samples; an inner cloud holds `M`, a leaf at
     // most `M` (`N_j < M`, or `N_j = M` with nothing left to split).
-    let is_leaf = |nd: &Node| nd.children.iter().all(|&c| c == NONE);
     let stored: u64 = out.iter().map(|nd| u64::from(nd.points)).sum();
     put("samples_stored", stored.into());
     put(
         "inner_clouds_not_m",
         (out.iter()
-            .filter(|nd| !is_leaf(nd) && nd.points != params.m)
+            .filter(|nd| !nd.is_leaf() && nd.points != params.m)
             .count() as u64)
             .into(),
     );
     put(
         "leaf_clouds_over_m",
         (out.iter()
-            .filter(|nd| is_leaf(nd) && nd.points > params.m)
+            .filter(|nd| nd.is_leaf() && nd.points > params.m)
             .count() as u64)
             .into(),
     );

@@ -63,12 +63,22 @@ fn units_give_the_in_memory_file_byte_for_byte() {
                         (b.spheres, b.not_enclosed, b.normals, b.children),
                         "{what}"
                     );
+                    // Units number their levels from the whole tree's root.
+                    assert_eq!(a.level_spheres, b.level_spheres, "{what}");
+                    assert_eq!(
+                        (a.sphere_codes, a.cone_codes),
+                        (b.sphere_codes, b.cone_codes),
+                        "{what}"
+                    );
                     for (x, y) in [
                         (a.centre_error, b.centre_error),
                         (a.radius_error, b.radius_error),
                         (a.radius_error_l1, b.radius_error_l1),
                         (a.normal_error, b.normal_error),
-                    ] {
+                    ]
+                    .into_iter()
+                    .chain(a.level_centre_error.into_iter().zip(b.level_centre_error))
+                    {
                         assert!((x - y).abs() <= 1e-9 * x.abs().max(1.0), "{what}");
                     }
                     assert_eq!(a.normal_error_max, b.normal_error_max, "{what}");

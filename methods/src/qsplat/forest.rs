@@ -296,7 +296,7 @@ impl Forest {
                                 })
                             })
                             .collect::<Result<_, _>>()?;
-                        stats.merge(&QuantStats::spheres(&truth[0], &res, |_| pd));
+                        stats.merge(&QuantStats::spheres(&truth[0], &res, base_level, |_| pd));
                         res
                     }
                 }
@@ -320,7 +320,7 @@ impl Forest {
                         })
                     })
                     .collect::<Result<_, _>>()?;
-                stats.merge(&QuantStats::spheres(&truth[l], &res, |i| {
+                stats.merge(&QuantStats::spheres(&truth[l], &res, base_level + l, |i| {
                     pdec[parent[i] as usize]
                 }));
                 res

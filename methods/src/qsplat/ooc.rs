@@ -630,6 +630,7 @@ impl Combined {
                             out.stats.merge(&QuantStats::spheres(
                                 &[truth[&k]],
                                 &[(code, d, m)],
+                                l + 1,
                                 |_| pd,
                             ));
                             codes.insert(k, code);

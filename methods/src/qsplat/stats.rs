@@ -3,7 +3,10 @@
 //! error of 0.15 in the child sphere's radius" for a parent of radius 1; "a mean quantization
 //! error of approximately 0.01 radian" for normals; quantised spheres that "completely
 //! enclose" the true ones; children per node in {0, 2, 3, 4}), measured on every node the
-//! build encodes, against the true (unquantised) node.
+//! build encodes, against the true (unquantised) node. Also what the paper says the format
+//! does, counted on what a build used: offsets and radii "quantized to 13 values", cone
+//! widths in "just 2 bits", and positions "encoded relative to the quantized position" of the
+//! parent, so that the error does not grow with depth (the mean centre error per level).
 
 use glam::Vec3;
 use rayon::prelude::*;
@@ -13,7 +16,7 @@ use super::forest::{Encoded, TrueNode};
 use super::quant;
 
 /// Sums over a build's nodes (merge the parts of a build with [`QuantStats::merge`]).
-#[derive(Debug, Clone, Copy, Default, PartialEq)]
+#[derive(Debug, Clone, Copy, PartialEq)]
 pub struct QuantStats {
     /// Child spheres encoded relative to a decoded parent (every node but the root).
     pub spheres: u64,
@@ -36,16 +39,54 @@ pub struct QuantStats {
     pub normal_error_max: f64,
     /// Nodes by number of children: 0, 1, 2, 3, 4, more.
     pub children: [u64; 6],
+    /// Child spheres per tree level (the root is level 0; deeper levels count in the last).
+    pub level_spheres: [u64; LEVELS],
+    /// Σ of the centre error (as [`Self::centre_error`]) per tree level.
+    pub level_centre_error: [f64; LEVELS],
+    /// The sphere codes used, one bit per code of the 13-bit field.
+    pub sphere_codes: [u64; SPHERE_WORDS],
+    /// The cone classes used, one bit per class of the 2-bit field.
+    pub cone_codes: u8,
+}
+
+/// Tree levels counted apart by [`QuantStats::level_spheres`] (a statue of 10⁹ samples is
+/// ≈ 20 levels deep).
+pub const LEVELS: usize = 64;
+const SPHERE_WORDS: usize = (1 << quant::SPHERE_BITS) / 64;
+/// Levels with fewer child spheres are left out of [`QuantStats::centre_error_level_spread`]:
+/// a mean over a few nodes (the levels near the root) is noise, not a trend.
+pub const SPREAD_MIN_SPHERES: u64 = 1000;
+
+impl Default for QuantStats {
+    fn default() -> Self {
+        Self {
+            spheres: 0,
+            centre_error: 0.0,
+            radius_error: 0.0,
+            radius_error_l1: 0.0,
+            not_enclosed: 0,
+            normals: 0,
+            normal_error: 0.0,
+            normal_error_max: 0.0,
+            children: [0; 6],
+            level_spheres: [0; LEVELS],
+            level_centre_error: [0.0; LEVELS],
+            sphere_codes: [0; SPHERE_WORDS],
+            cone_codes: 0,
+        }
+    }
 }
 
 impl QuantStats {
-    /// The child spheres `res` encoded for `truth` (same order), node `i`'s decoded parent
-    /// sphere being `parent(i)`.
+    /// The child spheres `res` encoded for `truth` (same order), all in tree level `level`,
+    /// node `i`'s decoded parent sphere being `parent(i)`.
     pub(super) fn spheres(
         truth: &[TrueNode],
         res: &[Encoded],
+        level: usize,
         parent: impl Fn(usize) -> (Vec3, f32) + Sync,
     ) -> Self {
+        let level = level.min(LEVELS - 1);
         Self::sum_chunks(truth.len(), |i, s| {
             let (t, e) = (&truth[i], &res[i]);
             let (_, pr) = parent(i);
@@ -54,6 +95,9 @@ impl QuantStats {
             let d = (c.as_dvec3() - t.c.as_dvec3()).abs();
             s.spheres += 1;
             s.centre_error += (d.x + d.y + d.z) / pr;
+            s.level_spheres[level] += 1;
+            s.level_centre_error[level] += (d.x + d.y + d.z) / pr;
+            s.sphere_codes[usize::from(e.0) / 64] |= 1 << (e.0 % 64);
             s.radius_error += (r - f64::from(t.r)) / pr;
             let grown = (f64::from(t.r) + d.x + d.y + d.z) / pr;
             s.radius_error_l1 += (grown * 13.0).ceil() / 13.0 - f64::from(t.r) / pr;
@@ -68,6 +112,7 @@ impl QuantStats {
         Self::sum_chunks(truth.len(), |i, s| {
             let (t, q) = (&truth[i], &stored[i]);
             s.children[usize::from(q.children).min(5)] += 1;
+            s.cone_codes |= 1 << (q.cone & 3);
             if has_normals && t.n.length_squared() > 0.25 {
                 let n = quant::decode_normal(u32::from(q.normal)).unwrap_or(Vec3::ZERO);
                 let a = quant::angle(t.n.as_dvec3(), n.as_dvec3());
@@ -109,6 +154,14 @@ impl QuantStats {
         for (a, b) in self.children.iter_mut().zip(o.children) {
             *a += b;
         }
+        for l in 0..LEVELS {
+            self.level_spheres[l] += o.level_spheres[l];
+            self.level_centre_error[l] += o.level_centre_error[l];
+        }
+        for (a, b) in self.sphere_codes.iter_mut().zip(o.sphere_codes) {
+            *a |= b;
+        }
+        self.cone_codes |= o.cone_codes;
     }
 
     fn merged(mut self, o: &Self) -> Self {
@@ -136,6 +189,47 @@ impl QuantStats {
         self.normal_error / self.normals as f64
     }
 
+    /// The mean centre error per coordinate of level `l`'s child spheres, in parent radii.
+    pub fn level_centre_error(&self, l: usize) -> f64 {
+        self.level_centre_error[l] / (3 * self.level_spheres[l]) as f64
+    }
+
+    /// Largest ÷ smallest [`Self::level_centre_error`] over the levels with at least
+    /// [`SPREAD_MIN_SPHERES`] child spheres, and how many such levels there are. Encoding
+    /// each child relative to its *decoded* parent keeps it near 1; had the encoder used the
+    /// true parent, a parent's error would carry into its children's decoded centres, and
+    /// with the radius falling at each level it would grow against them level by level.
+    pub fn centre_error_level_spread(&self) -> (f64, usize) {
+        let means: Vec<f64> = (0..LEVELS)
+            .filter(|&l| self.level_spheres[l] >= SPREAD_MIN_SPHERES)
+            .map(|l| self.level_centre_error(l))
+            .collect();
+        let hi = means.iter().copied().fold(f64::NAN, f64::max);
+        let lo = means.iter().copied().fold(f64::NAN, f64::min);
+        (hi / lo, means.len())
+    }
+
+    /// Distinct sphere codes used; distinct radii (in 13ths of the parent radius) and the
+    /// most distinct centre offsets on any one axis (in 13ths of its diameter) among them.
+    pub fn sphere_levels_used(&self) -> (u64, usize, usize) {
+        let t = quant::sphere_table();
+        let mut codes = 0;
+        let mut radii = std::collections::BTreeSet::new();
+        let mut axes: [std::collections::BTreeSet<i32>; 3] = Default::default();
+        for (code, e) in t.entries.iter().enumerate() {
+            if self.sphere_codes[code / 64] & (1 << (code % 64)) == 0 {
+                continue;
+            }
+            codes += 1;
+            radii.insert((e[3] * quant::GRID as f32).round() as i32);
+            for (a, set) in axes.iter_mut().enumerate() {
+                set.insert((e[a] * quant::GRID as f32 / 2.0).round() as i32);
+            }
+        }
+        let offsets = axes.iter().map(|s| s.len()).max().unwrap_or(0);
+        (codes, radii.len(), offsets)
+    }
+
     /// Nodes whose number of children the format cannot store (1, or more than 4).
     pub fn unstorable_children(&self) -> u64 {
         self.children[1] + self.children[5]
@@ -143,6 +237,8 @@ impl QuantStats {
 
     /// The build figures (`BuildStats::extra`) these give, by name.
     pub fn extras(&self) -> Vec<(&'static str, serde_json::Value)> {
+        let (spread, levels) = self.centre_error_level_spread();
+        let (codes, radii, offsets) = self.sphere_levels_used();
         let or_null = |x: f64| {
             if x.is_finite() {
                 x.into()
@@ -159,6 +255,12 @@ impl QuantStats {
             ("normal_error_max", self.normal_error_max.into()),
             ("normal_codes", (quant::normal_table().len() as u64).into()),
             ("unstorable_children", self.unstorable_children().into()),
+            ("centre_error_level_spread", or_null(spread)),
+            ("centre_error_levels", (levels as u64).into()),
+            ("sphere_codes_used", codes.into()),
+            ("radius_levels_used", (radii as u64).into()),
+            ("offset_levels_used", (offsets as u64).into()),
+            ("cone_codes_used", self.cone_codes.count_ones().into()),
         ]
     }
 }
@@ -181,7 +283,9 @@ mod tests {
         let q = b.quant;
         let levels = &b.tree.levels;
         let (mut spheres, mut centre, mut radius) = (0u64, 0f64, 0f64);
+        let mut codes = std::collections::BTreeSet::new();
         for l in 1..levels.len() {
+            let mut level_centre = 0.0;
             let mut parent = Vec::new();
             for (p, n) in levels[l - 1].iter().enumerate() {
                 parent.extend(std::iter::repeat_n(p, n.children as usize));
@@ -193,9 +297,21 @@ mod tests {
                 let e = (d.0.as_dvec3() - t.0.as_dvec3()).abs();
                 spheres += 1;
                 centre += (e.x + e.y + e.z) / pr;
+                level_centre += (e.x + e.y + e.z) / pr;
                 radius += (f64::from(d.1) - f64::from(t.1)) / pr;
+                codes.insert(levels[l][i].sphere);
             }
+            assert_eq!(q.level_spheres[l], levels[l].len() as u64, "level {l}");
+            assert!(
+                (q.level_centre_error[l] - level_centre).abs() < 1e-9,
+                "level {l}"
+            );
         }
+        assert_eq!(q.level_spheres[0], 0, "the root has no parent");
+        assert_eq!(q.sphere_levels_used().0, codes.len() as u64);
+        let cones: std::collections::BTreeSet<u8> =
+            levels.iter().flatten().map(|n| n.cone).collect();
+        assert_eq!(q.cone_codes.count_ones() as usize, cones.len());
         let nodes = b.tree.nodes();
         assert_eq!(q.spheres, nodes - 1, "every node but the root");
         assert_eq!(q.spheres, spheres);
@@ -217,6 +333,50 @@ mod tests {
         assert!(q.mean_centre_error() > 0.0 && q.mean_centre_error() <= 1.0 / 13.0 + 1e-6);
         // A radius never shrinks (rounded up to enclose).
         assert!(q.mean_radius_error() > 0.0);
+        // §3.1's grid: at most 13 radii and 13 offsets per axis.
+        let (_, radii, offsets) = q.sphere_levels_used();
+        assert!(
+            radii <= 13 && offsets <= 13,
+            "{radii} radii, {offsets} offsets"
+        );
+        // No level's error grows from the one above: the spread is a small factor.
+        let (spread, n) = q.centre_error_level_spread();
+        assert!(n >= 2 && spread >= 1.0, "{spread} over {n} levels");
+    }
+
+    /// The spread is taken over the levels with enough spheres only, and a code or a cone
+    /// class counts once however often it is used.
+    #[test]
+    fn the_level_spread_skips_thin_levels_and_codes_count_once() {
+        let mut s = QuantStats::default();
+        s.level_spheres[1] = 10; // too few: left out
+        s.level_centre_error[1] = 10.0 * 3.0 * 0.5;
+        s.level_spheres[2] = SPREAD_MIN_SPHERES;
+        s.level_centre_error[2] = SPREAD_MIN_SPHERES as f64 * 3.0 * 0.02;
+        s.level_spheres[3] = 2 * SPREAD_MIN_SPHERES;
+        s.level_centre_error[3] = 2.0 * SPREAD_MIN_SPHERES as f64 * 3.0 * 0.05;
+        let (spread, n) = s.centre_error_level_spread();
+        assert_eq!(n, 2);
+        assert!((spread - 2.5).abs() < 1e-12, "{spread}");
+        let t = quant::sphere_table();
+        // Two codes with the same radius and different x offsets, one twice.
+        let code = |ix: f32, j: f32| {
+            t.entries
+                .iter()
+                .position(|e| {
+                    e[0] == ix * 2.0 / 13.0 && e[1] == 0.0 && e[2] == 0.0 && e[3] == j / 13.0
+                })
+                .unwrap()
+        };
+        for c in [code(1.0, 5.0), code(-2.0, 5.0), code(1.0, 5.0)] {
+            s.sphere_codes[c / 64] |= 1 << (c % 64);
+        }
+        assert_eq!(s.sphere_levels_used(), (2, 1, 2));
+        let mut o = QuantStats::default();
+        o.cone_codes = 0b0101;
+        s.cone_codes = 0b0011;
+        s.merge(&o);
+        assert_eq!(s.cone_codes.count_ones(), 3);
     }
 
     #[test]

@@ -372,8 +372,10 @@ mod tests {
             s.sphere_codes[c / 64] |= 1 << (c % 64);
         }
         assert_eq!(s.sphere_levels_used(), (2, 1, 2));
-        let mut o = QuantStats::default();
-        o.cone_codes = 0b0101;
+        let o = QuantStats {
+            cone_codes: 0b0101,
+            ..Default::default()
+        };
         s.cone_codes = 0b0011;
         s.merge(&o);
         assert_eq!(s.cone_codes.count_ones(), 3);

@@ -10,8 +10,9 @@
 //! - build: every number of `build.json` (`points_in`, `nodes`, `levels`, `bytes_in`,
 //!   `bytes_out`, `bits_per_sample`, `seconds`, `points_per_s`) and of its `extra`;
 //! - run: `STAT.COLUMN` for every numeric `frames.csv` column, STAT one of `median`, `mean`,
-//!   `min`, `max`, `first`, `last` over the frames after `skip`; `peak_rss_bytes` and
-//!   `run_seconds` of `summary.json`; and `build.KEY` of its build;
+//!   `min`, `max`, `first`, `last` over the frames after `skip`; `peak_rss_bytes`,
+//!   `run_seconds` and `rss_max_{anon,file,shmem}_bytes` (Linux) of `summary.json`; and
+//!   `build.KEY` of its build;
 //! - sweep: `TARGET.STAT.COLUMN` per target, TARGET the run directory's name with `-` and
 //!   `.` written `_` (`eps_2`, `eps_0_5`, `budget_25000`), and `build.KEY`;
 //! - plan: the numbers of `splatbench plan --json` (`levels`, `nodes`, `leaves`, `depth`,
@@ -537,7 +538,7 @@ fn plan(m: &Measure) -> anyhow::Result<MeasureResult> {
 }
 
 /// `STAT.COLUMN` over the frames of `dir/frames.csv` after the first `skip`, plus
-/// `summary.json`'s `peak_rss_bytes` and `run_seconds`.
+/// `summary.json`'s `peak_rss_bytes`, `run_seconds` and `rss_max` by kind.
 pub fn run_metrics(dir: &Path, skip: usize) -> anyhow::Result<BTreeMap<String, f64>> {
     let file = dir.join("frames.csv");
     let mut rd =
@@ -592,6 +593,11 @@ pub fn run_metrics(dir: &Path, skip: usize) -> anyhow::Result<BTreeMap<String, f
     for k in ["peak_rss_bytes", "run_seconds"] {
         if let Some(x) = v[k].as_f64() {
             m.insert(k.into(), x);
+        }
+    }
+    for k in ["anon", "file", "shmem"] {
+        if let Some(x) = v["rss_max"][k].as_f64() {
+            m.insert(format!("rss_max_{k}_bytes"), x);
         }
     }
     Ok(m)

@@ -357,6 +357,7 @@ pub fn run(cfg: &RunConfig, gpu: &Gpu, progress: &dyn Progress) -> anyhow::Resul
         failed_chunks: Vec::new(),
         traffic: None,
         peak_rss_bytes: 0,
+        rss_max: None,
         run_seconds: 0.0,
     };
     let summary_path = cfg.out.join("summary.json");
@@ -463,6 +464,9 @@ pub fn run(cfg: &RunConfig, gpu: &Gpu, progress: &dyn Progress) -> anyhow::Resul
             metrics_ms,
         };
         frames.push(&row, &counters)?;
+        if let Some(b) = crate::rss::breakdown() {
+            summary.rss_max = Some(summary.rss_max.map_or(b, |m| m.max(b)));
+        }
         rows.push(row);
         last = Some((stats, view));
         progress.inc(1);

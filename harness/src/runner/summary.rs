@@ -69,6 +69,9 @@ pub struct Summary {
     pub traffic: Option<TrafficTotals>,
     /// Peak resident set size of the process.
     pub peak_rss_bytes: u64,
+    /// The largest resident set of each kind seen at the end of a frame (Linux; absent
+    /// elsewhere): what the peak is made of (anonymous, file-backed, shared memory).
+    pub rss_max: Option<crate::rss::Breakdown>,
     /// Wall time of the whole run, s.
     pub run_seconds: f64,
 }

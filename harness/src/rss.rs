@@ -74,7 +74,8 @@ mod tests {
 
     #[test]
     fn the_status_fields_are_read_in_bytes_and_their_maxima_kept() {
-        let s = "Name:\tx\nVmHWM:\t  900 kB\nRssAnon:\t  100 kB\nRssFile:\t 20 kB\nRssShmem:\t 3 kB\n";
+        let s =
+            "Name:\tx\nVmHWM:\t  900 kB\nRssAnon:\t  100 kB\nRssFile:\t 20 kB\nRssShmem:\t 3 kB\n";
         let a = Breakdown::parse(s).unwrap();
         assert_eq!((a.anon, a.file, a.shmem), (102_400, 20_480, 3_072));
         assert_eq!(Breakdown::parse("RssAnon:\t1 kB\n"), None);

@@ -12,14 +12,18 @@ pub fn current_bytes() -> u64 {
 pub fn peak_bytes() -> u64 {
     std::fs::read_to_string("/proc/self/status")
         .ok()
-        .and_then(|s| {
-            s.lines()
-                .find(|l| l.starts_with("VmHWM:"))
-                .and_then(|l| l.split_whitespace().nth(1))
-                .and_then(|kb| kb.parse::<u64>().ok())
-        })
-        .map(|kb| kb * 1024)
+        .and_then(|s| status_bytes(&s, "VmHWM:"))
         .unwrap_or_else(current_bytes)
+}
+
+/// A `/proc/self/status` field given in kB (`name` with its colon), in bytes.
+fn status_bytes(status: &str, name: &str) -> Option<u64> {
+    status
+        .lines()
+        .find(|l| l.starts_with(name))
+        .and_then(|l| l.split_whitespace().nth(1))
+        .and_then(|kb| kb.parse::<u64>().ok())
+        .map(|kb| kb * 1024)
 }
 
 /// The current resident set by kind, bytes (Linux `/proc/self/status`; `None` elsewhere).
@@ -47,18 +51,10 @@ impl Breakdown {
 
     /// Parses `/proc/self/status` text; `None` without the three fields.
     pub fn parse(status: &str) -> Option<Self> {
-        let field = |name: &str| {
-            status
-                .lines()
-                .find(|l| l.starts_with(name))
-                .and_then(|l| l.split_whitespace().nth(1))
-                .and_then(|kb| kb.parse::<u64>().ok())
-                .map(|kb| kb * 1024)
-        };
         Some(Self {
-            anon: field("RssAnon:")?,
-            file: field("RssFile:")?,
-            shmem: field("RssShmem:")?,
+            anon: status_bytes(status, "RssAnon:")?,
+            file: status_bytes(status, "RssFile:")?,
+            shmem: status_bytes(status, "RssShmem:")?,
         })
     }
 }

@@ -803,3 +803,50 @@ fn index_json_counts_of_any_size_are_errors_not_overflows() {
     ));
     assert!(e.contains("index.json"), "{e}");
 }
+
+/// §3: "The maximal error e_g has the node's bounding sphere's diameter d as upper bound.
+/// When setting e_g to d we get the Q-Splat representation." Without normals the build sets
+/// e_g = d (its bounding ball's diameter), so every inner node sits exactly on the bound:
+/// none above it, the largest ratio exactly 1 (the ball bounds its children's balls, so no
+/// child's e_g raises a parent's above the parent's own d). With normals on the same
+/// positions, the figures count the nodes against the disk's and the sphere's diameter, and
+/// a sphere around the children's spheres is never smaller than the disk's in-plane
+/// diameter (it bounds the same children).
+#[test]
+fn eg_is_d_without_normals_and_counted_against_both_diameters_with_them() {
+    let s = statue(20_000);
+    let bare =
+        PointCloud::new(s.origin(), s.positions().to_vec().into(), None, None, None).unwrap();
+    let tmp = tempfile::tempdir().unwrap();
+    let figures = |cloud: &PointCloud, dir: &str| {
+        let dir = tmp.path().join(dir);
+        std::fs::create_dir_all(&dir).unwrap();
+        let stats = spt::build(
+            cloud,
+            &methods::Params::default(),
+            "test",
+            &dir,
+            &scenes::NoProgress,
+        )
+        .unwrap();
+        let f = |k: &str| stats.extra[k].as_f64().unwrap();
+        (
+            f("inner_nodes"),
+            f("inner_eg_above_d"),
+            f("inner_eg_over_d_max"),
+            f("inner_eg_above_sphere"),
+            f("inner_eg_over_sphere_max"),
+        )
+    };
+    let (inner, above_d, over_d, above_s, over_s) = figures(&bare, "bare");
+    assert!(inner > 0.0);
+    assert_eq!((above_d, over_d), (0.0, 1.0), "e_g = d without normals");
+    assert_eq!(above_s, 0.0, "the sphere is the ball: {over_s}");
+    assert!(over_s <= 1.0, "{over_s}");
+    let (inner_n, above_d, over_d, above_s, over_s) = figures(&s, "normals");
+    assert!(inner_n > 0.0 && over_d > 0.0 && over_s > 0.0);
+    assert!(
+        above_s <= above_d && over_s <= over_d,
+        "sphere ≥ disk: {above_s} {above_d} {over_s} {over_d}"
+    );
+}

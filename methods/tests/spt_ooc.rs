@@ -1,5 +1,6 @@
 //! The SPT build in units (`spt::ooc`) writes the same files, byte for byte, as the
-//! in-memory build; its spill files are checked.
+//! in-memory build, and reports the same figures of its inner nodes; its spill files are
+//! checked.
 
 #![allow(clippy::unwrap_used)]
 
@@ -13,13 +14,22 @@ use scenes::{NoProgress, PointCloud};
 
 const FILES: [&str; 3] = ["nodes.bin", "lod.bin", "index.json"];
 
+/// The build's figures of its inner nodes (§3's bound e_g ≤ d, `spt::InnerNodes`).
+const INNER: [&str; 5] = [
+    "inner_nodes",
+    "inner_eg_above_d",
+    "inner_eg_over_d_max",
+    "inner_eg_above_sphere",
+    "inner_eg_over_sphere_max",
+];
+
 fn build(
     cloud: &PointCloud,
     params: &[&str],
     cap: u64,
     out: &std::path::Path,
     hook: Option<SpillHook<'_>>,
-) -> Result<(Vec<Vec<u8>>, u64), methods::MethodError> {
+) -> Result<(Vec<Vec<u8>>, u64, Vec<f64>), methods::MethodError> {
     std::fs::create_dir_all(out).unwrap();
     let params = Params::parse(&params.iter().map(|s| s.to_string()).collect::<Vec<_>>()).unwrap();
     let stats = spt::build_with_budget(
@@ -42,7 +52,11 @@ fn build(
         .iter()
         .map(|f| std::fs::read(out.join(f)).unwrap())
         .collect();
-    Ok((files, stats.extra["units"].as_u64().unwrap()))
+    let inner = INNER
+        .iter()
+        .map(|k| stats.extra[*k].as_f64().unwrap())
+        .collect();
+    Ok((files, stats.extra["units"].as_u64().unwrap(), inner))
 }
 
 #[test]
@@ -61,11 +75,13 @@ fn units_give_the_in_memory_files_byte_for_byte() {
             &[&[]]
         };
         for params in param_sets {
-            let (whole, units) = build(cloud, params, n, &tmp.path().join("a"), None).unwrap();
+            let (whole, units, inner) =
+                build(cloud, params, n, &tmp.path().join("a"), None).unwrap();
             assert_eq!(units, 1);
             for cap in [600u64, 4000] {
-                let (parts, units) =
+                let (parts, units, parts_inner) =
                     build(cloud, params, cap, &tmp.path().join("b"), None).unwrap();
+                assert_eq!(inner, parts_inner, "{name} {params:?} cap {cap}: {INNER:?}");
                 assert!(units >= n.div_ceil(cap), "{name} cap {cap}: {units} units");
                 for (f, (a, b)) in FILES.iter().zip(whole.iter().zip(&parts)) {
                     assert!(a == b, "{name} {params:?} cap {cap}: {f} differs");
@@ -94,7 +110,7 @@ fn files_do_not_depend_on_the_thread_count() {
     for threads in [1, 3] {
         for cap in [40_000u64, 12_000] {
             let out = tmp.path().join(format!("{threads}-{cap}"));
-            let (f, units) =
+            let (f, units, _) =
                 common::with_threads(threads, || build(&cloud, &[], cap, &out, None)).unwrap();
             assert_eq!(units > 1, cap < 40_000);
             files.push(f);

@@ -389,8 +389,10 @@ struct Walk<'a> {
     next_id: u64,
     /// Nodes kept in memory (unit roots and nodes above the units), by id.
     kept: Vec<(u64, Node)>,
+    /// The bounding-sphere radius of each kept node ([`super::InnerNodes`]).
+    kept_sphere: Vec<f32>,
     runs: Vec<Spill>,
-    inner: u64,
+    inner: super::InnerNodes,
     /// The extent of the nodes in the runs (the kept ones are added at the end: each node
     /// once, as the in-memory build adds them).
     extent: Extent,
@@ -442,7 +444,14 @@ impl Walk<'_> {
         );
         let id = self.next_id;
         self.next_id += 1;
-        self.inner += 1;
+        let sphere = super::InnerNodes::sphere(
+            node.p,
+            children
+                .iter()
+                .map(|&i| (self.kept[i].1.p, self.kept_sphere[i])),
+        );
+        self.inner.add(&node, sphere);
+        self.kept_sphere.push(sphere);
         let me = self.kept.len();
         for &i in &children {
             self.kept[i].1.parent = id as u32;
@@ -515,7 +524,10 @@ impl Walk<'_> {
             }
         }
         self.runs.push(w.finish()?);
-        self.inner += nodes.iter().filter(|n| !n.leaf).count() as u64;
+        // The unit's root is counted here and not again when it is kept.
+        let (counted, root_sphere) = super::InnerNodes::of(&nodes);
+        self.inner.merge(counted);
+        self.kept_sphere.push(root_sphere);
         self.next_id += nodes.len() as u64;
         let mut r = nodes[root];
         r.parent = NO_PARENT;
@@ -582,8 +594,9 @@ pub(crate) fn list_in_units(
         dir: &dir,
         next_id: 0,
         kept: Vec::new(),
+        kept_sphere: Vec::new(),
         runs: Vec::new(),
-        inner: 0,
+        inner: super::InnerNodes::default(),
         extent: Extent::default(),
         progress,
     };

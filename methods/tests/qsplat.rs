@@ -573,3 +573,30 @@ fn a_far_stray_does_not_inflate_the_leaves() {
         );
     }
 }
+
+/// §3.1: the stored (2-bit) normal cones are conservative, "so we never discard geometry that
+/// should be displayed": on a statue and an isosurface no (node, view) pair is back-facing
+/// with the stored cone and not with the exact one (`qsplat::stats::ConeCulls`, 16 distant
+/// views); and the stored cones cull a positive share of what the exact ones would, at most
+/// all of it.
+#[test]
+fn stored_cones_never_cull_what_exact_cones_keep() {
+    for g in [Generator::Statue, Generator::Isosurface] {
+        let cloud = g.generate(20_000, 1).unwrap();
+        let dir = tempfile::tempdir().unwrap();
+        let stats = qsplat::build(
+            &cloud,
+            &Params::default(),
+            "t",
+            dir.path(),
+            &scenes::NoProgress,
+        )
+        .unwrap();
+        let f = |k: &str| stats.extra[k].as_f64().unwrap();
+        assert_eq!(f("cone_culled_wrong"), 0.0, "{}", g.name());
+        assert!(f("cone_culled_exact") > 0.0, "{}", g.name());
+        for k in ["cone_culled_share", "cone_culled_share_inner"] {
+            assert!(f(k) > 0.0 && f(k) <= 1.0, "{} {k}: {}", g.name(), f(k));
+        }
+    }
+}

@@ -47,6 +47,75 @@ pub struct QuantStats {
     pub sphere_codes: [u64; SPHERE_WORDS],
     /// The cone classes used, one bit per class of the 2-bit field.
     pub cone_codes: u8,
+    /// Back-face culls with exact and with quantised cones ([`ConeCulls`]).
+    pub cone_culls: ConeCulls,
+}
+
+/// §3.1: "backface culling with these quantized normal cones discards over 90 percent of
+/// nodes that would be culled using exact normal cone widths" and "we are always conservative
+/// in representing normal cone widths, so we never discard geometry that should be
+/// displayed". Each node with a normal is tested from [`CULL_VIEWS`] distant viewing
+/// directions (orthographic: the eye far away, so a cone is back-facing from direction `v`
+/// when every normal in it has `n·v < 0`): with its exact cone (its true normal and the true
+/// half-angle covering every normal below it) and with its stored one (the decoded normal
+/// and the 2-bit class's half-angle, with the traversal's 10⁻⁴ slack). Index 0 counts every
+/// node, 1 the inner nodes (a leaf's cone is its single normal's).
+#[derive(Debug, Clone, Copy, Default, PartialEq)]
+pub struct ConeCulls {
+    /// (node, direction) pairs back-facing with the exact cone.
+    pub exact: [u64; 2],
+    /// Pairs back-facing with the stored cone.
+    pub quantised: [u64; 2],
+    /// Pairs back-facing with the stored cone but not the exact one: geometry that should be
+    /// displayed, discarded (the paper: never).
+    pub wrong: u64,
+}
+
+/// Viewing directions of [`ConeCulls`]: a Fibonacci sphere of this many points.
+pub const CULL_VIEWS: usize = 16;
+
+impl ConeCulls {
+    /// The directions, unit vectors spread evenly over the sphere.
+    pub fn views() -> [glam::DVec3; CULL_VIEWS] {
+        let golden = std::f64::consts::PI * (3.0 - 5f64.sqrt());
+        std::array::from_fn(|i| {
+            let z = 1.0 - (2 * i + 1) as f64 / CULL_VIEWS as f64;
+            let r = (1.0 - z * z).sqrt();
+            let a = golden * i as f64;
+            glam::DVec3::new(r * a.cos(), r * a.sin(), z)
+        })
+    }
+
+    /// Tests one node: true normal `n` and half-angle `cone`, decoded normal `q` and class
+    /// `class`; `inner` when it has children.
+    pub fn add(&mut self, n: glam::DVec3, cone: f64, q: glam::DVec3, class: u8, inner: bool) {
+        let exact_sin = (cone < std::f64::consts::FRAC_PI_2).then(|| cone.sin());
+        let quant_sin = (class < 3).then(|| f64::from(quant::CONE_SIN[usize::from(class)]));
+        for v in Self::views() {
+            let exact = exact_sin.is_some_and(|s| n.dot(v) < -s);
+            let quantised = quant_sin.is_some_and(|s| q.dot(v) < -s - 1e-4);
+            for (k, on) in [(0, true), (1, inner)] {
+                if on {
+                    self.exact[k] += u64::from(exact);
+                    self.quantised[k] += u64::from(quantised);
+                }
+            }
+            self.wrong += u64::from(quantised && !exact);
+        }
+    }
+
+    fn merge(&mut self, o: &Self) {
+        for k in 0..2 {
+            self.exact[k] += o.exact[k];
+            self.quantised[k] += o.quantised[k];
+        }
+        self.wrong += o.wrong;
+    }
+
+    /// Culls with the stored cones ÷ culls with the exact ones (all nodes, inner nodes).
+    pub fn share(&self, k: usize) -> f64 {
+        self.quantised[k] as f64 / self.exact[k] as f64
+    }
 }
 
 /// Tree levels counted apart by [`QuantStats::level_spheres`] (a statue of 10⁹ samples is
@@ -73,6 +142,7 @@ impl Default for QuantStats {
             level_centre_error: [0.0; LEVELS],
             sphere_codes: [0; SPHERE_WORDS],
             cone_codes: 0,
+            cone_culls: ConeCulls::default(),
         }
     }
 }
@@ -117,6 +187,8 @@ impl QuantStats {
                 let n = quant::decode_normal(u32::from(q.normal)).unwrap_or(Vec3::ZERO);
                 let a = quant::angle(t.n.as_dvec3(), n.as_dvec3());
                 s.normals += 1;
+                s.cone_culls
+                    .add(t.n.as_dvec3(), t.cone, n.as_dvec3(), q.cone, q.children > 0);
                 s.normal_error += a;
                 s.normal_error_max = s.normal_error_max.max(a);
             }
@@ -162,6 +234,7 @@ impl QuantStats {
             *a |= b;
         }
         self.cone_codes |= o.cone_codes;
+        self.cone_culls.merge(&o.cone_culls);
     }
 
     fn merged(mut self, o: &Self) -> Self {
@@ -261,6 +334,10 @@ impl QuantStats {
             ("radius_levels_used", (radii as u64).into()),
             ("offset_levels_used", (offsets as u64).into()),
             ("cone_codes_used", self.cone_codes.count_ones().into()),
+            ("cone_culled_exact", self.cone_culls.exact[0].into()),
+            ("cone_culled_share", or_null(self.cone_culls.share(0))),
+            ("cone_culled_share_inner", or_null(self.cone_culls.share(1))),
+            ("cone_culled_wrong", self.cone_culls.wrong.into()),
         ]
     }
 }
@@ -409,5 +486,42 @@ mod tests {
         assert_eq!(b.normal_error_max, 0.03);
         assert_eq!(b.unstorable_children(), 3);
         assert_eq!(b.not_enclosed, 1);
+    }
+
+    /// The cone test on hand-made nodes: the views are unit vectors symmetric in z (half of
+    /// them below the equator), a cone around +z of half-angle 0 is back-facing from exactly
+    /// those 8 with the exact cone and from the 7 below −1/16 (the class-0 sine, with the
+    /// slack) with the stored one; a decoded normal outside the true cone is counted wrong.
+    #[test]
+    fn cone_culls_count_exact_stored_and_wrong_pairs() {
+        let views = ConeCulls::views();
+        for v in views {
+            assert!((v.length() - 1.0).abs() < 1e-12);
+        }
+        assert_eq!(views.iter().filter(|v| v.z < 0.0).count(), CULL_VIEWS / 2);
+        let z = glam::DVec3::Z;
+        let mut c = ConeCulls::default();
+        c.add(z, 0.0, z, 0, false);
+        assert_eq!((c.exact, c.quantised, c.wrong), ([8, 0], [7, 0], 0));
+        c.add(z, 0.2, z, 1, true);
+        // sin 0.2 = 0.199 < 4/16: the stored cone culls fewer.
+        let (e, q) = (
+            views.iter().filter(|v| v.z < -0.2f64.sin()).count() as u64,
+            views.iter().filter(|v| v.z < -0.25 - 1e-4).count() as u64,
+        );
+        assert_eq!((c.exact[1], c.quantised[1]), (e, q));
+        assert!(q <= e && q > 0);
+        // A stored class 3 never culls; an exact cone of 90° or more never does either (and
+        // a stored class-0 cone for it culls what it should not).
+        let mut d = ConeCulls::default();
+        d.add(z, 0.0, z, 3, true);
+        assert_eq!((d.exact[0], d.quantised[0], d.wrong), (8, 0, 0));
+        d.add(z, 1.6, z, 0, true);
+        assert_eq!((d.exact[0], d.quantised[0], d.wrong), (8, 7, 7));
+        // A stored normal pointing elsewhere than the true one culls what it should not.
+        let mut w = ConeCulls::default();
+        w.add(glam::DVec3::X, 0.0, z, 0, true);
+        assert!(w.wrong > 0);
+        assert_eq!(c.share(1), q as f64 / e as f64);
     }
 }

@@ -396,7 +396,7 @@ fn list_in_memory(
     progress.finish();
     Ok(Listed {
         index,
-        inner: InnerNodes::of(&nodes).0,
+        inner: InnerNodes::of(nodes).0,
         radii_capped: radii.capped,
         tree_seconds,
         units: 1,

@@ -23,13 +23,16 @@ const INNER: [&str; 5] = [
     "inner_eg_over_sphere_max",
 ];
 
+/// A build's files ([`FILES`]), its unit count and its [`INNER`] figures.
+type Built = (Vec<Vec<u8>>, u64, Vec<f64>);
+
 fn build(
     cloud: &PointCloud,
     params: &[&str],
     cap: u64,
     out: &std::path::Path,
     hook: Option<SpillHook<'_>>,
-) -> Result<(Vec<Vec<u8>>, u64, Vec<f64>), methods::MethodError> {
+) -> Result<Built, methods::MethodError> {
     std::fs::create_dir_all(out).unwrap();
     let params = Params::parse(&params.iter().map(|s| s.to_string()).collect::<Vec<_>>()).unwrap();
     let stats = spt::build_with_budget(

@@ -18,6 +18,20 @@ fn specs_at(root: &Path, profile: Profile) -> Vec<Spec> {
     load_dir(&root.join("paper/specs"), root, profile).unwrap()
 }
 
+/// Every spec, as the first profile that runs it has it: a claim's rows may live in a spec of
+/// any profile (an experiment too large for the quick profile runs in full or paper only).
+fn all_specs() -> Vec<Spec> {
+    let mut specs: Vec<Spec> = Vec::new();
+    for p in Profile::ALL {
+        for s in specs_at(&root(), p) {
+            if !specs.iter().any(|t| t.id == s.id) {
+                specs.push(s);
+            }
+        }
+    }
+    specs
+}
+
 #[test]
 fn every_spec_loads_for_every_profile() {
     for p in Profile::ALL {
@@ -133,17 +147,8 @@ fn a_changed_spec_or_baseline_makes_a_report_stale() {
 #[test]
 fn every_claim_maps_to_a_row_or_a_stated_reason() {
     let list = claims::load(&root().join("paper/claims.toml")).unwrap();
-    // A claim's rows may live in a spec of any profile (an experiment too large for the
-    // quick profile runs in full or paper only), as the first profile that runs it has it.
-    let mut specs: Vec<Spec> = Vec::new();
-    for p in Profile::ALL {
-        for s in specs_at(&root(), p) {
-            if !specs.iter().any(|t| t.id == s.id) {
-                specs.push(s);
-            }
-        }
-    }
-    let bad = claims::check(&list, &specs);
+    let mut bad = claims::check(&list, &all_specs());
+    bad.extend(claims::check_tests(&list, &root()));
     assert!(bad.is_empty(), "paper/claims.toml:\n{}", bad.join("\n"));
     let (rows, open, not) = claims::counts(&list);
     assert_eq!(rows + open + not, list.len());
@@ -184,6 +189,21 @@ fn a_wrong_claim_mapping_is_named() {
         &specs,
     );
     assert!(e[0].contains("twice"), "{e:?}");
+    let named = |t: &str| parse(&format!("{head}tests = [\"{t}\"]\n"));
+    assert!(claims::check(&named("x::y"), &specs).is_empty());
+    for (t, want) in [
+        (
+            "harness/tests/render.rs::no_such_test",
+            "no test `no_such_test`",
+        ),
+        ("no/such/file.rs::f", "no test `f`"),
+        ("just_a_name", "not `path::function`"),
+    ] {
+        let e = claims::check_tests(&named(t), &root());
+        assert!(e.len() == 1 && e[0].contains(want), "{t}: {e:?}");
+    }
+    let real = "harness/tests/render.rs::ellipse_axis_ratio_is_n_dot_v_clamped_at_a_tenth";
+    assert!(claims::check_tests(&named(real), &root()).is_empty());
 }
 
 /// Every committed rule of kind `band`, `at_most`, `at_least`, `inside` and `within` fails on
@@ -193,7 +213,7 @@ fn a_wrong_claim_mapping_is_named() {
 fn every_committed_rule_fails_outside_its_band() {
     use verdict::{Paper, Rule, Verdict, judge};
     let mut judged = 0;
-    for spec in specs_at(&root(), Profile::Quick) {
+    for spec in all_specs() {
         for row in &spec.rows {
             let who = format!("{}: '{}'", spec.id, row.what);
             let j = |v: f64| {

@@ -9,14 +9,17 @@
 //! quote = "…"                          # verbatim
 //! value = "≤ +10 % points at the same tolerance"
 //! kind = "count"                       # what sort of figure
-//! rows = [{ spec = "lpc-vs-qsplat", what = "…" }]   # the rows testing it, or:
+//! rows = [{ spec = "lpc-vs-qsplat", what = "…" }]   # the rows testing it, and/or
+//! tests = ["harness/tests/render.rs::ellipse_…"]    # tests checking it (a shader's geometry
+//!                                                  # has no figure to report), or:
 //! status = "open"                      # reproducible, no row yet: `reason` says what it needs
 //! status = "not_reproducible"          # `reason` says why
 //! reason = "…"
 //! ```
 //!
 //! [`check`] holds the list to that: every claim mapped exactly one way, every row it names
-//! present in its spec (by `what`, exactly), every reason non-empty, ids unique.
+//! present in its spec (by `what`, exactly), every reason non-empty, ids unique;
+//! [`check_tests`] that every test named exists.
 
 use std::collections::BTreeSet;
 use std::path::Path;
@@ -51,6 +54,9 @@ pub struct Claim {
     /// The spec rows that test it.
     #[serde(default)]
     pub rows: Vec<RowRef>,
+    /// The tests that check it, `path::function` from the repository root.
+    #[serde(default)]
+    pub tests: Vec<String>,
     /// `open` or `not_reproducible` when no row tests it.
     pub status: Option<Status>,
     /// Why (with `status`).
@@ -108,13 +114,14 @@ pub fn check(claims: &[Claim], specs: &[Spec]) -> Vec<String> {
             ));
         }
         let reason = c.reason.as_deref().map(str::trim).unwrap_or("");
-        match (c.rows.is_empty(), c.status) {
+        match (c.rows.is_empty() && c.tests.is_empty(), c.status) {
             (false, None) if c.reason.is_none() => {}
             (false, _) => out.push(format!(
-                "{who}: maps to rows and also has a status or reason: one or the other"
+                "{who}: maps to rows or tests and also has a status or reason: one or the other"
             )),
             (true, None) => out.push(format!(
-                "{who}: maps to no row and gives no status (open or not_reproducible) with a reason"
+                "{who}: maps to no row or test and gives no status (open or not_reproducible) \
+                 with a reason"
             )),
             (true, Some(_)) if reason.is_empty() => {
                 out.push(format!("{who}: a status needs its reason"))
@@ -134,9 +141,37 @@ pub fn check(claims: &[Claim], specs: &[Spec]) -> Vec<String> {
     out
 }
 
-/// Counts of claims by mapping: (with rows, open, not reproducible).
+/// Every test named by `claims` that is not a `#[test]` function of its file under `root`.
+pub fn check_tests(claims: &[Claim], root: &Path) -> Vec<String> {
+    let mut out = Vec::new();
+    for c in claims {
+        for t in &c.tests {
+            let Some((file, name)) = t.rsplit_once("::") else {
+                out.push(format!(
+                    "claim '{}': test '{t}' is not `path::function`",
+                    c.id
+                ));
+                continue;
+            };
+            let text = std::fs::read_to_string(root.join(file)).unwrap_or_default();
+            let found = text
+                .split("#[test]")
+                .skip(1)
+                .any(|after| after.trim_start().starts_with(&format!("fn {name}(")));
+            if !found {
+                out.push(format!("claim '{}': no test `{name}` in {file}", c.id));
+            }
+        }
+    }
+    out
+}
+
+/// Counts of claims by mapping: (with rows or tests, open, not reproducible).
 pub fn counts(claims: &[Claim]) -> (usize, usize, usize) {
-    let rows = claims.iter().filter(|c| !c.rows.is_empty()).count();
+    let rows = claims
+        .iter()
+        .filter(|c| !c.rows.is_empty() || !c.tests.is_empty())
+        .count();
     let open = claims
         .iter()
         .filter(|c| c.status == Some(Status::Open))

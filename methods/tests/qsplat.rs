@@ -600,3 +600,52 @@ fn stored_cones_never_cull_what_exact_cones_keep() {
         }
     }
 }
+
+/// §3.1: "the first part of the file contains the entire mesh at low resolution. Thus, we
+/// only need to read in the first part of a file in order to visualize the model at low
+/// resolution". The nodes are stored breadth-first, so the part of the file a frame's splats
+/// come from (`file_drawn_fraction`: one past the last byte of a drawn node ÷ the node body)
+/// grows with the detail drawn: the root alone comes from the first group, a coarser
+/// threshold never draws from further than a finer one, 60 px (72 splats) from under 5 % of
+/// it, 1 px on a 20 K statue seen whole from nearly all of it. The bytes read (`file_read_fraction`) are at least those:
+/// the look-ahead probes below a node before drawing it (`qsplat::select`).
+#[test]
+fn coarse_frames_draw_from_a_prefix_of_the_file() {
+    let cloud = Generator::Statue.generate(20_000, 1).unwrap();
+    let dir = tempfile::tempdir().unwrap();
+    let mut m = build(&cloud, dir.path(), &[]);
+    let col = |name: &str| m.extra_columns().iter().position(|c| *c == name).unwrap();
+    let (drawn_col, read_col) = (col("file_drawn_fraction"), col("file_read_fraction"));
+    let v = view(&cloud, 0, 8);
+    let mut last = 0.0;
+    let mut seen = Vec::new();
+    for eps in [1e6f32, 60.0, 15.0, 5.0, 1.0] {
+        let l = m
+            .frame(&v, Target::Tolerance(eps), &Feedback::default())
+            .unwrap();
+        let (drawn, read) = (l.counters[drawn_col], l.counters[read_col]);
+        assert!(
+            drawn > 0.0 && drawn <= read && read <= 1.0,
+            "ε = {eps}: {drawn} {read}"
+        );
+        assert!(
+            drawn >= last,
+            "ε = {eps}: drew from {drawn} of the file, less than a coarser frame's {last}"
+        );
+        last = drawn;
+        seen.push((eps, l.points(), drawn));
+    }
+    // The root alone: its node (and the group's pointer) is the first bytes of the body.
+    let body = std::fs::metadata(dir.path().join(qsplat::TREE_FILE))
+        .unwrap()
+        .len()
+        - format::HEADER_BYTES as u64;
+    assert!(
+        seen[0].1 == 1 && seen[0].2 * body as f64 <= 4.0 + 6.0 + 0.5,
+        "{seen:?}"
+    );
+    assert!(
+        seen[1].2 < 0.05 && seen[4].1 > 5_000 && seen[4].2 > 0.9,
+        "{seen:?}"
+    );
+}

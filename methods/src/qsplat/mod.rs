@@ -46,6 +46,8 @@ pub const COLUMNS: &[&str] = &[
     "culled_backface",
     "threshold_px",
     "dropped_empty",
+    "file_drawn_fraction",
+    "file_read_fraction",
 ];
 
 /// Parameters of `qsplat`.
@@ -330,6 +332,7 @@ impl LodMethod for Qsplat {
         feedback: &Feedback,
     ) -> Result<DrawList, MethodError> {
         let body = self.file.body();
+        let body_len = body.len();
         let h = &self.file.header;
         let cull = !self.params.two_sided;
         let (batch, c) = match target.validate()? {
@@ -360,6 +363,8 @@ impl LodMethod for Qsplat {
                 c.culled_backface as f64,
                 c.threshold_px,
                 c.dropped_empty as f64,
+                c.draw_end as f64 / body_len.max(1) as f64,
+                c.read_end as f64 / body_len.max(1) as f64,
             ],
             occlusion: None,
         })

@@ -52,6 +52,14 @@ pub struct Counters {
     /// The threshold used (budget mode: the projected size of the largest node left
     /// unrefined, 0 if every visible leaf was reached).
     pub threshold_px: f64,
+    /// One past the last byte of the node body holding a node the frame drew. Groups are
+    /// stored breadth-first, so a frame's splats come from a prefix of the file, the shorter
+    /// the coarser (§3.1: "we only need to read in the first part of a file in order to
+    /// visualize the model at low resolution").
+    pub draw_end: u64,
+    /// One past the last byte of the node body the frame read: beyond [`Self::draw_end`] by
+    /// the look-ahead (module doc), which probes down to a leaf before drawing a node.
+    pub read_end: u64,
 }
 
 /// A decoded node with what is needed to reach its children.
@@ -65,6 +73,8 @@ struct Node {
     children: u8,
     child_off: u32,
     child_ptr: bool,
+    /// One past its own bytes in the body.
+    end: u32,
 }
 
 #[derive(Clone, Copy, PartialEq, Eq)]
@@ -134,16 +144,24 @@ impl<'a> Ctx<'a> {
         }
     }
 
+    /// Notes that the group of `count` nodes at `off` was read ([`Counters::read_end`]).
+    #[inline(always)]
+    fn note_read(&mut self, off: usize, count: usize, has_ptr: bool) {
+        let end = (off + count * self.nb + 4 * usize::from(has_ptr)) as u64;
+        self.n.read_end = self.n.read_end.max(end);
+    }
+
     /// Decodes the group at `off` (children of the decoded sphere `(pc, pr)`).
     #[inline]
     fn group(
-        &self,
+        &mut self,
         off: usize,
         count: usize,
         has_ptr: bool,
         pc: Vec3,
         pr: f32,
     ) -> Result<([Node; 4], usize), MethodError> {
+        self.note_read(off, count, has_ptr);
         let mut out = [Node::default(); 4];
         let mut p = off;
         let mut cursor = 0usize;
@@ -164,7 +182,7 @@ impl<'a> Ctx<'a> {
         Ok((out, count))
     }
 
-    fn root(&self, header: &Header) -> Result<Node, MethodError> {
+    fn root(&mut self, header: &Header) -> Result<Node, MethodError> {
         let (mut nodes, _) = self.group(0, 1, header.nodes > 1, Vec3::ZERO, 0.0)?;
         let [x, y, z, r] = header.root;
         nodes[0].c = Vec3::new(x, y, z);
@@ -297,6 +315,7 @@ impl<'a> Ctx<'a> {
             v.push(n.r);
         }
         self.n.splats_emitted += 1;
+        self.n.draw_end = self.n.draw_end.max(u64::from(n.end));
     }
 
     /// Decodes the node word at body byte `p` (of the group at `off`) relative to the
@@ -324,6 +343,7 @@ impl<'a> Ctx<'a> {
             children: n.children,
             child_off: 0,
             child_ptr: !n.all_leaves,
+            end: (p + self.nb) as u32,
         })
     }
 
@@ -343,6 +363,7 @@ impl<'a> Ctx<'a> {
         front: bool,
         thr: f32,
     ) -> Result<(), MethodError> {
+        self.note_read(off, count, has_ptr);
         let mut p = off;
         let mut cursor = 0usize;
         if has_ptr {

@@ -273,6 +273,25 @@ pub fn build_with_budget(
         })
         .collect();
 
+    // §4: the clouds' spacings against their samples (`super::sizes`), read from the cloud
+    // file while it exists.
+    let sizes = {
+        let mut f = File::open(&clouds_path).map_err(|e| MethodError::io(&clouds_path, e))?;
+        super::sizes::cloud_spacing(
+            &nodes,
+            params.m,
+            |old| spacing[new_id[old] as usize],
+            |old| {
+                let nd = &nodes[old];
+                let mut v = vec![Sample::default(); nd.m as usize];
+                f.seek(SeekFrom::Start(nd.cloud_off * RECORD_BYTES))
+                    .and_then(|_| f.read_exact(bytemuck::cast_slice_mut(&mut v)))
+                    .map_err(|e| MethodError::io(&clouds_path, e))?;
+                Ok(v)
+            },
+        )?
+    };
+
     progress.start("lpc: clouds", out.len() as u64);
     let repo_path = dir.join(REPO_FILE);
     let mut repo = RepoWriter::create(&repo_path)?;
@@ -361,6 +380,13 @@ pub fn build_with_budget(
     put("memory_budget_bytes", mem_bytes.into());
     put("peak_bytes_held", peak.into());
     put("clouds", (out.len() as u64).into());
+    if let Some(z) = sizes {
+        put("spacing_clouds_measured", z.clouds.into());
+        put("spacing_ratio_median", z.ratio_median.into());
+        put("spacing_ratio_p10", z.ratio_p10.into());
+        put("spacing_ratio_p90", z.ratio_p90.into());
+        put("spacing_cv_median", z.cv_median.into());
+    }
     // §3: the model keeps exactly the input samples; an inner cloud holds `M`, a leaf at
     // most `M` (`N_j < M`, or `N_j = M` with nothing left to split).
     let stored: u64 = out.iter().map(|nd| u64::from(nd.points)).sum();

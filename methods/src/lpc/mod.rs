@@ -33,6 +33,7 @@ pub mod cloud;
 pub mod index;
 mod multilevel;
 mod partition;
+mod sizes;
 mod source;
 pub mod spacing;
 pub mod traverse;

@@ -850,3 +850,37 @@ fn eg_is_d_without_normals_and_counted_against_both_diameters_with_them() {
         "sphere ≥ disk: {above_s} {above_d} {over_s} {over_d}"
     );
 }
+
+/// §3.4's left bound, counted and not used (`Spt::left_bounds`): in every cluster, the nodes
+/// it would skip at the start of the prefix all fail the interval test (checked node by node
+/// with the CPU mirror of the vertex test), in both modes and at several distances and
+/// tolerances; and some views have such nodes (the count is not vacuously 0).
+#[test]
+fn a_left_bound_skips_only_nodes_that_fail() {
+    let cloud = statue(20_000);
+    let tmp = tempfile::tempdir().unwrap();
+    for mode in ["unified", "split"] {
+        let m = build_open(&cloud, &[&format!("mode={mode}")], &tmp.path().join(mode)).unwrap();
+        let mut skipped = 0;
+        for view in views(&cloud) {
+            for eps in [1.0f32, 4.0, 16.0] {
+                let sel = m.select(&view, Target::Tolerance(eps)).unwrap();
+                let s = m.test_for(&view, eps);
+                let left = m.left_bounds(s.scale, view.camera.position, &sel.prefixes);
+                assert_eq!(left.iter().sum::<u64>(), sel.left_skippable);
+                let passing: std::collections::HashSet<u32> =
+                    m.cpu_select(&view, eps).into_iter().collect();
+                for (c, &l) in m.index().clusters.iter().zip(&left) {
+                    for i in c.start..c.start + l {
+                        assert!(
+                            !passing.contains(&(i as u32)),
+                            "{mode} ε = {eps}: node {i} passes but a left bound skips it"
+                        );
+                    }
+                }
+                skipped += sel.left_skippable;
+            }
+        }
+        assert!(skipped > 0, "{mode}: no view has a node a left bound skips");
+    }
+}

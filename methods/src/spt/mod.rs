@@ -436,6 +436,8 @@ pub struct Selection {
     pub prefixes: Vec<u64>,
     /// Clusters skipped as back-facing.
     pub clusters_skipped: u32,
+    /// Nodes at the start of the prefixes that a left bound could skip ([`Spt::left_bounds`]).
+    pub left_skippable: u64,
 }
 
 impl Spt {
@@ -678,6 +680,41 @@ impl Spt {
         }
     }
 
+    /// §3.4: the list could be bounded on the left too: "The benefit is small, because the
+    /// number of inner nodes in a tree of average branching factor 4 is small relative to
+    /// the children." Not used for drawing; counted: in each cluster, the nodes at the start
+    /// of its prefix whose own error fails the interval test's lower bound (too coarse) at
+    /// every distance the cluster's node centres can have (`r ≤ |eye − centre| + radius`)
+    /// and at every view angle (split errors: the least factor `min(sin φ, cos φ)`), up to
+    /// the first that might pass. A left bound would skip exactly these: their count per
+    /// cluster.
+    pub fn left_bounds(&self, s: f32, eye: Vec3, prefixes: &[u64]) -> Vec<u64> {
+        let split = self.params.mode == SptMode::Split;
+        self.index
+            .clusters
+            .iter()
+            .zip(prefixes)
+            .map(|(c, &len)| {
+                let r_hi = eye.distance(Vec3::from(c.center)) + c.radius;
+                let start = c.start as usize;
+                self.lod[start..start + len as usize]
+                    .iter()
+                    .take_while(|l| {
+                        let g = if split {
+                            let hi = (l[3] / 256.0).floor();
+                            let phi = (hi / 256.0).floor()
+                                * (std::f32::consts::FRAC_PI_2 / select::PHI_STEPS);
+                            phi.sin().min(phi.cos())
+                        } else {
+                            1.0
+                        };
+                        l[0] * g > s * r_hi
+                    })
+                    .count() as u64
+            })
+            .collect()
+    }
+
     fn prefixes(&self, s: f32, eye: Vec3, skipped: &[bool]) -> Vec<u64> {
         self.index
             .clusters
@@ -714,10 +751,12 @@ impl Spt {
             }
             Target::Budget(b) => self.budget(b, eye, &skipped),
         };
+        let left_skippable = self.left_bounds(scale, eye, &prefixes).iter().sum();
         Ok(Selection {
             test: self.test_with_scale(scale),
             prefixes,
             clusters_skipped,
+            left_skippable,
         })
     }
 
@@ -762,7 +801,12 @@ impl Spt {
 }
 
 /// Extra CSV columns of `spt`.
-pub const EXTRA_COLUMNS: &[&str] = &["prefix_points", "cpu_passed", "clusters_skipped"];
+pub const EXTRA_COLUMNS: &[&str] = &[
+    "prefix_points",
+    "cpu_passed",
+    "clusters_skipped",
+    "left_bound_points",
+];
 
 impl LodMethod for Spt {
     fn attributes(&self) -> Attributes {
@@ -811,6 +855,7 @@ impl LodMethod for Spt {
             sel.prefixes.iter().sum::<u64>() as f64,
             cpu,
             sel.clusters_skipped as f64,
+            sel.left_skippable as f64,
         ];
         Ok(list)
     }

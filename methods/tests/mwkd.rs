@@ -9,7 +9,7 @@ use methods::Params;
 use methods::mwkd::build::Lod;
 use methods::mwkd::reps::{RepConfig, Splats, representatives};
 use methods::mwkd::tree::{Plan, Tree, child_targets};
-use methods::mwkd::{MwkdParams, QueueOrder};
+use methods::mwkd::{Clustering, MwkdParams, QueueOrder};
 use scenes::PointCloud;
 use scenes::generators::Generator;
 
@@ -465,4 +465,50 @@ fn lod_1m_statue_leaves_within_one_inner_nodes_hold_s() {
         lod.tree.leaves().start,
         t.elapsed().as_secs_f64()
     );
+}
+
+/// Fig. 2's grid sampling (`clustering = grid`): one representative per occupied cell of the
+/// (lowered) grid, the weighted mean of everything in it, covering its members; never more
+/// than the target, and every representative's members share one cell (two members of a
+/// representative lie within a cell's extent of each other). The adaptive clustering on
+/// the same input gives exactly the target.
+#[test]
+fn grid_clustering_gives_one_representative_per_occupied_cell() {
+    let statue = Generator::Statue.generate(20_000, 9).unwrap();
+    let s = splats_from(&statue, 0..20_000, 0.004);
+    let (lo, hi) = s
+        .positions
+        .iter()
+        .fold((Vec3::INFINITY, Vec3::NEG_INFINITY), |(l, h), p| {
+            (l.min(*p), h.max(*p))
+        });
+    for target in [7usize, 100, 1000, 5000] {
+        let grid = RepConfig {
+            clustering: Clustering::Grid,
+            ..RepConfig::default()
+        };
+        let sel = representatives(&s, target, &grid);
+        let n = sel.reps.len();
+        assert!(n >= 1 && n <= target, "target {target}: {n}");
+        let mut w = vec![0u64; n];
+        let cell = (hi - lo) / sel.grid_used as f32;
+        let mut first: Vec<Option<Vec3>> = vec![None; n];
+        for (i, &m) in sel.members.iter().enumerate() {
+            let (m, p) = (m as usize, s.positions[i]);
+            w[m] += s.weights[i];
+            assert!(p.distance(sel.reps.positions[m]) + s.radii[i] <= sel.reps.radii[m]);
+            let f = *first[m].get_or_insert(p);
+            assert!(
+                ((p - f).abs() - cell).max_element() <= 1e-4,
+                "target {target}: members of rep {m} span more than a cell"
+            );
+        }
+        assert_eq!(w, sel.reps.weights);
+        assert_eq!(
+            representatives(&s, target, &RepConfig::default())
+                .reps
+                .len(),
+            target
+        );
+    }
 }

@@ -38,7 +38,9 @@ use crate::{
     MethodStats, OcclusionCandidate, OcclusionPass, Params, SplatBatch, SplatSize, Target,
 };
 use index::IndexNode;
-pub use params::{LoadMode, MwkdParams, OCTREE_MAX_DEPTH, QueueOrder, RUNTIME_PARAMS, TreeKind};
+pub use params::{
+    Clustering, LoadMode, MwkdParams, OCTREE_MAX_DEPTH, QueueOrder, RUNTIME_PARAMS, TreeKind,
+};
 use select::{Ctx, Front};
 
 /// Registry name (and `splatbench plan --method` value).

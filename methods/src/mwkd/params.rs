@@ -61,6 +61,21 @@ pub enum QueueOrder {
     Deviation,
 }
 
+/// How a node's representatives are chosen (paper, Fig. 2: "a simple grid based sampling
+/// approach … and our adaptive clustering").
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Default, serde::Deserialize, serde::Serialize)]
+#[serde(rename_all = "lowercase")]
+pub enum Clustering {
+    /// The paper's: clusters merged within grid cells by normal (and colour) until exactly
+    /// `s/N` remain ([`reps`]).
+    #[default]
+    Adaptive,
+    /// Fig. 2's comparison: one representative per occupied cell, the average of the cell's
+    /// splats, with the grid lowered until at most `s/N` cells are occupied (so a node may
+    /// pass fewer than `s/N` up).
+    Grid,
+}
+
 /// Parameters of `mwkd`.
 #[derive(Debug, Clone, PartialEq, serde::Deserialize, serde::Serialize)]
 #[serde(deny_unknown_fields, default)]
@@ -81,6 +96,8 @@ pub struct MwkdParams {
     pub color_threshold: f32,
     /// Order of the priority queue of cluster lists.
     pub queue: QueueOrder,
+    /// Representatives by adaptive clustering (default) or plain grid averaging (Fig. 2).
+    pub clustering: Clustering,
     /// Hierarchy: `mwkd` (default), `kd` or `octree` (the paper's Table IV).
     pub tree: TreeKind,
     /// Working memory of the build, MiB (≥ 16): a cloud of more than
@@ -121,6 +138,7 @@ impl Default for MwkdParams {
             relax: 1.5,
             color_threshold: 30.0,
             queue: QueueOrder::Length,
+            clustering: Clustering::Adaptive,
             tree: TreeKind::Mwkd,
             mem_mb: 256,
             c0: 1.0,
@@ -238,6 +256,7 @@ impl MwkdParams {
             relax: self.relax,
             color_threshold: self.color_threshold,
             queue: self.queue,
+            clustering: self.clustering,
         }
     }
 }

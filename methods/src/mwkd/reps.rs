@@ -27,6 +27,9 @@
 //!    cheapest-first pairs found among each cluster's next [`WINDOW`] (then 4 × `WINDOW`)
 //!    neighbours in Morton order, so a single huge cell costs O(L log L) per round, not
 //!    O(L²) per merge.
+//!
+//! With `clustering = grid` (Fig. 2's comparison) steps 2–3 are replaced by merging every
+//! cell's splats into one cluster: one representative per occupied cell, at most `target`.
 //! 4. **Output.** One representative per cluster, clusters in cell order: position, normal
 //!    (renormalised) and colour are the weight-averaged member values (weights = samples
 //!    represented), weight = their sum, radius = `max(|p_m − p| + r_m)` over the members
@@ -41,7 +44,7 @@ use std::collections::BinaryHeap;
 
 use glam::{DVec3, Vec3};
 
-use super::QueueOrder;
+use super::{Clustering, QueueOrder};
 
 /// A set of splats, by column. `normals` and `colors` are present or absent for the whole
 /// set; colours are 0..=255 per channel (as `f32`, averages are not rounded).
@@ -133,6 +136,8 @@ pub struct RepConfig {
     pub color_threshold: f32,
     /// Queue order.
     pub queue: QueueOrder,
+    /// Adaptive clustering (steps 2–3) or one representative per cell (step 1 only).
+    pub clustering: Clustering,
 }
 
 impl Default for RepConfig {
@@ -507,6 +512,24 @@ pub fn representatives(input: &Splats, target: usize, cfg: &RepConfig) -> Select
         }
     }
 
+    // Fig. 2's grid sampling: every cell's clusters merged into one, so each occupied cell
+    // (at most `target` of them) gives one representative; the queue below is then empty.
+    let mut count = m;
+    if cfg.clustering == Clustering::Grid {
+        for list in &mut lists {
+            let head = list[0];
+            for &c in &list[1..] {
+                if let Some(cb) = clusters[c].take()
+                    && let Some(ca) = clusters[head].as_mut()
+                {
+                    ca.absorb(cb, &mut member_lists);
+                }
+            }
+            list.truncate(1);
+        }
+        count = lists.len();
+    }
+
     // 2. Queue of lists with ≥ 2 clusters.
     let priority = |list: &[usize], clusters: &[Option<Cluster>]| -> u64 {
         match cfg.queue {
@@ -536,7 +559,6 @@ pub fn representatives(input: &Splats, target: usize, cfg: &RepConfig) -> Select
         .collect();
 
     // 3. Merge until exactly `target` clusters remain.
-    let mut count = m;
     let mut theta = theta0;
     let mut col_t = cfg.color_threshold;
     let mut blocked: Vec<usize> = Vec::new();

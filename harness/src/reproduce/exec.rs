@@ -11,7 +11,8 @@
 //!   `bytes_out`, `bits_per_sample`, `seconds`, `points_per_s`) and of its `extra`;
 //! - run: `STAT.COLUMN` for every numeric `frames.csv` column, STAT one of `median`, `mean`,
 //!   `min`, `max`, `first`, `last` over the frames after `skip`; `peak_rss_bytes`,
-//!   `run_seconds` and `rss_max_{anon,file,shmem}_bytes` (Linux) of `summary.json`; and
+//!   `method_resident_bytes`, `run_seconds` and `rss_max_{anon,file,shmem}_bytes` (Linux) of
+//!   `summary.json`; and
 //!   `build.KEY` of its build;
 //! - sweep: `TARGET.STAT.COLUMN` per target, TARGET the run directory's name with `-` and
 //!   `.` written `_` (`eps_2`, `eps_0_5`, `budget_25000`), and `build.KEY`;
@@ -538,7 +539,8 @@ fn plan(m: &Measure) -> anyhow::Result<MeasureResult> {
 }
 
 /// `STAT.COLUMN` over the frames of `dir/frames.csv` after the first `skip`, plus
-/// `summary.json`'s `peak_rss_bytes`, `run_seconds` and `rss_max` by kind.
+/// `summary.json`'s `peak_rss_bytes`, `method_resident_bytes`, `run_seconds` and `rss_max` by
+/// kind.
 pub fn run_metrics(dir: &Path, skip: usize) -> anyhow::Result<BTreeMap<String, f64>> {
     let file = dir.join("frames.csv");
     let mut rd =
@@ -590,7 +592,7 @@ pub fn run_metrics(dir: &Path, skip: usize) -> anyhow::Result<BTreeMap<String, f
         m.insert(format!("last.{h}"), v[v.len() - 1]);
     }
     let v = crate::results::read_complete_summary(dir)?;
-    for k in ["peak_rss_bytes", "run_seconds"] {
+    for k in ["peak_rss_bytes", "method_resident_bytes", "run_seconds"] {
         if let Some(x) = v[k].as_f64() {
             m.insert(k.into(), x);
         }

@@ -357,6 +357,7 @@ pub fn run(cfg: &RunConfig, gpu: &Gpu, progress: &dyn Progress) -> anyhow::Resul
         failed_chunks: Vec::new(),
         traffic: None,
         peak_rss_bytes: 0,
+        method_resident_bytes: 0,
         rss_max: None,
         run_seconds: 0.0,
     };
@@ -489,6 +490,7 @@ pub fn run(cfg: &RunConfig, gpu: &Gpu, progress: &dyn Progress) -> anyhow::Resul
         summary.traffic = Some(TrafficTotals::of(&traffic, method.throughput()));
     }
     summary.peak_rss_bytes = crate::rss::peak_bytes();
+    summary.method_resident_bytes = method.stats().resident_bytes;
     summary.run_seconds = t_run.elapsed().as_secs_f64();
     let failed = summary.failed_chunks.len();
     summary.complete = failed == 0 || cfg.allow_missing_chunks;

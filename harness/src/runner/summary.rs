@@ -69,6 +69,9 @@ pub struct Summary {
     pub traffic: Option<TrafficTotals>,
     /// Peak resident set size of the process.
     pub peak_rss_bytes: u64,
+    /// What the method holds in memory after the last frame, mapped files excluded
+    /// ([`methods::MethodStats::resident_bytes`]: its index, decoding tables, decoded caches).
+    pub method_resident_bytes: u64,
     /// The largest resident set of each kind seen at the end of a frame (Linux; absent
     /// elsewhere): what the peak is made of (anonymous, file-backed, shared memory).
     pub rss_max: Option<crate::rss::Breakdown>,

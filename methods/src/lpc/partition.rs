@@ -450,7 +450,7 @@ pub(super) fn child_key(key: u64, side: usize) -> u64 {
 
 impl PNode {
     /// A node whose subtree holds `n` samples, filled when it is attached.
-    fn new(parent: u32, level: u32, n: u64) -> Self {
+    pub(super) fn new(parent: u32, level: u32, n: u64) -> Self {
         Self {
             parent,
             children: [NONE; 2],

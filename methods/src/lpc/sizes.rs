@@ -113,18 +113,9 @@ mod tests {
     use glam::Vec3;
 
     fn node(parent: u32, level: u32, m: u32) -> PNode {
-        PNode {
-            parent,
-            children: [NONE; 2],
-            level,
-            n: u64::from(m),
-            m,
-            cloud_off: 0,
-            center: Vec3::ZERO,
-            radius: 0.0,
-            axis: Vec3::ZERO,
-            half: 0.0,
-        }
+        let mut n = PNode::new(parent, level, u64::from(m));
+        n.m = m;
+        n
     }
 
     fn grid(offset: f32, far: f32) -> Vec<Sample> {

@@ -110,7 +110,6 @@ pub(super) fn cloud_spacing(
 mod tests {
     use super::super::index::NONE;
     use super::*;
-    use glam::Vec3;
 
     fn node(parent: u32, level: u32, m: u32) -> PNode {
         let mut n = PNode::new(parent, level, u64::from(m));

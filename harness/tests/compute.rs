@@ -7,7 +7,8 @@
 
 mod common;
 use common::{
-    check_golden, covered, disagreement, front_view, full, settings, stream, view, with_pixel_size,
+    GOLDEN_MEAN_FLIP, check_golden, covered, disagreement, front_view, full, settings, stream,
+    view, with_pixel_size,
 };
 
 use harness::gpu::{AdapterDesc, gpu_for_test};
@@ -269,11 +270,16 @@ fn golden_compute_images() {
             methods::MethodKind::Full => "statue-compute-square".to_owned(),
             k => format!("statue-compute-{}", k.name()),
         };
-        check_golden(&name, &img.unwrap(), 0.02);
+        check_golden(&gpu, &name, &img.unwrap(), GOLDEN_MEAN_FLIP);
         if kind == methods::MethodKind::Full {
             let points = with_pixel_size(&list, 1.0);
             let (_, img) = r.draw(&v, &points, m.as_ref(), true).unwrap();
-            check_golden("statue-compute-points", &img.unwrap(), 0.02);
+            check_golden(
+                &gpu,
+                "statue-compute-points",
+                &img.unwrap(),
+                GOLDEN_MEAN_FLIP,
+            );
         }
     }
 }

@@ -3,7 +3,11 @@
 //!
 //! - GPU output agrees with the CPU mirror (`render::cpu`) for every kernel (square, circle,
 //!   ellipse, gaussian) and both size modes: coverage differs only on pixels whose centre is within rounding of a splat edge.
-//! - One golden image per kernel, compared with a FLIP threshold. Regenerate with
+//! - Golden images per kernel (a dense statue, and a sparse one whose 6 px splats show their
+//!   shape), each with the adapter that blessed it beside it (`<name>.adapter.json`): on that
+//!   adapter the render must equal the golden byte for byte; on another, the FLIP error over
+//!   the covered pixels must pass a mean and a per-pixel gate (`common::check_golden`) that a
+//!   wrong kernel fails (`a_wrong_kernel_fails_the_circle_golden`). Regenerate with
 //!   `SPLATBENCH_BLESS=1 cargo test -p harness --test render`; on failure `-actual` and
 //!   `-difference` images go to `target/golden-failures/`.
 //! - Timestamps, odd resolutions (row padding), attribute-free scenes shaded flat.
@@ -11,7 +15,8 @@
 
 mod common;
 use common::{
-    check_golden, disagreement, front_view, full, settings, stream, view, with_pixel_size,
+    GOLDEN_MEAN_FLIP, check_golden, disagreement, front_view, full, settings, stream, view,
+    with_pixel_size,
 };
 
 use harness::gpu::{Gpu, gpu_for_test};
@@ -80,7 +85,12 @@ fn golden_image_per_kernel() {
     for kernel in Kernel::ALL {
         let mut r = Renderer::new(&gpu, settings(128, 128, *kernel)).unwrap();
         let (_, img) = r.draw(&v, &list, m.as_ref(), true).unwrap();
-        check_golden(&format!("statue-{}", kernel.name()), &img.unwrap(), 0.02);
+        check_golden(
+            &gpu,
+            &format!("statue-{}", kernel.name()),
+            &img.unwrap(),
+            GOLDEN_MEAN_FLIP,
+        );
     }
 }
 
@@ -441,7 +451,7 @@ fn golden_edl() {
         )
         .unwrap();
         let (_, img) = r.draw(&v, &list, m.as_ref(), true).unwrap();
-        check_golden(name, &img.unwrap(), 0.02);
+        check_golden(&gpu, name, &img.unwrap(), GOLDEN_MEAN_FLIP);
     }
 }
 
@@ -573,5 +583,83 @@ fn ellipse_axis_ratio_is_n_dot_v_clamped_at_a_tenth() {
                 );
             }
         }
+    }
+}
+
+/// The kernel goldens' scene: a 2,000-sample statue drawn with 6 px splats at 128², sparse
+/// enough that each splat's shape shows (on the dense 20 K statue, 2–3 px splats overlap and
+/// squares drawn for circles change 0.5 % of the covered pixels: less than a quarter-pixel
+/// shift of the camera does).
+fn sparse_render(gpu: &Gpu, kernel: Kernel, v: Option<View>) -> Image {
+    let tmp = tempfile::tempdir().unwrap();
+    let cloud = Generator::Statue.generate(2_000, 5).unwrap();
+    let mut m = full(&cloud, tmp.path());
+    let v = v.unwrap_or_else(|| view(&cloud, 128, 128, 0));
+    let list = m
+        .frame(&v, Target::Tolerance(1.0), &Feedback::default())
+        .unwrap();
+    let list = with_pixel_size(&list, 6.0);
+    let mut r = Renderer::new(gpu, settings(128, 128, kernel)).unwrap();
+    r.draw(&v, &list, m.as_ref(), true).unwrap().1.unwrap()
+}
+
+#[test]
+fn golden_sparse_image_per_kernel() {
+    let Some(gpu) = gpu_for_test("golden_sparse_image_per_kernel") else {
+        return;
+    };
+    for &kernel in Kernel::ALL {
+        let img = sparse_render(&gpu, kernel, None);
+        check_golden(
+            &gpu,
+            &format!("statue-sparse-{}", kernel.name()),
+            &img,
+            GOLDEN_MEAN_FLIP,
+        );
+    }
+}
+
+/// The goldens tell a wrong kernel from a right one (issue 36): on the sparse scene, squares,
+/// ellipses or gaussians drawn where the circle golden is expected fail both the
+/// same-adapter comparison (not byte for byte) and the cross-adapter one
+/// (`common::cross_adapter_mismatch`: mean FLIP and the share of covered pixels above a
+/// per-pixel gate, over the covered pixels only); the circles pass both, and so does the
+/// same view with the camera moved sideways by a tenth and by a quarter of a pixel (what
+/// another rasteriser's rounding can do to splat edges, generously).
+#[test]
+fn a_wrong_kernel_fails_the_circle_golden() {
+    let Some(gpu) = gpu_for_test("a_wrong_kernel_fails_the_circle_golden") else {
+        return;
+    };
+    let golden = Image::load_png(&common::golden_dir().join("statue-sparse-circle.png")).unwrap();
+    let circle = sparse_render(&gpu, Kernel::Circle, None);
+    assert_eq!(
+        circle.rgba, golden.rgba,
+        "the golden is this adapter's render"
+    );
+    let cross = |img: &Image| common::cross_adapter_mismatch(&golden, img, GOLDEN_MEAN_FLIP);
+    assert_eq!(cross(&circle), None);
+    let cloud = Generator::Statue.generate(2_000, 5).unwrap();
+    let v = view(&cloud, 128, 128, 0);
+    let right = v.camera.forward().cross(v.camera.up).normalize();
+    let px =
+        2.0 * (v.camera.position - v.camera.target).length() * (v.camera.fov_y * 0.5).tan() / 128.0;
+    for shift in [0.1f32, 0.25] {
+        let mut moved = v;
+        moved.camera.position += right * shift * px;
+        moved.camera.target += right * shift * px;
+        let img = sparse_render(&gpu, Kernel::Circle, Some(moved));
+        assert_ne!(img.rgba, golden.rgba);
+        let stats = common::golden_stats(&golden, &img);
+        assert_eq!(cross(&img), None, "a {shift} px shift: {stats:?}");
+    }
+    for kernel in [Kernel::Square, Kernel::Ellipse, Kernel::Gaussian] {
+        let wrong = sparse_render(&gpu, kernel, None);
+        assert_ne!(wrong.rgba, golden.rgba);
+        let stats = common::golden_stats(&golden, &wrong);
+        assert!(
+            cross(&wrong).is_some(),
+            "{kernel:?} passes for circles: {stats:?}"
+        );
     }
 }

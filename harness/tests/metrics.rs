@@ -361,8 +361,9 @@ fn nv_flip_map(reference: &Image, test: &Image) -> Vec<f32> {
 
 /// Our FLIP against the oracle on one pair: means within 1e-4 (issue 15's bound; measured
 /// ≤ 2.4e-7, since both sum the taps in the same order in `f32`), and every pixel within
-/// 1e-4 (measured ≤ 3.8e-5 on these pairs: the `powf` chain amplifies rounding where the
-/// colour error is near 0).
+/// 5e-4 (the `powf` chain amplifies rounding where the colour error is near 0: measured
+/// ≤ 3.8e-5 on the first goldens, ≤ 7.7e-5 on today's dense ones and 1.7e-4 between the
+/// sparse kernel goldens' circles and ellipses, saturated splat edges on black; 3 × that).
 fn assert_flip_matches_oracle(what: &str, reference: &Image, test: &Image) {
     let oracle = nv_flip_map(reference, test);
     let oracle_mean = oracle.iter().map(|&e| f64::from(e)).sum::<f64>() / oracle.len() as f64;
@@ -379,7 +380,7 @@ fn assert_flip_matches_oracle(what: &str, reference: &Image, test: &Image) {
         .zip(&oracle)
         .map(|(p, q)| (p - q).abs())
         .fold(0.0f32, f32::max);
-    assert!(worst <= 1e-4, "{what}: worst pixel differs by {worst}");
+    assert!(worst <= 5e-4, "{what}: worst pixel differs by {worst}");
 }
 
 /// Every golden image against the others of its size (different kernels and shading of one

@@ -120,11 +120,50 @@ fn run_full_against_its_own_reference_is_exact() {
     for f in ["timeline.png", "timeline.svg"] {
         assert!(out.join(f).exists(), "{f} missing");
     }
-    // The same run again hits the reference cache and still agrees.
-    let refs = std::fs::read_dir(d.path().join("cache/refs"))
-        .unwrap()
-        .count();
-    assert_eq!(refs, 3, "one cached reference per distinct view");
+    // One cached reference per distinct view; the same run again reads them (none is made
+    // again: the files and their modification times stay as they were) and still agrees.
+    let refs = || {
+        let mut v: Vec<_> = std::fs::read_dir(d.path().join("cache/refs"))
+            .unwrap()
+            .map(|e| {
+                let e = e.unwrap();
+                (e.file_name(), e.metadata().unwrap().modified().unwrap())
+            })
+            .collect();
+        v.sort();
+        v
+    };
+    let before = refs();
+    assert_eq!(before.len(), 3, "one cached reference per distinct view");
+    let again = d.path().join("again");
+    bin()
+        .args([
+            "run",
+            "--method",
+            "full",
+            "--scene",
+            "statue:8000",
+            "--frames",
+            "3",
+            "--width",
+            "160",
+            "--height",
+            "120",
+            "--out",
+        ])
+        .arg(&again)
+        .arg("--cache")
+        .arg(d.path().join("cache"))
+        .assert()
+        .success();
+    assert_eq!(refs(), before, "the second run made references again");
+    let (h2, rows2) = csv_table(&again.join("frames.csv"));
+    assert_eq!(h2, h);
+    for r in &rows2 {
+        for c in ["points_drawn", "hole_ratio", "flip_mean", "extra_coverage"] {
+            assert_eq!(r[col(c)], rows[0][col(c)], "{c}");
+        }
+    }
 }
 
 #[test]

@@ -65,27 +65,27 @@ fn run_full_against_its_own_reference_is_exact() {
         return;
     }
     let d = tempfile::tempdir().unwrap();
+    // `full` on an 8 K statue, 3 frames at 160 × 120, into `out`, one cache for both runs.
+    let run = |out: &std::path::Path| {
+        bin()
+            .args([
+                "run",
+                "--method",
+                "full",
+                "--scene",
+                "statue:8000",
+                "--frames",
+                "3",
+            ])
+            .args(["--width", "160", "--height", "120", "--out"])
+            .arg(out)
+            .arg("--cache")
+            .arg(d.path().join("cache"))
+            .assert()
+            .success();
+    };
     let out = d.path().join("run");
-    bin()
-        .args([
-            "run",
-            "--method",
-            "full",
-            "--scene",
-            "statue:8000",
-            "--frames",
-            "3",
-            "--width",
-            "160",
-            "--height",
-            "120",
-            "--out",
-        ])
-        .arg(&out)
-        .arg("--cache")
-        .arg(d.path().join("cache"))
-        .assert()
-        .success();
+    run(&out);
     let (h, rows) = csv_table(&out.join("frames.csv"));
     assert_eq!(
         h.join(","),
@@ -136,26 +136,7 @@ fn run_full_against_its_own_reference_is_exact() {
     let before = refs();
     assert_eq!(before.len(), 3, "one cached reference per distinct view");
     let again = d.path().join("again");
-    bin()
-        .args([
-            "run",
-            "--method",
-            "full",
-            "--scene",
-            "statue:8000",
-            "--frames",
-            "3",
-            "--width",
-            "160",
-            "--height",
-            "120",
-            "--out",
-        ])
-        .arg(&again)
-        .arg("--cache")
-        .arg(d.path().join("cache"))
-        .assert()
-        .success();
+    run(&again);
     assert_eq!(refs(), before, "the second run made references again");
     let (h2, rows2) = csv_table(&again.join("frames.csv"));
     assert_eq!(h2, h);

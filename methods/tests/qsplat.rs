@@ -28,6 +28,13 @@ fn build(cloud: &PointCloud, dir: &Path, params: &[&str]) -> Box<dyn LodMethod> 
     MethodKind::open(dir).unwrap()
 }
 
+/// Builds QSplat with default parameters into `dir`: its build statistics.
+fn build_stats(cloud: &PointCloud, dir: &Path) -> methods::BuildStats {
+    MethodKind::Qsplat
+        .build(cloud, &Params::default(), "t", dir, &scenes::NoProgress)
+        .unwrap()
+}
+
 fn view(cloud: &PointCloud, i: usize, n: usize) -> View {
     View {
         camera: PathSpec::parse("orbit")
@@ -64,15 +71,7 @@ fn file_size_is_exactly_nodes_plus_pointers() {
     for (g, nb) in [(Generator::Statue, 4u64), (Generator::Terrain, 6)] {
         let cloud = g.generate(20_000, 3).unwrap();
         let dir = tempfile::tempdir().unwrap();
-        let stats = MethodKind::Qsplat
-            .build(
-                &cloud,
-                &Params::default(),
-                "t",
-                dir.path(),
-                &scenes::NoProgress,
-            )
-            .unwrap();
+        let stats = build_stats(&cloud, dir.path());
         let f = format::QsFile::open(&dir.path().join(qsplat::TREE_FILE)).unwrap();
         let h = f.header;
         let size = std::fs::metadata(dir.path().join(qsplat::TREE_FILE))
@@ -591,14 +590,7 @@ fn stored_cones_never_cull_what_exact_cones_keep() {
     for g in [Generator::Statue, Generator::Isosurface] {
         let cloud = g.generate(20_000, 1).unwrap();
         let dir = tempfile::tempdir().unwrap();
-        let stats = qsplat::build(
-            &cloud,
-            &Params::default(),
-            "t",
-            dir.path(),
-            &scenes::NoProgress,
-        )
-        .unwrap();
+        let stats = build_stats(&cloud, dir.path());
         let f = |k: &str| stats.extra[k].as_f64().unwrap();
         assert_eq!(f("cone_culled_wrong"), 0.0, "{}", g.name());
         assert!(f("cone_culled_exact") > 0.0, "{}", g.name());

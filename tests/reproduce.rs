@@ -574,22 +574,32 @@ fn a_relative_speed_row_is_measured_and_judged_only_on_a_gpu() {
     }
 }
 
-/// The paper profile deletes what it made once no later spec needs it: two specs share a
-/// scene and a build; after the whole run neither the builds nor the cached scene are left,
-/// and the report says what each measure had to make. A run of some specs (`--only`) keeps
-/// the cached scene for the others.
+/// The paper profile deletes what it made once no later measure needs it: two specs share a
+/// scene and a build; the first also builds SPT between two measures on the shared build.
+/// The SPT build goes right after its measure, the shared one after the second spec's; after
+/// the whole run neither the builds nor the cached scene are left, and the report says what
+/// each measure had to make and what it deleted. A run of some specs (`--only`) keeps the
+/// cached scene for the others.
 #[test]
 fn the_paper_profile_prunes_builds_and_scenes_as_it_goes() {
     let d = tempfile::tempdir().unwrap();
     let specs = d.path().join("specs");
     std::fs::create_dir_all(&specs).unwrap();
     for id in ["a", "b"] {
-        let text = GOOD
+        let mut text = GOOD
             .replace("id = \"t\"", &format!("id = \"{id}\""))
             .replace(
                 "points = { quick = 2000, full = 3000 }",
                 "points = { quick = 2000, full = 3000, paper = 4000 }",
             );
+        if id == "a" {
+            for (m, method) in [("c", "spt"), ("d", "qsplat")] {
+                text.push_str(&format!(
+                    "\n[[measure]]\nid = \"{m}\"\nkind = \"build\"\nmethod = \"{method}\"\nscene = \"s\"\n\n\
+                     [[row]]\nwhat = \"{m}\"\nours = \"{m}.bytes_in\"\nrule = \"report\"\n"
+                ));
+            }
+        }
         std::fs::write(specs.join(format!("{id}.toml")), text).unwrap();
     }
     let (out, cache) = (d.path().join("out"), d.path().join("cache"));
@@ -609,9 +619,21 @@ fn the_paper_profile_prunes_builds_and_scenes_as_it_goes() {
     };
     let report = run(None);
     assert!(report.contains("on statue:4000:1"), "{report}");
-    // The first spec made the scene and the build; the second reused both.
+    // The first spec made the scene and both builds (its third measure reused the first's
+    // build, kept for it); the second spec reused the scene and the shared build.
     assert_eq!(report.matches("ok; scene made: ").count(), 1, "{report}");
-    assert_eq!(report.matches("; build made: ").count(), 1, "{report}");
+    assert_eq!(report.matches("build made: ").count(), 2, "{report}");
+    // Deleted twice: SPT's after its measure, the shared build after the second spec's.
+    assert_eq!(
+        report.matches("; build deleted after: ").count(),
+        2,
+        "{report}"
+    );
+    let spt_line = report
+        .lines()
+        .find(|l| l.contains("spt") && l.contains("build made: "))
+        .unwrap_or_else(|| panic!("no line for the SPT build: {report}"));
+    assert!(spt_line.contains("build deleted after: "), "{spt_line}");
     let builds: Vec<_> = std::fs::read_dir(out.join("builds")).unwrap().collect();
     assert!(builds.is_empty(), "builds left: {builds:?}");
     let scene = cache.join("scenes/statue-4000-1-even2-v1.sbc");

@@ -304,26 +304,26 @@ impl<'a> Context<'a> {
         Ok((dir, stats))
     }
 
-    /// Deletes what `done` used and no spec of `later` uses: its builds (under
-    /// `OUT/builds/`) and, with `scenes`, its scenes' cached column files. What the paper
-    /// profile does between specs, so that its disk use is the largest spec's, not the sum
-    /// (paper/README.md). Returns the bytes freed.
-    pub fn prune(&mut self, done: &Spec, later: &[Spec], scenes: bool) -> anyhow::Result<u64> {
-        let mut keep_builds = std::collections::HashSet::new();
-        let mut keep_scenes = std::collections::HashSet::new();
-        for spec in later {
-            for m in &spec.measures {
-                if let Ok(scene) = scene_of(spec, m) {
-                    keep_builds.insert(build_key(m.method, &m.build_params, scene));
-                    keep_scenes.extend(scene.cache_file(&self.cache));
-                }
-            }
-        }
+    /// Deletes the builds (under `OUT/builds/`) that no measure of `later` uses: what the
+    /// paper profile does after each measure, so that its disk holds the builds still to be
+    /// run, not all of a spec's (MWKD Table IV's nine builds of 186.85 M samples would need
+    /// ≈ 37 GB at once). Returns the bytes freed.
+    pub fn prune_builds<'s>(
+        &mut self,
+        later: impl IntoIterator<Item = (&'s Spec, &'s Measure)>,
+    ) -> anyhow::Result<u64> {
+        let keep: std::collections::HashSet<String> = later
+            .into_iter()
+            .filter_map(|(spec, m)| {
+                let scene = scene_of(spec, m).ok()?;
+                Some(build_key(m.method, &m.build_params, scene))
+            })
+            .collect();
         let mut freed = 0;
         let gone: Vec<String> = self
             .builds
             .keys()
-            .filter(|k| !keep_builds.contains(*k))
+            .filter(|k| !keep.contains(*k))
             .cloned()
             .collect();
         for key in gone {
@@ -333,11 +333,24 @@ impl<'a> Context<'a> {
                     .with_context(|| format!("removing the build {}", dir.display()))?;
             }
         }
-        for scene in done.scenes.values().filter(|_| scenes) {
+        Ok(freed)
+    }
+
+    /// Deletes the cached column files of `done`'s scenes that no spec of `later` uses: what
+    /// the paper profile does between specs when it runs whole, so that its disk use is the
+    /// largest spec's, not the sum (paper/README.md). Returns the bytes freed.
+    pub fn prune_scenes(&mut self, done: &Spec, later: &[Spec]) -> anyhow::Result<u64> {
+        let keep: std::collections::HashSet<PathBuf> = later
+            .iter()
+            .flat_map(|spec| spec.measures.iter().map(move |m| (spec, m)))
+            .filter_map(|(spec, m)| scene_of(spec, m).ok()?.cache_file(&self.cache))
+            .collect();
+        let mut freed = 0;
+        for scene in done.scenes.values() {
             let Some(file) = scene.cache_file(&self.cache) else {
                 continue;
             };
-            if !keep_scenes.contains(&file) && file.is_file() {
+            if !keep.contains(&file) && file.is_file() {
                 freed += std::fs::metadata(&file).map_or(0, |m| m.len());
                 std::fs::remove_file(&file)
                     .with_context(|| format!("removing the cached scene {}", file.display()))?;
@@ -464,7 +477,7 @@ fn no_adapter() -> anyhow::Error {
 }
 
 /// `1.23 GB`.
-fn gigabytes(bytes: u64) -> String {
+pub(super) fn gigabytes(bytes: u64) -> String {
     format!("{:.2} GB", bytes as f64 / 1e9)
 }
 

@@ -181,14 +181,15 @@ pub fn reproduce(opts: &Options, multi: &MultiProgress) -> anyhow::Result<Outcom
     let mut ctx = Context::new(&opts.out, &opts.cache, opts.exe.clone(), &phase);
     let mut tables = Vec::new();
     for (i, spec) in specs.iter().enumerate() {
-        tables.push(run_spec(spec, opts, &mut ctx, multi, &figures_dir)?);
-        if opts.profile == Profile::Paper {
-            // The papers' sizes do not all fit the disk at once: each spec's builds go once
-            // no later spec needs them, and so do its scenes when this run is the whole
-            // profile (a run of some specs, or a job's part, keeps the cached scenes for the
-            // others: making one takes up to half an hour).
-            ctx.prune(spec, &specs[i + 1..], opts.only.is_none())
-                .with_context(|| format!("pruning after {}", spec.id))?;
+        let later = &specs[i + 1..];
+        tables.push(run_spec(spec, later, opts, &mut ctx, multi, &figures_dir)?);
+        if opts.profile == Profile::Paper && opts.only.is_none() {
+            // The papers' sizes do not all fit the disk at once: a spec's scenes go once no
+            // later spec needs them when this run is the whole profile (a run of some specs,
+            // or a job's part, keeps the cached scenes for the others: making one takes up to
+            // half an hour). Builds go measure by measure (`run_spec`).
+            ctx.prune_scenes(spec, later)
+                .with_context(|| format!("pruning the scenes after {}", spec.id))?;
         }
     }
     let meta = report::Meta {
@@ -222,6 +223,7 @@ pub fn reproduce(opts: &Options, multi: &MultiProgress) -> anyhow::Result<Outcom
 
 fn run_spec(
     spec: &Spec,
+    later: &[Spec],
     opts: &Options,
     ctx: &mut Context<'_>,
     multi: &MultiProgress,
@@ -245,10 +247,10 @@ fn run_spec(
     let real_gpu = needs_gpu_rows && ctx.has_real_gpu().unwrap_or(false);
     let mut results: BTreeMap<String, MeasureResult> = BTreeMap::new();
     let mut lines = Vec::new();
-    for m in needed {
+    for (j, m) in needed.iter().enumerate() {
         bar.set_message(m.id.clone());
         let gpu_only = uses.get(m.id.as_str()).copied().unwrap_or(false);
-        let r = if gpu_only && !real_gpu {
+        let mut r = if gpu_only && !real_gpu {
             MeasureResult {
                 skipped_for_gpu: true,
                 ..MeasureResult::default()
@@ -256,6 +258,22 @@ fn run_spec(
         } else {
             ctx.measure(spec, m)
         };
+        if opts.profile == Profile::Paper {
+            // The papers' sizes do not all fit the disk at once: a build goes as soon as no
+            // measure still to run (here or in a later spec) needs it.
+            let rest = needed[j + 1..].iter().map(|m| (spec, *m)).chain(
+                later
+                    .iter()
+                    .flat_map(|s| s.measures.iter().map(move |m| (s, m))),
+            );
+            let freed = ctx
+                .prune_builds(rest)
+                .with_context(|| format!("pruning the builds after {}.{}", spec.id, m.id))?;
+            if freed > 0 && r.error.is_none() {
+                r.made
+                    .push(format!("build deleted after: {}", exec::gigabytes(freed)));
+            }
+        }
         lines.push(MeasureLine {
             id: m.id.clone(),
             what: report::describe(spec, m, &opts.root),

@@ -81,28 +81,8 @@ impl<T: bytemuck::Pod> Column<T> {
             let size = std::mem::size_of::<T>();
             let start = offset + range.start.min(*len) * size;
             let end = offset + range.end.min(*len) * size;
-            release_map_range(map, start, end);
+            crate::os::release_pages(map, start, end);
         }
-    }
-}
-
-/// `madvise(MADV_DONTNEED)` over the whole pages inside `start..end` of a read-only mapping.
-#[expect(
-    unsafe_code,
-    reason = "MADV_DONTNEED on a read-only shared file mapping only drops resident pages: \
-              the next access reads the same bytes from the file, so no slice borrowed from \
-              the map changes or dangles"
-)]
-fn release_map_range(map: &Mmap, start: usize, end: usize) {
-    const PAGE: usize = 4096;
-    let first = start.div_ceil(PAGE) * PAGE;
-    let last = (end / PAGE) * PAGE;
-    if last > first {
-        // SAFETY: see `reason`; the range lies inside the map. A failure only means the
-        // pages stay resident, so it is ignored.
-        let _ = unsafe {
-            map.unchecked_advise_range(memmap2::UncheckedAdvice::DontNeed, first, last - first)
-        };
     }
 }
 

@@ -47,7 +47,6 @@ use std::path::{Path, PathBuf};
 use std::sync::Arc;
 
 use glam::{DVec3, Vec3};
-use memmap2::Mmap;
 
 use crate::{Aabb, Attributes, Column, PointCloud, SceneError};
 
@@ -104,7 +103,7 @@ pub fn open(path: &Path) -> Result<PointCloud, SceneError> {
             ),
         ));
     }
-    let map = map_file(&file, path)?;
+    let map = crate::os::map_readonly(&file).map_err(|e| SceneError::io(path, e))?;
     let header = Header::parse(&map[..HEADER_LEN as usize], path)?;
     header.check_layout(actual, path)?;
     let map = Arc::new(map);
@@ -154,24 +153,6 @@ pub fn temp_path(path: &Path) -> PathBuf {
     let mut s = path.as_os_str().to_owned();
     s.push(format!(".tmp.{}", std::process::id()));
     PathBuf::from(s)
-}
-
-#[expect(
-    unsafe_code,
-    reason = "memory-mapping a file is unsafe because another process could change it; \
-              column files are only ever replaced by rename, never modified in place"
-)]
-fn map_file(file: &File, path: &Path) -> Result<Mmap, SceneError> {
-    // SAFETY: see the `reason` above; the mapping is read-only and every access is
-    // bounds-checked against the length validated in `Header::check_layout`.
-    unsafe { Mmap::map(file) }.map_err(|e| SceneError::io(path, e))
-}
-
-/// FNV-1a, 64 bits.
-fn fnv1a64(bytes: &[u8]) -> u64 {
-    bytes.iter().fold(0xCBF2_9CE4_8422_2325u64, |h, &b| {
-        (h ^ b as u64).wrapping_mul(0x0000_0100_0000_01B3)
-    })
 }
 
 fn align_up(x: u64) -> u64 {
@@ -244,7 +225,7 @@ impl Header {
         }
         put(&self.file_len.to_le_bytes());
         put(&0u64.to_le_bytes());
-        let sum = fnv1a64(&h[..CHECKSUM_AT]);
+        let sum = crate::hash::fnv1a64(&h[..CHECKSUM_AT]);
         h[CHECKSUM_AT..].copy_from_slice(&sum.to_le_bytes());
         h
     }
@@ -272,7 +253,7 @@ impl Header {
             )));
         }
         let stored = u64_at(CHECKSUM_AT);
-        let computed = fnv1a64(&h[..CHECKSUM_AT]);
+        let computed = crate::hash::fnv1a64(&h[..CHECKSUM_AT]);
         if stored != computed {
             return Err(bad(format!(
                 "header checksum mismatch (stored {stored:#018x}, computed {computed:#018x}): \

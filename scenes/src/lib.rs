@@ -24,6 +24,7 @@ pub mod generators;
 pub mod hash;
 pub mod las;
 mod las_check;
+pub mod os;
 pub mod paths;
 pub mod pcd;
 pub mod ply;

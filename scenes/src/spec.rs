@@ -22,7 +22,9 @@
 //! in the cache directory and memory-mapped from then on, so a 100 M-point scene is generated
 //! once and streamed, never held in memory. So are LAS/LAZ files of that many points (read by
 //! streaming, [`crate::las::read_to_columns`]; the cached file is named by a hash of the
-//! file's canonical path, length and modification time, so an edited file is read again),
+//! file's canonical path, length, modification time and [`crate::os::FileStamp`] (device,
+//! inode, inode change time in nanoseconds), so an edited file is read again even when its
+//! length is the same and its modification time was set back: [`las_cache_path`]),
 //! unless a `--shading` needs their intensity or classification (read in memory then).
 
 use std::path::{Path, PathBuf};
@@ -47,6 +49,14 @@ pub const LAS_CACHE_VERSION: u32 = 1;
 /// The cached column file of the LAS/LAZ file `path` under `dir`, or `None` when the file has
 /// fewer than [`CACHE_MIN_POINTS`] points (or its header cannot be read: the reader then
 /// reports that).
+///
+/// The guarantee: a cached file is served only for the same path, length, modification time
+/// and [`crate::os::FileStamp`]. On Unix the stamp's inode change time is set by the kernel on
+/// every write and every metadata change (restoring the mtime included) and cannot be set by
+/// a user, and a rewrite through a temporary file and a rename gets a new inode; so a stale
+/// cache needs a same-length rewrite in place within one tick of the file system's timestamp
+/// clock (a few milliseconds) of the stamp taken when the cache was written. Elsewhere the
+/// stamp holds the creation time only, and the guarantee is the length and mtime's.
 pub fn las_cache_path(dir: &Path, path: &Path) -> Option<PathBuf> {
     let meta = std::fs::metadata(path).ok()?;
     if crate::las::point_count(path).ok()? < CACHE_MIN_POINTS as u64 {
@@ -62,6 +72,7 @@ pub fn las_cache_path(dir: &Path, path: &Path) -> Option<PathBuf> {
         .write_str(&canonical.to_string_lossy())
         .write(&meta.len().to_le_bytes())
         .write(&mtime.to_le_bytes())
+        .write(&crate::os::FileStamp::of(&meta).to_le_bytes())
         .finish();
     Some(
         dir.join("scenes")

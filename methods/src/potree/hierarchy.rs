@@ -125,7 +125,6 @@ impl LocalFile {
 
 impl RangeRead for LocalFile {
     fn read(&self, offset: u64, len: u64, what: &str) -> Result<Vec<u8>, MethodError> {
-        use std::os::unix::fs::FileExt;
         let end = offset.checked_add(len).filter(|&e| e <= self.len);
         if end.is_none() {
             return Err(MethodError::corrupt(
@@ -138,7 +137,7 @@ impl RangeRead for LocalFile {
             ));
         }
         let mut buf = vec![0u8; len as usize];
-        self.file.read_exact_at(&mut buf, offset).map_err(|e| {
+        scenes::os::read_exact_at(&self.file, &mut buf, offset).map_err(|e| {
             MethodError::io(
                 &self.path,
                 std::io::Error::new(e.kind(), format!("{what}: {e}")),
@@ -285,7 +284,8 @@ impl Hierarchy {
                     "its first record (node {node_name} itself) is a proxy again"
                 )));
             }
-            self.check(&rec, &node_name).map_err(bad)?;
+            let level = self.nodes[node as usize].level;
+            self.check(&rec, level, &node_name).map_err(bad)?;
             let n = &mut self.nodes[node as usize];
             n.kind = rec.kind;
             n.child_mask = rec.child_mask;
@@ -324,12 +324,12 @@ impl Hierarchy {
         Ok(())
     }
 
-    /// Checks one record: child mask against the deepest level, byte range and size. The
-    /// type is not checked against the mask: PotreeConverter 2.0 writes nodes of type 1
-    /// ("leaf") that have children, and the viewer creates children from the mask for every
+    /// Checks one record of the node at `level` (the node's own, not its name's length):
+    /// child mask against the deepest level, byte range and size. The type is not checked
+    /// against the mask: PotreeConverter 2.0 writes nodes of type 1 ("leaf") that have
+    /// children, and the viewer creates children from the mask for every
     /// type but proxy; so do we.
-    fn check(&self, rec: &Record, name: &str) -> Result<(), String> {
-        let level = name.len() as u32 - 1;
+    fn check(&self, rec: &Record, level: u32, name: &str) -> Result<(), String> {
         if rec.child_mask != 0 && level >= MAX_LEVEL {
             return Err(format!(
                 "node {name} has children below level {MAX_LEVEL}, the deepest splatbench reads"
@@ -343,7 +343,8 @@ impl Hierarchy {
                     .is_some_and(|e| e <= self.file.len());
                 if !fits || rec.size == 0 || !rec.size.is_multiple_of(RECORD_BYTES as u64) {
                     return Err(format!(
-                        "proxy {name} names hierarchy bytes {}..+{}, not whole records inside                          the file ({} bytes)",
+                        "proxy {name} names hierarchy bytes {}..+{}, not whole records inside \
+                         the file ({} bytes)",
                         rec.offset,
                         rec.size,
                         self.file.len()

@@ -223,41 +223,11 @@ pub struct Repository {
     path: PathBuf,
 }
 
-#[expect(
-    unsafe_code,
-    reason = "memory-mapping a file is unsafe if another process truncates it; repositories \
-              are written once through a temporary file and a rename, never changed in place, \
-              and every read is bounds-checked and checksummed"
-)]
-fn map_file(file: &File) -> std::io::Result<Mmap> {
-    // SAFETY: see `reason`.
-    unsafe { Mmap::map(file) }
-}
-
-#[expect(
-    unsafe_code,
-    reason = "MADV_DONTNEED on a read-only shared file mapping only drops resident pages; the \
-              next read faults the same bytes back from the file, and no borrow of the map \
-              outlives `Repository::read`"
-)]
-fn release(map: &Mmap, start: usize, end: usize) {
-    const PAGE: usize = 4096;
-    let first = start / PAGE * PAGE;
-    let last = end.div_ceil(PAGE) * PAGE;
-    let last = last.min(map.len());
-    if last > first {
-        // SAFETY: see `reason`; failure only leaves the pages resident.
-        let _ = unsafe {
-            map.unchecked_advise_range(memmap2::UncheckedAdvice::DontNeed, first, last - first)
-        };
-    }
-}
-
 impl Repository {
     /// Maps `path` and checks its magic.
     pub fn open(path: &Path) -> Result<Self, MethodError> {
         let file = File::open(path).map_err(|e| MethodError::io(path, e))?;
-        let map = map_file(&file).map_err(|e| MethodError::io(path, e))?;
+        let map = scenes::os::map_readonly(&file).map_err(|e| MethodError::io(path, e))?;
         if map.len() < REPO_MAGIC.len() || &map[..REPO_MAGIC.len()] != REPO_MAGIC {
             return Err(MethodError::corrupt(
                 path,
@@ -290,7 +260,7 @@ impl Repository {
         let (start, end) = (span.start as usize, span.end as usize);
         let stored = &self.map[start..end];
         let out = unpack(stored, r, what).map_err(|msg| MethodError::corrupt(&self.path, msg));
-        release(&self.map, start, end);
+        scenes::os::release_pages(&self.map, start, end);
         out
     }
 }

@@ -66,6 +66,23 @@ impl Params {
     }
 }
 
+/// The most MiB a size parameter (`mem_mb`, `core_mb`, `gpu_limit_mb`) may name: 2³⁰ MiB
+/// (1 PiB). Its byte count, `mb · 2²⁰ ≤ 2⁵⁰`, then fits a `u64` with room for the sums and
+/// products built from it, where `mb << 20` on a larger value would wrap (2⁴⁴ MiB → 0 bytes).
+pub const MAX_MB: u64 = 1 << 30;
+
+/// Checks the size parameter `name` of `method`: `min ≤ mb ≤` [`MAX_MB`], an error naming
+/// both otherwise. Every `*_mb` parameter passes through here before its `mb << 20`.
+pub fn check_mb(method: &str, name: &str, mb: u64, min: u64) -> Result<(), MethodError> {
+    if (min..=MAX_MB).contains(&mb) {
+        Ok(())
+    } else {
+        Err(MethodError::Param(format!(
+            "method '{method}': {name} must be in {min}..=2³⁰ (MiB), got {mb}"
+        )))
+    }
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;
@@ -104,5 +121,35 @@ mod tests {
         assert!(e.to_string().contains("lpc"), "{e}");
         assert!(Params::parse(&["novalue"]).is_err());
         assert!(Params::parse(&["a=1", "a=2"]).is_err());
+    }
+
+    /// Every size parameter of every method is checked before its `mb << 20`: 2⁴⁴ MiB (which
+    /// would wrap to 0 bytes) and 2³⁰ + 1 are errors naming the method and the parameter; 2³⁰
+    /// itself passes the check. The audit covers each `*_mb` key a method has a default for.
+    #[test]
+    fn every_size_parameter_is_bounded_before_it_is_shifted() {
+        let mut seen = 0;
+        for &kind in crate::MethodKind::ALL {
+            for key in kind.defaults().into_keys().filter(|k| k.ends_with("_mb")) {
+                seen += 1;
+                for bad in [1u64 << 44, MAX_MB + 1] {
+                    let e = kind
+                        .check_params(&Params::parse(&[format!("{key}={bad}")]).unwrap())
+                        .expect_err(&format!("{} {key}={bad}", kind.name()))
+                        .to_string();
+                    assert!(
+                        e.contains(kind.name())
+                            && e.contains(&format!("{key} must be in"))
+                            && e.contains(&format!("got {bad}")),
+                        "{e}"
+                    );
+                }
+                kind.check_params(&Params::parse(&[format!("{key}={MAX_MB}")]).unwrap())
+                    .unwrap_or_else(|e| panic!("{} {key}=2³⁰: {e}", kind.name()));
+            }
+        }
+        // mem_mb of qsplat, spt, lpc, mwkd, potree; core_mb of lpc, mwkd, potree; spt's
+        // gpu_limit_mb.
+        assert_eq!(seen, 9);
     }
 }

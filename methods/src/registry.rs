@@ -99,7 +99,7 @@ impl MethodKind {
         match self {
             MethodKind::Full => params.to_typed::<full::FullParams>(self.name()).map(drop),
             MethodKind::Qsplat => qsplat::QsplatParams::from_params(params).map(drop),
-            MethodKind::Spt => params.to_typed::<spt::SptParams>(self.name()).map(drop),
+            MethodKind::Spt => spt::SptParams::from_params(params).map(drop),
             MethodKind::Lpc => lpc::LpcParams::from_params(params).map(drop),
             MethodKind::Mwkd => mwkd::MwkdParams::from_params(params).map(drop),
             MethodKind::Potree => potree::PotreeParams::from_params(params).map(drop),

@@ -185,7 +185,10 @@ fn split_and_combine_params() {
         .check_params(&Params::parse(&["mem_mb=15"]).unwrap())
         .unwrap_err()
         .to_string();
-    assert!(e.contains("mem_mb must be ≥ 16, got 15"), "{e}");
+    assert!(
+        e.contains("mem_mb must be in 16..=2³⁰ (MiB), got 15"),
+        "{e}"
+    );
 }
 
 #[test]

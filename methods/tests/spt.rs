@@ -692,7 +692,11 @@ fn corrupt_files_and_bad_params_are_named() {
     let e = build_open(&cloud, &["mem_mb=15"], &tmp.path().join("m"))
         .err()
         .unwrap();
-    assert!(e.to_string().contains("mem_mb must be ≥ 16, got 15"), "{e}");
+    assert!(
+        e.to_string()
+            .contains("mem_mb must be in 16..=2³⁰ (MiB), got 15"),
+        "{e}"
+    );
     let dir = tmp.path().join("c");
     build_open(&cloud, &[], &dir).unwrap();
     let lod = dir.join("lod.bin");

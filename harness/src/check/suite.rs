@@ -105,6 +105,14 @@ impl Suite {
         if raw.frames == 0 {
             return Err(err("frames", "must be at least 1".into()));
         }
+        if let Some(mb) = raw.gpu_cache_mb
+            && !(1..=methods::params::MAX_MB).contains(&mb)
+        {
+            return Err(err(
+                "gpu_cache_mb",
+                format!("must be in 1..=2³⁰ (MiB), got {mb}"),
+            ));
+        }
         for (field, list) in [
             ("methods", &raw.methods),
             ("scenes", &raw.scenes),

@@ -190,9 +190,7 @@ impl LpcParams {
         if !(p.k.is_finite() && p.k > 1.0) {
             return bad(format!("k must be a finite number > 1, got {}", p.k));
         }
-        if p.mem_mb < 16 {
-            return bad(format!("mem_mb must be ≥ 16, got {}", p.mem_mb));
-        }
+        crate::params::check_mb(NAME, "mem_mb", p.mem_mb, 16)?;
         for (name, v) in [("spacing", p.spacing), ("nn_spacing", p.nn_spacing)] {
             if let Some(r) = v
                 && !(r.is_finite() && r > 0.0)
@@ -204,9 +202,7 @@ impl LpcParams {
             return bad("fetch_per_frame must be ≥ 1".into());
         }
         crate::store::access::check_in_flight(NAME, p.in_flight)?;
-        if p.core_mb < 1 {
-            return bad("core_mb must be ≥ 1".into());
-        }
+        crate::params::check_mb(NAME, "core_mb", p.core_mb, 1)?;
         Ok(p)
     }
 }

@@ -200,9 +200,7 @@ impl MwkdParams {
                 self.color_threshold
             ));
         }
-        if self.mem_mb < 16 {
-            return bad(format!("mem_mb must be ≥ 16, got {}", self.mem_mb));
-        }
+        crate::params::check_mb(NAME, "mem_mb", self.mem_mb, 16)?;
         if !(self.c0.is_finite() && self.c0 > 0.0) {
             return bad(format!("c0 must be a finite number > 0, got {}", self.c0));
         }
@@ -214,9 +212,7 @@ impl MwkdParams {
         if self.c1 + self.c2 <= 0.0 {
             return bad("c1 + c2 must be > 0 (ε_l divides by c1·d + c2·d²)".into());
         }
-        if self.core_mb < 1 {
-            return bad("core_mb must be ≥ 1".into());
-        }
+        crate::params::check_mb(NAME, "core_mb", self.core_mb, 1)?;
         crate::store::access::check_in_flight(NAME, self.in_flight)?;
         Ok(())
     }

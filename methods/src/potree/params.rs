@@ -110,9 +110,8 @@ impl PotreeParams {
         if self.max_leaf < 1 {
             return bad(format!("max_leaf must be ≥ 1, got {}", self.max_leaf));
         }
-        if self.mem_mb < 1 || self.mem_mb > 1 << 30 {
-            return bad(format!("mem_mb must be in 1..=2³⁰, got {}", self.mem_mb));
-        }
+        crate::params::check_mb(NAME, "mem_mb", self.mem_mb, 1)?;
+        crate::params::check_mb(NAME, "core_mb", self.core_mb, 1)?;
         if !(1..=super::format::MAX_LEVEL).contains(&self.step) {
             return bad(format!(
                 "step must be in 1..={}, got {}",

@@ -115,12 +115,7 @@ impl QsplatParams {
                 })
                 .unwrap_or(e)
         })?;
-        if p.mem_mb < 16 {
-            return Err(MethodError::Param(format!(
-                "method '{NAME}': mem_mb must be ≥ 16, got {}",
-                p.mem_mb
-            )));
-        }
+        crate::params::check_mb(NAME, "mem_mb", p.mem_mb, 16)?;
         if let Some(t) = p.target_ms
             && !(t.is_finite() && t > 0.0)
         {

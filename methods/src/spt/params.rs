@@ -69,7 +69,9 @@ impl Default for SptParams {
 }
 
 impl SptParams {
-    pub(super) fn parse(params: &Params, attrs: Attributes) -> Result<Self, MethodError> {
+    /// Parses and checks `--param` values, as far as they can be checked without the scene
+    /// (`check`, `--param` typos before a build).
+    pub fn from_params(params: &Params) -> Result<Self, MethodError> {
         let p: SptParams = params.to_typed(NAME)?;
         if !(p.overlap.is_finite() && p.overlap >= 0.0) {
             return Err(MethodError::Param(format!(
@@ -83,17 +85,14 @@ impl SptParams {
                 p.color_threshold
             )));
         }
-        if p.mem_mb < 16 {
-            return Err(MethodError::Param(format!(
-                "method 'spt': mem_mb must be ≥ 16, got {}",
-                p.mem_mb
-            )));
-        }
-        if p.gpu_limit_mb == 0 {
-            return Err(MethodError::Param(
-                "method 'spt': gpu_limit_mb must be ≥ 1".into(),
-            ));
-        }
+        crate::params::check_mb(NAME, "mem_mb", p.mem_mb, 16)?;
+        crate::params::check_mb(NAME, "gpu_limit_mb", p.gpu_limit_mb, 1)?;
+        Ok(p)
+    }
+
+    /// [`Self::from_params`], then what needs the scene's attributes.
+    pub(super) fn parse(params: &Params, attrs: Attributes) -> Result<Self, MethodError> {
+        let p = Self::from_params(params)?;
         if !attrs.normals && p.mode == SptMode::Split {
             return Err(MethodError::Param(
                 "method 'spt': mode=split needs normals and the scene has none (use mode=unified)"

@@ -40,9 +40,18 @@ pub enum MethodError {
     /// A chunk id the method does not have.
     #[error("no chunk {0}")]
     NoChunk(u64),
-    /// A limit that makes the request impossible (e.g. model larger than GPU memory).
+    /// A size limit that makes the request impossible (a model larger than GPU memory, more
+    /// points than 32-bit indices address, a chunk beyond 4 GiB). Never a bug: a bug is
+    /// [`MethodError::Bug`].
     #[error("{0}")]
     Limit(String),
+    /// An internal invariant that failed, or a panic caught where a thread must not die (a
+    /// chunk decoder on the loader thread): a bug in splatbench, never bad input. The message
+    /// names the node, unit or chunk.
+    #[error(
+        "internal error (a bug in splatbench; please report it with the command that gave it): {0}"
+    )]
+    Bug(String),
     /// Errors from the scene layer.
     #[error(transparent)]
     Scene(#[from] scenes::SceneError),

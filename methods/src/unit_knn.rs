@@ -315,7 +315,7 @@ pub fn unit_radii(
             for (u, unit) in units.iter().enumerate() {
                 let (idx, pos) = load(u)?;
                 if idx.len() as u64 != unit.n {
-                    return Err(MethodError::Limit(format!(
+                    return Err(MethodError::Bug(format!(
                         "leaf radii: unit {u} loaded {} samples, {} expected",
                         idx.len(),
                         unit.n

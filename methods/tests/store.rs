@@ -578,8 +578,14 @@ fn panicking_decoder_is_an_error_and_the_thread_survives() {
     assert!(!l.available(1));
     assert!(l.available(2));
     assert!(l.error(1).unwrap().contains("decoder bug on chunk 1"));
-    let e = l.get(1).unwrap_err().to_string();
-    assert!(e.contains("chunk 1") && e.contains("panicked"), "{e}");
+    // A panic is a bug, reported as one (not as a limit of the data), naming the chunk.
+    let e = l.get(1).unwrap_err();
+    assert!(matches!(e, MethodError::Bug(_)), "{e:?}");
+    let e = e.to_string();
+    assert!(
+        e.contains("chunk 1") && e.contains("panicked") && e.contains("a bug in splatbench"),
+        "{e}"
+    );
 }
 
 #[test]

@@ -415,7 +415,7 @@ impl Phase1<'_> {
 /// The tree of node `i` once the last pass is over (depth ≤ [`MAX_LEVELS`]).
 fn item(nodes: &mut [GNode], i: usize) -> Result<Item, MethodError> {
     let x = &mut nodes[i];
-    let lost = || MethodError::Limit(format!("lpc: node {} of a group left unfinished", i));
+    let lost = || MethodError::Bug(format!("lpc: node {} of a group left unfinished", i));
     if !x.sim {
         let path = x.path.take().ok_or_else(lost)?;
         return Ok(Item::File(FileTask { task: x.task, path }));

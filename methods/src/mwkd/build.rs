@@ -263,7 +263,7 @@ pub fn bottom_up<T: Send>(
                         .children(i)
                         .map(|c| {
                             held_of.remove(&c).ok_or_else(|| {
-                                MethodError::Limit(format!("mwkd build: node {c} missing"))
+                                MethodError::Bug(format!("mwkd build: node {c} missing"))
                             })
                         })
                         .collect::<Result<Vec<_>, _>>()?;
@@ -278,7 +278,7 @@ pub fn bottom_up<T: Send>(
     }
     held_of
         .remove(&0)
-        .ok_or_else(|| MethodError::Limit("mwkd build: the root was not built".into()))
+        .ok_or_else(|| MethodError::Bug("mwkd build: the root was not built".into()))
 }
 
 /// One node, encoded and compressed (the output of the disk build's `map`).

@@ -217,7 +217,7 @@ impl Builder<'_> {
                     )));
                 }
                 let src = r.src.ok_or_else(|| {
-                    MethodError::Limit("mwkd: the root cannot be a unit out of core".into())
+                    MethodError::Bug("mwkd: the root cannot be a unit out of core".into())
                 })?;
                 progress.inc(r.n);
                 self.units.insert(
@@ -305,7 +305,7 @@ impl Builder<'_> {
         let file = unit
             .spill
             .take()
-            .ok_or_else(|| MethodError::Limit(format!("mwkd: unit {} read twice", unit.id)))?;
+            .ok_or_else(|| MethodError::Bug(format!("mwkd: unit {} read twice", unit.id)))?;
         let cols = samples::load(&file, self.layout, root.len, None)?;
         file.remove();
         let local = Tree::split_to_depth(

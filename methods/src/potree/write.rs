@@ -184,7 +184,7 @@ pub fn write_files(
             Src::Unit(u) => {
                 for _ in 0..d.points {
                     let r = units[*u].next_record()?.ok_or_else(|| {
-                        MethodError::Limit(format!(
+                        MethodError::Bug(format!(
                             "potree build: unit {u} ran out of records at node {}",
                             format::node_name(d.level, d.path)
                         ))

@@ -212,7 +212,7 @@ pub(super) fn encode_child(
     quant::encode_sphere(pc, pr, t.c, t.r, margin, fit)
         .map(|(code, c, r)| (code as u16, (c, r), margin))
         .ok_or_else(|| {
-            MethodError::Limit(format!(
+            MethodError::Bug(format!(
                 "qsplat: {} has no enclosing sphere code (sphere {} r {} in parent {pc} r {pr})",
                 what(),
                 t.c,

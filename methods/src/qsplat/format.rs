@@ -284,7 +284,7 @@ fn write_body(
             for n in level {
                 if left_in_group == 0 {
                     let g = *groups.get(group).ok_or_else(|| {
-                        MethodError::Limit(format!(
+                        MethodError::Bug(format!(
                             "{}: level {l} has more nodes than its parents' children",
                             path.display()
                         ))
@@ -321,7 +321,7 @@ fn write_body(
         written += buf.len() as u64;
         buf.clear();
         if group != groups.len() || left_in_group != 0 {
-            return Err(MethodError::Limit(format!(
+            return Err(MethodError::Bug(format!(
                 "{}: level {l} has fewer nodes than its parents' children",
                 path.display()
             )));
@@ -353,22 +353,11 @@ pub struct QsFile {
     pub path: PathBuf,
 }
 
-#[expect(
-    unsafe_code,
-    reason = "memory-mapping a file is unsafe if another process truncates it; build \
-              directories are written once and only read afterwards, and every read is \
-              bounds-checked against the mapped length"
-)]
-fn map(file: &std::fs::File) -> std::io::Result<memmap2::Mmap> {
-    // SAFETY: see the `expect` reason: the file is not modified while mapped.
-    unsafe { memmap2::Mmap::map(file) }
-}
-
 impl QsFile {
     /// Maps and validates `path`.
     pub fn open(path: &Path) -> Result<Self, MethodError> {
         let file = std::fs::File::open(path).map_err(|e| MethodError::io(path, e))?;
-        let map = map(&file).map_err(|e| MethodError::io(path, e))?;
+        let map = scenes::os::map_readonly(&file).map_err(|e| MethodError::io(path, e))?;
         let header = parse_header(path, &map)?;
         let f = Self {
             map,

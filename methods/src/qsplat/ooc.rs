@@ -177,7 +177,7 @@ pub fn build_file(
         let saved = unit
             .partition
             .as_ref()
-            .ok_or_else(|| MethodError::Limit(format!("qsplat: unit {u} was never partitioned")))?;
+            .ok_or_else(|| MethodError::Bug(format!("qsplat: unit {u} was never partitioned")))?;
         let p = Partitioned::load(saved, unit.n as usize, unit.split as u32, unit.cost)?;
         let forest = p.forest(combined.unit_roots[u]);
         let truth = forest.truths(&p.perm, s.view());
@@ -346,7 +346,7 @@ fn partition_top(
     while let Some(r) = stack.pop() {
         let child = if r.n <= cap {
             let src = r.src.ok_or_else(|| {
-                MethodError::Limit("qsplat: the root cannot be a unit out of core".into())
+                MethodError::Bug("qsplat: the root cannot be a unit out of core".into())
             })?;
             top.units.push(Unit {
                 lo: r.lo,
@@ -439,7 +439,7 @@ fn halves_by(
     .into_iter();
     match (parts.next(), parts.next()) {
         (Some(l), Some(r)) => Ok((l, r)),
-        _ => Err(MethodError::Limit(
+        _ => Err(MethodError::Bug(
             "qsplat: a split gave fewer than two parts".into(),
         )),
     }

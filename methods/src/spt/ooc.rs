@@ -292,7 +292,7 @@ fn route(
     for (((cell, n), w), bbox) in cells.into_iter().zip(writers).zip(boxes) {
         let spill = w.finish()?;
         if spill.records != n {
-            return Err(MethodError::Limit(format!(
+            return Err(MethodError::Bug(format!(
                 "spt: {} samples routed to a cell counted with {n}",
                 spill.records
             )));
@@ -603,7 +603,7 @@ pub(crate) fn list_in_units(
     let (_, levels) = walk.cell(Cell::ROOT, n as u64)?;
     progress.finish();
     if walk.next_unit != units.len() {
-        return Err(MethodError::Limit(format!(
+        return Err(MethodError::Bug(format!(
             "spt: the walk reached {} of {} units",
             walk.next_unit,
             units.len()

@@ -326,7 +326,7 @@ impl Shared {
                     .map(|s| s.to_string())
                     .or_else(|| panic.downcast_ref::<String>().cloned())
                     .unwrap_or_default();
-                Err(MethodError::Limit(format!(
+                Err(MethodError::Bug(format!(
                     "chunk {id}: the chunk source or decoder panicked: {what}"
                 )))
             }

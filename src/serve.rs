@@ -65,6 +65,7 @@ pub fn main(a: &ServeArgs) -> anyhow::Result<()> {
         latency: Duration::from_millis(a.latency),
         fail_after: a.fail_after,
         threads: a.threads,
+        clock: Default::default(),
     };
     let server = Server::start(&opt, log)?;
     println!("serving {} at {}", a.dir.display(), server.url());

@@ -1163,9 +1163,21 @@ fn large_las_files_are_cached_as_column_files() {
             .cloud
             .is_mapped()
     );
-    // An edited file gets another cache entry.
-    std::thread::sleep(std::time::Duration::from_millis(20));
-    scenes::las::write(&las, &cloud).unwrap();
+    // An edited file gets another cache entry: here rewritten as most tools save (a new file
+    // renamed over the old), with the same length and its modification time set back, so
+    // only the file's identity (`scenes::os::FileStamp`: a new inode) tells them apart. (An
+    // in-place rewrite moves the inode's change time: `os::tests`.)
+    let mtime = std::fs::metadata(&las).unwrap().modified().unwrap();
+    let edited = d.join("edited.las");
+    scenes::las::write(&edited, &cloud).unwrap();
+    std::fs::File::options()
+        .write(true)
+        .open(&edited)
+        .unwrap()
+        .set_modified(mtime)
+        .unwrap();
+    std::fs::rename(&edited, &las).unwrap();
+    assert_eq!(std::fs::metadata(&las).unwrap().modified().unwrap(), mtime);
     assert_ne!(scenes::spec::las_cache_path(&cache, &las).unwrap(), cached);
     // A small file is not cached.
     let small = d.join("small.las");

@@ -48,12 +48,15 @@ pub struct ServeOptions {
     pub addr: SocketAddr,
     /// Bytes/s of the link shared by all responses' bodies; `None`: as fast as it goes.
     pub bandwidth: Option<f64>,
-    /// Added before each response is sent.
+    /// Added before each response is sent (on [`ServeOptions::clock`]).
     pub latency: Duration,
     /// Every request after the first `N` is answered `500 Internal Server Error`.
     pub fail_after: Option<u64>,
     /// Requests answered at once (each one a thread; a throttled body holds its thread).
     pub threads: usize,
+    /// The clock the bandwidth is paced on: the system's, or a test's manual clock (the
+    /// pacing then moves that clock instead of sleeping, so a measured rate is exact).
+    pub clock: methods::store::access::Clock,
 }
 
 impl ServeOptions {
@@ -66,6 +69,7 @@ impl ServeOptions {
             latency: Duration::ZERO,
             fail_after: None,
             threads: 8,
+            clock: Default::default(),
         }
     }
 }
@@ -76,6 +80,8 @@ pub struct Server {
     stop: Arc<AtomicBool>,
     http: Arc<tiny_http::Server>,
     workers: Vec<std::thread::JoinHandle<()>>,
+    /// Whether the listening socket has TCP_NODELAY (read back after setting it).
+    nodelay: bool,
 }
 
 /// Where the access log goes.
@@ -103,6 +109,7 @@ impl Server {
         // gives accepted connections the listening socket's setting (tiny_http does not
         // expose them); elsewhere this is a hint.
         let _ = rustix::net::sockopt::set_tcp_nodelay(&listener, true);
+        let nodelay = rustix::net::sockopt::tcp_nodelay(&listener).unwrap_or(false);
         let http = tiny_http::Server::from_listener(listener, None)
             .map_err(|e| anyhow::anyhow!("cannot listen on {}: {e}", opt.addr))?;
         let addr = http
@@ -113,8 +120,11 @@ impl Server {
         let stop = Arc::new(AtomicBool::new(false));
         let shared = Arc::new(Shared {
             root,
-            link: opt.bandwidth.map(|b| Arc::new(Link::new(b))),
+            link: opt
+                .bandwidth
+                .map(|b| Arc::new(Link::with_clock(b, opt.clock.clone()))),
             latency: opt.latency,
+            clock: opt.clock.clone(),
             fail_after: opt.fail_after,
             served: AtomicU64::new(0),
             log: Mutex::new(log),
@@ -138,7 +148,15 @@ impl Server {
             stop,
             http,
             workers,
+            nodelay,
         })
+    }
+
+    /// Whether the listening socket has TCP_NODELAY, which Linux gives every accepted
+    /// connection (see `start`): without it a range response's body waits ≈ 40 ms behind
+    /// its header for the client's delayed ACK.
+    pub fn tcp_nodelay(&self) -> bool {
+        self.nodelay
     }
 
     /// The address it listens on.
@@ -181,6 +199,8 @@ struct Shared {
     root: PathBuf,
     link: Option<Arc<Link>>,
     latency: Duration,
+    /// What the latency waits on ([`ServeOptions::clock`]).
+    clock: methods::store::access::Clock,
     fail_after: Option<u64>,
     served: AtomicU64,
     log: Mutex<Log>,
@@ -226,7 +246,7 @@ impl Shared {
             _ => self.decide(&req),
         };
         if !self.latency.is_zero() {
-            std::thread::sleep(self.latency);
+            self.clock.sleep_until(self.clock.now() + self.latency);
         }
         let line = format!(
             "{:.3} {} {} {} {} {} {}\n",

@@ -5,6 +5,8 @@ use std::io::Read;
 use std::sync::{Arc, Mutex};
 use std::time::{Duration, Instant};
 
+use methods::store::access::Clock;
+
 /// Bytes sent per slice of a throttled body: small enough that the pacing is smooth at a few
 /// MB/s (3.3 ms per slice at 5 MB/s), large enough that the pacing costs nothing measurable.
 pub const SLICE: usize = 16 * 1024;
@@ -17,14 +19,22 @@ pub struct Link {
     rate: f64,
     /// When the link is free again.
     free_at: Mutex<Instant>,
+    /// The time the pacing reads and waits on (a test's manual clock: no real waiting).
+    clock: Clock,
 }
 
 impl Link {
     /// A link of `rate` bytes/s (finite, `> 0`).
     pub fn new(rate: f64) -> Self {
+        Self::with_clock(rate, Clock::System)
+    }
+
+    /// [`Link::new`], paced on `clock`.
+    pub fn with_clock(rate: f64, clock: Clock) -> Self {
         Self {
             rate,
-            free_at: Mutex::new(Instant::now()),
+            free_at: Mutex::new(clock.now()),
+            clock,
         }
     }
 
@@ -34,14 +44,11 @@ impl Link {
             // A poisoned lock only means another response panicked mid-slice: the time in
             // it is still right.
             let mut free = self.free_at.lock().unwrap_or_else(|p| p.into_inner());
-            let start = (*free).max(Instant::now());
+            let start = (*free).max(self.clock.now());
             *free = start + Duration::from_secs_f64(bytes as f64 / self.rate);
             *free
         };
-        let now = Instant::now();
-        if done > now {
-            std::thread::sleep(done - now);
-        }
+        self.clock.sleep_until(done);
     }
 }
 

@@ -206,7 +206,8 @@ struct Fetching<'a> {
 
 impl Drop for Fetching<'_> {
     fn drop(&mut self) {
-        self.shared.state().meter.end(Instant::now(), self.stored);
+        let now = self.shared.clock.now();
+        self.shared.state().meter.end(now, self.stored);
     }
 }
 
@@ -288,6 +289,8 @@ struct Shared {
     decode: Decoder,
     delay_frames: u32,
     retry: Retry,
+    /// What the throughput meter reads ([`super::Clock`]).
+    clock: super::Clock,
     state: Mutex<State>,
     /// Notified whenever the loader thread finishes a request (installed or failed).
     served: Condvar,
@@ -308,7 +311,7 @@ impl Shared {
     /// panic of the source or the decoder becomes an error.
     fn load(&self, id: u32) -> Result<Decoded, MethodError> {
         let run = || -> Result<Decoded, MethodError> {
-            self.state().meter.start(Instant::now());
+            self.state().meter.start(self.clock.now());
             let mut fetching = Fetching {
                 shared: self,
                 stored: None,
@@ -594,9 +597,22 @@ impl Loader {
         options: LoaderOptions,
         retry: Retry,
     ) -> Self {
+        Self::spawn_clocked(source, decode, options, retry, super::Clock::System)
+    }
+
+    /// [`Loader::spawn_with`], its throughput meter reading `clock` (a test's
+    /// [`super::ManualClock`]; retries still wait in real time).
+    pub fn spawn_clocked(
+        source: Arc<dyn ChunkSource>,
+        decode: Decoder,
+        options: LoaderOptions,
+        retry: Retry,
+        clock: super::Clock,
+    ) -> Self {
         let shared = Arc::new(Shared {
             source,
             decode,
+            clock,
             delay_frames: options.delay_frames,
             retry: Retry {
                 tries: retry.tries.max(1),

@@ -10,6 +10,7 @@
 //!   [`Loader`] (`loader.rs`) is the implementation; its documentation gives the design, the
 //!   delay semantics, the core budget and the error handling.
 
+mod clock;
 mod loader;
 
 use std::sync::Arc;
@@ -18,6 +19,7 @@ use std::sync::atomic::{AtomicU64, Ordering};
 use crate::store::{ChunkRef, Repository};
 use crate::{MethodError, SplatBatch};
 
+pub use clock::{Clock, ManualClock};
 pub use loader::{DUE_WAIT, Loader, LoaderOptions, METER_WINDOW, Retry};
 
 /// A decoded chunk, shared between the loader, the in-core cache and the caller.

@@ -3,8 +3,8 @@
 # Mesa's software Vulkan driver (lavapipe) and the Vulkan loader, so wgpu finds an adapter
 # with no GPU; jq, which scripts/gpu-bench.sh (run by the tests) reads summaries with; Xvfb
 # and xauth (xvfb-run), the X server without a screen that the viewer's end-to-end test
-# (tests/view.rs) opens its window on. Plot and HUD fonts are embedded in the binary
-# (harness/assets), nothing to install.
+# (tests/view.rs) opens its window on; rustfmt and clippy (CI lints) where rustup can add
+# them. Plot and HUD fonts are embedded in the binary (harness/assets), nothing to install.
 # Idempotent: installs nothing when everything is present.
 set -euo pipefail
 
@@ -22,4 +22,15 @@ if [ ${#need[@]} -gt 0 ]; then
 fi
 
 command -v cargo >/dev/null || { echo "setup: cargo not found: install Rust (https://rustup.rs)" >&2; exit 1; }
+
+# rustfmt and clippy, which CI (.ci/run) runs before the tests: rustup's default profile has
+# them; a minimal one does not.
+for tool in fmt clippy; do
+  if ! cargo "$tool" --version >/dev/null 2>&1; then
+    component=$([ "$tool" = fmt ] && echo rustfmt || echo clippy)
+    command -v rustup >/dev/null || { echo "setup: cargo $tool not found and no rustup to add it: install the $component component" >&2; exit 1; }
+    echo "setup: adding the $component component"
+    rustup component add "$component"
+  fi
+done
 echo "setup: ok (Vulkan loader + lavapipe, Xvfb present, $(cargo --version))"

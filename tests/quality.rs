@@ -18,7 +18,60 @@ struct HoleBound {
     /// Largest hole ratio allowed in any frame.
     max: f64,
     /// Where the bound comes from.
+    basis: Basis,
+    /// What the method does that gives it (and, for a ratchet, what was measured).
     why: &'static str,
+}
+
+/// Where a [`HoleBound`] comes from.
+#[derive(Debug, Clone, Copy, PartialEq)]
+enum Basis {
+    /// A derivation (a model of the method, its paper, its issue's requirement): a claim about
+    /// the method that a correct implementation meets.
+    Derived,
+    /// A measured worst frame plus [`RATCHET_MARGIN`]: not a claim about the method, a
+    /// ratchet that fails when a change makes the figure worse (re-measure when a change
+    /// intends it).
+    Ratchet {
+        /// The worst frame measured when the bound was set.
+        measured: f64,
+    },
+}
+
+/// A ratchet's margin over its measured worst frame: the spread of the worst frame between
+/// lavapipe runs is far below it (the frames are deterministic on one adapter); it allows an
+/// adapter whose rasterisation differs by a pixel here and there.
+const RATCHET_MARGIN: f64 = 1.25;
+
+impl HoleBound {
+    fn derived(max: f64, why: &'static str) -> Self {
+        Self {
+            max,
+            basis: Basis::Derived,
+            why,
+        }
+    }
+
+    fn ratchet(measured: f64, why: &'static str) -> Self {
+        Self {
+            max: measured * RATCHET_MARGIN,
+            basis: Basis::Ratchet { measured },
+            why,
+        }
+    }
+
+    /// How the bound reads in a failure.
+    fn describe(&self) -> String {
+        match self.basis {
+            Basis::Derived => format!("derived: {}", self.why),
+            Basis::Ratchet { measured } => format!(
+                "ratchet: measured {:.1} % worst frame + {:.0} %; {}",
+                measured * 100.0,
+                (RATCHET_MARGIN - 1.0) * 100.0,
+                self.why
+            ),
+        }
+    }
 }
 
 /// The hole bound of `method` (with `params`) on `scene` at 1 px (Potree: see its arms). QSplat, SPT and MWKD size
@@ -30,52 +83,46 @@ fn hole_bound(method: MethodKind, params: &[&str], scene: &str, path: &str) -> H
     let terrain = scene.starts_with("terrain");
     let near = path.ends_with("still-near.toml");
     match method {
-        MethodKind::Full => HoleBound {
-            max: 0.0,
-            why: "full is the reference itself",
-        },
-        MethodKind::Lpc if terrain && cover90 => HoleBound {
-            max: 0.10,
-            why: "one spacing for a terrain whose density varies > 100x (the paper assumes \
-                  uniform sampling): measured 8.2 % worst frame, + 25 %",
-        },
-        MethodKind::Lpc if terrain => HoleBound {
-            max: 0.42,
-            why: "the paper's average spacing on a terrain whose density varies > 100x (the \
-                  paper assumes uniform sampling): measured 33.7 % worst frame, + 25 %",
-        },
-        MethodKind::Lpc if !cover90 => HoleBound {
-            max: (-1.0f64).exp(),
-            why: "the paper's r = sqrt(A/N): squares of area r^2 at uniformly random points \
-                  leave exp(-1) = 36.8 % of the surface bare (Boolean model), coarser layers \
-                  only add cover (measured 13.4 % worst frame on the orbit, 0.2 % close up)",
-        },
+        MethodKind::Full => HoleBound::derived(0.0, "full is the reference itself"),
+        MethodKind::Lpc if terrain && cover90 => HoleBound::ratchet(
+            0.082,
+            "one spacing for a terrain whose density varies > 100x (the paper assumes \
+             uniform sampling)",
+        ),
+        MethodKind::Lpc if terrain => HoleBound::ratchet(
+            0.337,
+            "the paper's average spacing on a terrain whose density varies > 100x (the paper \
+             assumes uniform sampling)",
+        ),
+        MethodKind::Lpc if !cover90 => HoleBound::derived(
+            (-1.0f64).exp(),
+            "the paper's r = sqrt(A/N): squares of area r^2 at uniformly random points leave \
+             exp(-1) = 36.8 % of the surface bare (Boolean model), coarser layers only add \
+             cover (measured 13.4 % worst frame on the orbit, 0.2 % close up)",
+        ),
         // Potree sizes a point by the spacing of the deepest drawn node holding it (1.7 s,
         // the viewer's adaptive size), not by the samples' own spacing: where the data is
         // sparser than that level's spacing (leaves hold what is left of a sparse region),
         // gaps show, as in the viewer. Measured with load=sync too (the same): sizing, not
         // loading.
-        MethodKind::Potree if terrain => HoleBound {
-            max: 0.175,
-            why: "Potree's level-spacing point size on a terrain whose density varies > 100x: \
-                  measured 14.0 % worst frame, + 25 %",
-        },
-        MethodKind::Potree if near => HoleBound {
-            max: 0.32,
-            why: "Potree's level-spacing point size close up on a 40 k statue, whose drawn \
-                  leaves are far sparser than their level's spacing: measured 25.7 % worst \
-                  frame, + 25 %",
-        },
-        MethodKind::Potree => HoleBound {
-            max: 0.051,
-            why: "Potree's level-spacing point size (1.7 s, narrower than the 2 s a \
-                  Poisson-disk sample needs) on the statue orbit: measured 4.06 % worst frame, \
-                  + 25 %",
-        },
-        _ => HoleBound {
-            max: 0.01,
-            why: "splats sized to cover the samples' own spacing (the method's issue asks 1 %)",
-        },
+        MethodKind::Potree if terrain => HoleBound::ratchet(
+            0.140,
+            "Potree's level-spacing point size on a terrain whose density varies > 100x",
+        ),
+        MethodKind::Potree if near => HoleBound::ratchet(
+            0.257,
+            "Potree's level-spacing point size close up on a 40 k statue, whose drawn leaves \
+             are far sparser than their level's spacing",
+        ),
+        MethodKind::Potree => HoleBound::ratchet(
+            0.0406,
+            "Potree's level-spacing point size (1.7 s, narrower than the 2 s a Poisson-disk \
+             sample needs) on the statue orbit",
+        ),
+        _ => HoleBound::derived(
+            0.01,
+            "splats sized to cover the samples' own spacing (the method's issue asks 1 %)",
+        ),
     }
 }
 
@@ -125,7 +172,7 @@ fn holes_at_1px_stay_within_each_methods_bound() {
                     "{method} {params:?} on {scene} {path}, frame {i}: hole ratio {holes:.4} > \
                      {:.4} ({})",
                     bound.max,
-                    bound.why
+                    bound.describe()
                 );
             }
         }
@@ -611,11 +658,11 @@ fn spt_lpc_and_mwkd_inside_the_model() {
             let bound = if params.is_empty() {
                 hole_bound(method, &[], "statue", path)
             } else {
-                HoleBound {
-                    max: 0.15,
-                    why: "back-facing normal clusters skipped (the paper's culling) while the \
-                          reference draws the inside of the surface: measured 12.1 % worst",
-                }
+                HoleBound::ratchet(
+                    0.121,
+                    "back-facing normal clusters skipped (the paper's culling) while the \
+                     reference draws the inside of the surface",
+                )
             };
             for i in inside {
                 assert!(
@@ -627,7 +674,7 @@ fn spt_lpc_and_mwkd_inside_the_model() {
                     "{method} {params:?} {path} frame {i}: hole ratio {:.4} > {:.4} ({})",
                     holes[i],
                     bound.max,
-                    bound.why
+                    bound.describe()
                 );
             }
         }

@@ -340,7 +340,10 @@ mod tests {
         let renamed = std::fs::metadata(&p).unwrap();
         assert_eq!(renamed.modified().unwrap(), mtime);
         assert_ne!(FileStamp::of(&renamed).0[1], FileStamp::of(&after).0[1]);
-        // The fallback's stamp is well-defined here too (the creation time, or 0).
-        let _ = fallback::stamp(&after);
+        // The fallback's stamp: no device or inode, the creation time (or 0 where the file
+        // system keeps none), the same for the same file read twice.
+        let fb = fallback::stamp(&renamed);
+        assert_eq!(fb.0[..2], [0, 0]);
+        assert_eq!(fb, fallback::stamp(&std::fs::metadata(&p).unwrap()));
     }
 }

@@ -15,14 +15,18 @@ use anyhow::Context as _;
 use harness::results::shell_quote;
 
 /// This process's arguments (after the subcommand's program name) without the flags
-/// `drop` and their values (`--out DIR` and `--out=DIR` alike).
-fn args_without(drop: &[&str]) -> Vec<String> {
+/// `drop` and their values (`--out DIR` and `--out=DIR` alike) and without the switches
+/// (flags with no value) `switches`.
+fn args_without(drop: &[&str], switches: &[&str]) -> Vec<String> {
     let args: Vec<String> = std::env::args().skip(1).collect();
     let mut out = Vec::new();
     let mut skip_next = false;
     for a in args {
         if skip_next {
             skip_next = false;
+            continue;
+        }
+        if switches.contains(&a.as_str()) {
             continue;
         }
         if drop.contains(&a.as_str()) {
@@ -43,8 +47,14 @@ fn args_without(drop: &[&str]) -> Vec<String> {
 /// The command as typed, without the flags `drop` (what a plan records, the same for every
 /// part of one experiment).
 pub fn command_without(drop: &[&str]) -> String {
+    command_without_switches(drop, &[])
+}
+
+/// [`command_without`], also without the switches `switches` (`reproduce --resume`: a part
+/// resumed is a part of the same reproduction).
+pub fn command_without_switches(drop: &[&str], switches: &[&str]) -> String {
     std::iter::once("splatbench".to_string())
-        .chain(args_without(drop).iter().map(|a| shell_quote(a)))
+        .chain(args_without(drop, switches).iter().map(|a| shell_quote(a)))
         .collect::<Vec<_>>()
         .join(" ")
 }
@@ -52,7 +62,7 @@ pub fn command_without(drop: &[&str]) -> String {
 /// One job line: `exe`, the command's arguments without `drop`, then `add`.
 fn job_line(exe: &Path, drop: &[&str], add: &[String]) -> String {
     std::iter::once(shell_quote(&exe.display().to_string()))
-        .chain(args_without(drop).iter().map(|a| shell_quote(a)))
+        .chain(args_without(drop, &[]).iter().map(|a| shell_quote(a)))
         .chain(add.iter().map(|a| shell_quote(a)))
         .collect::<Vec<_>>()
         .join(" ")

@@ -52,6 +52,12 @@ pub struct ReproduceArgs {
     /// OUT/parts/* --out OUT` writes the report (and publishes, with --publish).
     #[arg(long, value_name = "FILE")]
     pub emit_jobs: Option<PathBuf>,
+    /// Take every measure that an earlier run of this same commit, profile and spec finished
+    /// (its checkpoint under OUT/measures/ and its runs under OUT/runs/) instead of running it
+    /// again: how a part killed mid-way goes on. A measure whose checkpoint does not match
+    /// runs. Without it, every measure runs.
+    #[arg(long)]
+    pub resume: bool,
     /// Run only the K-th selected spec (0-based) into --out: what an emitted job line does.
     #[arg(long, value_name = "K", hide = true)]
     pub part: Option<usize>,
@@ -80,6 +86,7 @@ pub fn main(a: &ReproduceArgs) -> anyhow::Result<()> {
             .chain(std::env::args().skip(1))
             .collect::<Vec<_>>()
             .join(" "),
+        resume: a.resume,
     };
     if a.check {
         for s in reproduce::select(&opts)? {
@@ -121,7 +128,7 @@ pub fn main(a: &ReproduceArgs) -> anyhow::Result<()> {
             anyhow::anyhow!("--part {k}: this reproduction has {} specs", specs.len())
         })?;
         let record = reproduce::PartRecord {
-            command: crate::jobs::command_without(&crate::jobs::PART_FLAGS),
+            command: crate::jobs::command_without_switches(&crate::jobs::PART_FLAGS, &["--resume"]),
             profile,
             specs: specs.clone(),
             part: k,

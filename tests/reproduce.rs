@@ -477,6 +477,98 @@ fn a_tiny_spec_runs_every_kind_of_measure() {
     );
 }
 
+/// `--resume` (issue 35: a paper-profile part outlives a session): a second run takes every
+/// measure the first one finished from its checkpoint, same numbers, runs untouched; an
+/// edited spec runs everything again. A binary built from a dirty tree writes no
+/// checkpoints (its commit does not name what ran), so there it resumes nothing.
+#[test]
+fn a_resumed_reproduction_takes_finished_measures_from_their_checkpoints() {
+    let Some(_gpu) = harness::gpu::gpu_for_test(
+        "a_resumed_reproduction_takes_finished_measures_from_their_checkpoints",
+    ) else {
+        return;
+    };
+    let d = tempfile::tempdir().unwrap();
+    let specs = d.path().join("specs");
+    std::fs::create_dir_all(&specs).unwrap();
+    std::fs::write(specs.join("tiny.toml"), TINY).unwrap();
+    let out = d.path().join("out");
+    let run = |resume: bool| {
+        let mut c = bin();
+        c.args(["reproduce", "--specs"])
+            .arg(&specs)
+            .arg("--out")
+            .arg(&out)
+            .arg("--cache")
+            .arg(d.path().join("cache"));
+        if resume {
+            c.arg("--resume");
+        }
+        c.assert().success();
+        let results: serde_json::Value =
+            serde_json::from_str(&std::fs::read_to_string(out.join("results.json")).unwrap())
+                .unwrap();
+        let report = std::fs::read_to_string(out.join("report.md")).unwrap();
+        (results, report)
+    };
+    let rows = |v: &serde_json::Value| v["tables"][0]["rows"].to_string();
+    let (first, report) = run(false);
+    assert!(!report.contains("resumed"), "{report}");
+    let frames = out.join("runs/tiny/r/frames.csv");
+    let before = std::fs::read(&frames).unwrap();
+    let modified = std::fs::metadata(&frames).unwrap().modified().unwrap();
+    let commit = first["meta"]["commit"].as_str().unwrap().to_string();
+    if commit.ends_with("-dirty") {
+        eprintln!(
+            "note: {commit} is a dirty build: checking that it neither writes nor reads checkpoints"
+        );
+        assert!(!out.join("measures").exists());
+        let (_, report) = run(true);
+        assert!(!report.contains("resumed"), "{report}");
+        return;
+    }
+    // The four measures that ran (the GPU row's measure is the sweep's, which ran too).
+    for m in ["b", "r", "iso", "sw"] {
+        assert!(out.join(format!("measures/tiny/{m}.json")).is_file(), "{m}");
+    }
+    let (second, report) = run(true);
+    assert_eq!(
+        report.matches("resumed: measured").count(),
+        4,
+        "every measure resumed: {report}"
+    );
+    assert_eq!(rows(&second), rows(&first));
+    assert_eq!(std::fs::read(&frames).unwrap(), before);
+    assert_eq!(
+        std::fs::metadata(&frames).unwrap().modified().unwrap(),
+        modified
+    );
+    // A resumed measure's time is the one first measured (bit for bit), and the report's
+    // total counts it: at least the first run's measures together.
+    let measure_secs = |v: &serde_json::Value| -> Vec<f64> {
+        v["tables"][0]["measures"]
+            .as_array()
+            .unwrap()
+            .iter()
+            .map(|m| m["seconds"].as_f64().unwrap())
+            .collect()
+    };
+    assert_eq!(measure_secs(&second), measure_secs(&first));
+    let total: f64 = measure_secs(&first).iter().sum();
+    assert!(second["meta"]["seconds"].as_f64().unwrap() >= total);
+    // A run whose directory is gone runs again; the others stay resumed.
+    std::fs::remove_dir_all(out.join("runs/tiny/iso")).unwrap();
+    let (_, report) = run(true);
+    assert_eq!(report.matches("resumed: measured").count(), 3, "{report}");
+    // An edited spec is another experiment: nothing resumes.
+    std::fs::write(specs.join("tiny.toml"), format!("{TINY}\n# edited\n")).unwrap();
+    let (_, report) = run(true);
+    assert!(!report.contains("resumed"), "{report}");
+    // Without --resume nothing resumes, and the checkpoints are rewritten.
+    let (_, report) = run(false);
+    assert!(!report.contains("resumed"), "{report}");
+}
+
 /// A relative-speed row end to end through the CLI (issue 35): LPC and QSplat on one view
 /// and ε, points drawn ÷ (selection + upload + draw), a one-sided band. On a CPU rasteriser
 /// the ratio is measured and shown, and the verdict is "CPU rasteriser: no verdict".

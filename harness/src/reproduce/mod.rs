@@ -22,6 +22,7 @@ pub mod expr;
 pub mod inputs;
 mod raw;
 pub mod report;
+pub mod resume;
 pub mod spec;
 pub mod verdict;
 
@@ -58,6 +59,9 @@ pub struct Options {
     pub publish: Option<PathBuf>,
     /// The command as typed, for the report.
     pub command: String,
+    /// Take each measure that an earlier run of this commit finished from its checkpoint
+    /// ([`resume`]) instead of running it again.
+    pub resume: bool,
 }
 
 /// One table of the report.
@@ -180,9 +184,17 @@ pub fn reproduce(opts: &Options, multi: &MultiProgress) -> anyhow::Result<Outcom
     let phase = crate::progress::Bar::under(multi);
     let mut ctx = Context::new(&opts.out, &opts.cache, opts.exe.clone(), &phase);
     let mut tables = Vec::new();
+    let mut resumed_seconds = 0.0;
     for (i, spec) in specs.iter().enumerate() {
         let later = &specs[i + 1..];
-        tables.push(run_spec(spec, later, opts, &mut ctx, multi, &figures_dir)?);
+        let run = SpecRun {
+            spec,
+            later,
+            spec_hash: &spec_hashes[&spec.id],
+        };
+        let (table, resumed) = run_spec(&run, opts, &mut ctx, multi, &figures_dir)?;
+        resumed_seconds += resumed;
+        tables.push(table);
         if opts.profile == Profile::Paper && opts.only.is_none() {
             // The papers' sizes do not all fit the disk at once: a spec's scenes go once no
             // later spec needs them when this run is the whole profile (a run of some specs,
@@ -199,7 +211,8 @@ pub fn reproduce(opts: &Options, multi: &MultiProgress) -> anyhow::Result<Outcom
         date: report::utc_now(),
         adapter: ctx.adapter().cloned(),
         cpus: std::thread::available_parallelism().map_or(1, |n| n.get()),
-        seconds: t0.elapsed().as_secs_f64(),
+        // A resumed measure's time is the run's that measured it.
+        seconds: t0.elapsed().as_secs_f64() + resumed_seconds,
         partial: opts.only.is_some(),
         spec_hashes,
         baseline_hash,
@@ -221,15 +234,23 @@ pub fn reproduce(opts: &Options, multi: &MultiProgress) -> anyhow::Result<Outcom
     Ok(outcome)
 }
 
+/// A spec to run: the specs after it (whose builds and scenes must stay) and its hash.
+struct SpecRun<'s> {
+    spec: &'s Spec,
+    later: &'s [Spec],
+    spec_hash: &'s str,
+}
+
 fn run_spec(
-    spec: &Spec,
-    later: &[Spec],
+    run: &SpecRun<'_>,
     opts: &Options,
     ctx: &mut Context<'_>,
     multi: &MultiProgress,
     figures_dir: &Path,
-) -> anyhow::Result<TableResult> {
+) -> anyhow::Result<(TableResult, f64)> {
+    let (spec, later) = (run.spec, run.later);
     let t = Instant::now();
+    let mut resumed_seconds = 0.0;
     let uses = spec.measure_uses();
     let needed: Vec<&spec::Measure> = spec
         .measures
@@ -250,13 +271,33 @@ fn run_spec(
     for (j, m) in needed.iter().enumerate() {
         bar.set_message(m.id.clone());
         let gpu_only = uses.get(m.id.as_str()).copied().unwrap_or(false);
+        let checkpoint = resume::path(&opts.out, &spec.id, &m.id);
+        let identity = resume::Identity::now(
+            opts.profile,
+            run.spec_hash,
+            ctx.gpu().ok().flatten().map(|g| g.adapter.clone()),
+        );
+        let mut resumed = None;
         let mut r = if gpu_only && !real_gpu {
             MeasureResult {
                 skipped_for_gpu: true,
                 ..MeasureResult::default()
             }
+        } else if let Some(done) = opts
+            .resume
+            .then(|| resume::load(&checkpoint, &identity).ok())
+            .flatten()
+        {
+            resumed_seconds += done.result.seconds;
+            resumed = Some(done.date);
+            done.result
         } else {
-            ctx.measure(spec, m)
+            resume::forget(&checkpoint)?;
+            let r = ctx.measure(spec, m);
+            if r.error.is_none() {
+                resume::save(&checkpoint, &identity, &r)?;
+            }
+            r
         };
         if opts.profile == Profile::Paper {
             // The papers' sizes do not all fit the disk at once: a build goes as soon as no
@@ -280,8 +321,17 @@ fn run_spec(
             status: match (&r.error, r.skipped_for_gpu) {
                 (Some(e), _) => format!("failed: {e}"),
                 (None, true) => "needs a GPU (not run)".into(),
-                (None, false) if r.made.is_empty() => "ok".into(),
-                (None, false) => format!("ok; {}", r.made.join("; ")),
+                (None, false) => {
+                    let mut notes = r.made.clone();
+                    if let Some(date) = &resumed {
+                        notes.insert(0, format!("resumed: measured {date} by an earlier run"));
+                    }
+                    if notes.is_empty() {
+                        "ok".into()
+                    } else {
+                        format!("ok; {}", notes.join("; "))
+                    }
+                }
             },
             seconds: r.seconds,
         });
@@ -333,7 +383,7 @@ fn run_spec(
     if let (Some(e), false) = (figure_error, matches!(verdict, Verdict::Failed(_))) {
         verdict = Verdict::Failed(e);
     }
-    let seconds = t.elapsed().as_secs_f64();
+    let seconds = t.elapsed().as_secs_f64() + resumed_seconds;
     bar.finish_and_clear();
     multi.suspend(|| {
         println!(
@@ -344,7 +394,7 @@ fn run_spec(
             seconds
         );
     });
-    Ok(TableResult {
+    let table = TableResult {
         id: spec.id.clone(),
         file: spec.file.display().to_string(),
         paper: spec.paper.clone(),
@@ -357,7 +407,8 @@ fn run_spec(
         measures: lines,
         sweeps,
         figures,
-    })
+    };
+    Ok((table, resumed_seconds))
 }
 
 /// What a part of a reproduction run by an emitted job records (`reproduce-part.json`): the

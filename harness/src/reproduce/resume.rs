@@ -283,7 +283,10 @@ mod tests {
             f(&mut i);
             load(&file, &i).unwrap_err()
         };
-        assert!(other(&|i| i.commit = "0123456789ab".into()).contains("commit 0"));
+        assert!(
+            other(&|i| i.commit = "0123456789ab".into())
+                .contains("commit 34ced1bf0411 (this binary: 0123456789ab)")
+        );
         assert!(other(&|i| i.profile = Profile::Paper).contains("profile quick"));
         assert!(other(&|i| i.spec_hash = "abd".into()).contains("edited since"));
         let gpu = AdapterDesc {

@@ -56,6 +56,7 @@ fn demo(out: &std::path::Path, frames: usize) -> anyhow::Result<()> {
             build_dir: None,
             build_url: None,
             allow_missing_chunks: false,
+            reference_raster: None,
         };
         let s = harness::runner::run(&cfg, &gpu, &bar)?;
         harness::plot::plot_run(&dir)?;

@@ -74,6 +74,7 @@ pub fn run_config(a: &RunArgs) -> anyhow::Result<RunConfig> {
         build_dir: a.build_dir.clone(),
         build_url: a.remote.remote()?,
         allow_missing_chunks: a.allow_missing_chunks,
+        reference_raster: a.render.reference_raster,
     })
 }
 

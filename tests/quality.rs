@@ -680,3 +680,83 @@ fn spt_lpc_and_mwkd_inside_the_model() {
         }
     }
 }
+
+/// `reference_raster` (issue 35: the paper profile's references of 10⁸ samples): a run drawn
+/// with quads and circles whose references are drawn by the compute rasteriser compares
+/// against exactly the image the compute rasteriser draws of the full cloud (square splats),
+/// which is what a compute run of `full` draws and compares against; `summary.json` says so.
+#[test]
+fn a_compute_reference_is_the_full_cloud_drawn_by_the_compute_rasteriser() {
+    let Some(gpu) = harness::gpu::gpu_for_test(
+        "a_compute_reference_is_the_full_cloud_drawn_by_the_compute_rasteriser",
+    ) else {
+        return;
+    };
+    let tmp = tempfile::tempdir().unwrap();
+    let base = config(
+        MethodKind::Qsplat,
+        &[],
+        "statue:20000:3",
+        "orbit",
+        2,
+        96,
+        tmp.path(),
+        "quads",
+    );
+    let quads = RunConfig {
+        save_images: true,
+        render: RenderSettings {
+            kernel: Kernel::Circle,
+            ..base.render
+        },
+        reference_raster: Some(harness::render::Raster::Compute),
+        ..base.clone()
+    };
+    let s = run(&quads, &gpu, &scenes::NoProgress).unwrap();
+    assert_eq!(s.raster, harness::render::Raster::Quads);
+    assert_eq!(s.reference_raster, harness::render::Raster::Compute);
+    let compute = RunConfig {
+        method: MethodKind::Full,
+        save_images: true,
+        render: RenderSettings {
+            raster: harness::render::Raster::Compute,
+            ..base.render
+        },
+        out: tmp.path().join("compute"),
+        ..base.clone()
+    };
+    let c = run(&compute, &gpu, &scenes::NoProgress).unwrap();
+    assert_eq!(c.reference_raster, harness::render::Raster::Compute);
+    let png =
+        |run: &str, f: &str| std::fs::read(tmp.path().join(run).join("images").join(f)).unwrap();
+    for i in 0..2 {
+        let f = format!("frame_{i:04}.png");
+        let r = format!("ref_{i:04}.png");
+        assert_eq!(
+            png("quads", &r),
+            png("compute", &r),
+            "frame {i}: one reference"
+        );
+        assert_eq!(
+            png("compute", &f),
+            png("compute", &r),
+            "frame {i}: full by compute"
+        );
+        assert_ne!(
+            png("quads", &f),
+            png("quads", &r),
+            "frame {i}: circles by quads differ"
+        );
+    }
+    // Without it the reference is the run's own rasteriser's: quads.
+    let own = RunConfig {
+        out: tmp.path().join("own"),
+        ..base
+    };
+    assert_eq!(
+        run(&own, &gpu, &scenes::NoProgress)
+            .unwrap()
+            .reference_raster,
+        harness::render::Raster::Quads
+    );
+}

@@ -139,6 +139,23 @@ fn the_paper_profile_takes_its_own_values_or_the_full_ones() {
         "no paper entry: the full profile's"
     );
     assert_eq!(paper.profiles, Profile::ALL.to_vec());
+    assert_eq!(
+        m.reference_raster, None,
+        "the run's rasteriser unless the spec says"
+    );
+    // `reference` by profile: compute references for the paper's sizes only.
+    let compute = text.replace(
+        "title = \"T\"",
+        "title = \"T\"\nreference = { quick = \"quads\", full = \"quads\", paper = \"compute\" }",
+    );
+    std::fs::write(&f, &compute).unwrap();
+    let raster = |p| spec::load(&f, &root(), p).unwrap().measures[0].reference_raster;
+    assert_eq!(raster(Profile::Quick), None);
+    assert_eq!(raster(Profile::Full), None);
+    assert_eq!(
+        raster(Profile::Paper),
+        Some(harness::render::Raster::Compute)
+    );
     // A spec limited to two profiles is checked for all and left out of the third.
     let limited = GOOD.replace(
         "title = \"T\"",
@@ -185,6 +202,8 @@ fn bad_specs_name_the_file_and_the_field() {
         (with("points = { quick = 2000, full = 3000 }", "points = { quick = 2000 }"), "scenes.s.points: gives no value for profile 'full'"),
         (with("points = { quick = 2000, full = 3000 }", "points = { quick = 2000, fulll = 3000 }"), "scenes.s.points: unknown profile 'fulll' (quick, full, paper)"),
         (with("title = \"T\"", "title = \"T\"\nprofiles = []"), "profiles: lists no profile"),
+        (with("title = \"T\"", "title = \"T\"\nreference = \"cpu\""), "reference: unknown rasteriser 'cpu' (quads, compute)"),
+        (with("title = \"T\"", "title = \"T\"\nreference = { quick = \"quads\" }"), "reference: gives no value for profile 'full'"),
         (with("title = \"T\"", "title = \"T\"\nprofiles = [\"huge\"]"), "unknown variant `huge`"),
         (with("generator = \"statue\"", "generator = \"statu\""), "scenes.s.generator: unknown generator 'statu'"),
         (with("ours = \"b.bytes_per_node\"", "ours = \"c.bytes_per_node\""), "row 1 ('w'): ours: 'c' is not a measure of this spec"),

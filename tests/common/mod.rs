@@ -143,5 +143,6 @@ pub fn config(
         build_dir: None,
         build_url: None,
         allow_missing_chunks: false,
+        reference_raster: None,
     }
 }

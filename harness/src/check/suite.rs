@@ -302,6 +302,7 @@ pub fn run(
                         build_dir: Some(build_dir(*method)),
                         build_url: None,
                         allow_missing_chunks: false,
+                        reference_raster: None,
                     };
                     crate::sweep::run_targets(&base, targets, &dir, gpu, progress, |_| {})
                         .with_context(|| format!("suite sweep {}", dir.display()))?;

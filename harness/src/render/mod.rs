@@ -144,6 +144,9 @@ pub enum Raster {
 }
 
 impl Raster {
+    /// Every rasteriser.
+    pub const ALL: [Raster; 2] = [Raster::Quads, Raster::Compute];
+
     /// The name as the CLI and result files spell it.
     pub fn name(self) -> &'static str {
         match self {

@@ -14,7 +14,7 @@ use super::expr::Expr;
 use super::raw::{RawMeasure, RawRow, RawScene, RawSpec};
 use super::spec::{Figure, Format, Measure, MeasureKind, Piece, Profile, Row, Spec, SpecError};
 use super::verdict::{Paper, Rule, check_shape};
-use crate::render::Kernel;
+use crate::render::{Kernel, Raster};
 use crate::sweep::SweepTarget;
 
 pub(super) struct Checker<'a> {
@@ -61,9 +61,28 @@ impl Checker<'_> {
         for (name, s) in &raw.scenes {
             scenes.insert(name.clone(), self.scene(name, s)?);
         }
+        let reference = match &raw.reference {
+            None => None,
+            Some(v) => {
+                let name = self.text("reference", v)?;
+                match Raster::ALL.into_iter().find(|r| r.name() == name) {
+                    Some(Raster::Quads) => None,
+                    Some(r) => Some(r),
+                    None => {
+                        return Err(self.err(
+                            "reference",
+                            format!("unknown rasteriser '{name}' (quads, compute)"),
+                        ));
+                    }
+                }
+            }
+        };
         let mut measures: Vec<Measure> = Vec::new();
         for m in &raw.measures {
-            let checked = self.measure(m, &scenes)?;
+            let mut checked = self.measure(m, &scenes)?;
+            if matches!(checked.kind, MeasureKind::Run | MeasureKind::Sweep) {
+                checked.reference_raster = reference;
+            }
             if measures.iter().any(|o| o.id == checked.id) {
                 return Err(self.err(format!("measure '{}'", m.id), "id given twice"));
             }
@@ -486,6 +505,7 @@ impl Checker<'_> {
             metrics: m.metrics.unwrap_or(true),
             isolate: m.isolate.unwrap_or(false),
             points,
+            reference_raster: None,
         })
     }
 

@@ -400,6 +400,7 @@ impl<'a> Context<'a> {
             build_dir: Some(build_dir.to_path_buf()),
             build_url: None,
             allow_missing_chunks: false,
+            reference_raster: m.reference_raster,
         })
     }
 
@@ -453,6 +454,9 @@ impl<'a> Context<'a> {
         }
         if !m.metrics {
             cmd.arg("--no-metrics");
+        }
+        if let Some(r) = m.reference_raster {
+            cmd.args(["--reference-raster", r.name()]);
         }
         let o = cmd
             .stdin(std::process::Stdio::null())

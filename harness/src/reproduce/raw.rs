@@ -19,6 +19,8 @@ pub(super) struct RawSpec {
     #[serde(default)]
     pub(super) profiles: Option<Vec<Profile>>,
     #[serde(default)]
+    pub(super) reference: Option<toml::Value>,
+    #[serde(default)]
     pub(super) scenes: BTreeMap<String, RawScene>,
     #[serde(default, rename = "measure")]
     pub(super) measures: Vec<RawMeasure>,

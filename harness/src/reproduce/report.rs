@@ -296,7 +296,11 @@ pub fn describe(spec: &Spec, m: &Measure, root: &Path) -> String {
             m.width,
             m.height,
             m.kernel.name(),
-            if m.metrics { "" } else { ", no image metrics" },
+            match (m.metrics, m.reference_raster) {
+                (false, _) => ", no image metrics".to_string(),
+                (true, Some(r)) => format!(", references by the {} rasteriser", r.name()),
+                (true, None) => String::new(),
+            },
             if m.isolate { ", own process" } else { "" }
         );
     }

@@ -45,6 +45,8 @@ pub struct Summary {
     pub kernel: Kernel,
     /// Rasteriser (`quads` or `compute`).
     pub raster: crate::render::Raster,
+    /// The reference images' rasteriser (the run's unless `--reference-raster`).
+    pub reference_raster: crate::render::Raster,
     /// The shading drawn (`--shading`, with `auto` resolved for the scene).
     pub shading: crate::render::Shading,
     /// Camera path.

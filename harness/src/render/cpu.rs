@@ -92,6 +92,7 @@ pub fn shade(batch: &SplatBatch, i: usize, eye: Vec3, shade: &Shade) -> [u8; 3] 
 }
 
 /// One splat's footprint on screen.
+#[derive(Clone)]
 struct Footprint {
     /// Centre in pixels (y down).
     cx: f32,
@@ -452,17 +453,21 @@ pub fn render_with(
         }
         let mut acc = vec![glam::Vec4::ZERO; w * h];
         for f in &splats {
-            raster(w, h, f.z, f, |o, uv| {
-                let r2 = uv.length_squared();
-                if r2 <= 1.0 && f.z <= depth[o] {
-                    let wgt = (-2.0 * r2).exp();
+            // Pass 2's quad is GAUSS_SUPPORT × the splat's; `uv` back in nominal radii.
+            let wide = Footprint {
+                half: f.half * super::GAUSS_SUPPORT,
+                ..f.clone()
+            };
+            raster(w, h, f.z, &wide, |o, uv| {
+                let wgt = super::gauss_weight(uv.length() * super::GAUSS_SUPPORT);
+                if wgt > 0.0 && f.z <= depth[o] {
                     acc[o] += (f.linear * wgt).extend(wgt);
                 }
             });
         }
         for (o, a) in acc.iter().enumerate() {
-            if a.w > 0.0 {
-                let c = encode_srgb(a.truncate() / a.w);
+            if a.w >= super::GAUSS_COVERED {
+                let c = encode_srgb(a.truncate() / a.w.max(1.0));
                 rgba[o * 4..o * 4 + 4].copy_from_slice(&[c[0], c[1], c[2], 255]);
             }
         }

@@ -10,9 +10,13 @@
 //! - ellipse: the quad's minor axis along the projected normal, minor/major = |n̂·v̂| clamped
 //!   at 1/10 (QSplat §4.3); a circle for splats without normals;
 //! - gaussian, QSplat's two-pass blend: (1) circles into depth only, pushed back by
-//!   [`GAUSS_DEPTH_OFFSET`] × the splat diameter; (2) weighted linear colour `w = exp(−2r²)`
-//!   added into an Rgba16Float target with depth test and no depth write; (3) a full-screen
-//!   pass divides by the summed weight and encodes sRGB.
+//!   [`GAUSS_DEPTH_OFFSET`] × the splat diameter; (2) weighted linear colour added into an
+//!   Rgba16Float target with depth test and no depth write, over a quad [`GAUSS_SUPPORT`] ×
+//!   the splat's: the weight is QSplat's "spline in opacity that falls to 1/2 at the nominal
+//!   radius" (§3.3), [`gauss_weight`]` = 1 − smoothstep(0, 2, r)` (r in nominal radii: 1 at
+//!   the centre, 1/2 at the radius, 0 at twice it); (3) a full-screen pass composites the
+//!   weighted colour over the black background at the summed weight's opacity,
+//!   `Σwc / max(Σw, 1)`, covered from [`GAUSS_COVERED`] on, and encodes sRGB.
 //!
 //! Chunks live in an [`LruCache`] of GPU buffers with a byte budget: a chunk missing from the
 //! cache is decoded by the method and uploaded (counted in `upload_bytes`); streams are
@@ -95,8 +99,8 @@ pub use upload::splats_per_part;
 pub use methods::SplatShape as Kernel;
 pub(crate) use pipelines::{fragment_texture, fullscreen_pipeline};
 pub use uniforms::{
-    AMBIENT, BASE_COLOR, DrawUniform, FrameUniform, GAUSS_DEPTH_OFFSET, LEVEL_PALETTE,
-    frame_uniform, level_tint,
+    AMBIENT, BASE_COLOR, DrawUniform, FrameUniform, GAUSS_COVERED, GAUSS_DEPTH_OFFSET,
+    GAUSS_SUPPORT, LEVEL_PALETTE, frame_uniform, gauss_weight, level_tint,
 };
 
 /// Fixed settings of a renderer.

@@ -52,7 +52,7 @@ impl Renderer<'_> {
                     operation: wgpu::BlendOperation::Add,
                 };
                 (
-                    "vs_main",
+                    "vs_gauss_accum",
                     "fs_gauss_accum",
                     Some((
                         ACCUM_FORMAT,

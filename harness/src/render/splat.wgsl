@@ -153,9 +153,14 @@ fn splat_linear(ii: u32, p: vec3<f32>, n: vec3<f32>, has_normal: bool, l: vec3<f
     return base * shade;
 }
 
+// How far the gaussian's footprint reaches, in nominal radii (`gauss_weight`).
+const GAUSS_SUPPORT: f32 = 2.0;
+
 // Shared vertex work. `ellipse`: orient and squash the quad by the normal. `depth_push`:
 // move the splat's depth back by depth_offset × its object-space size (gaussian pass 1).
-fn splat_vertex(vi: u32, ii: u32, ellipse: bool, depth_push: bool) -> VsOut {
+// `support`: the quad's half-size in nominal radii (1; the gaussian's pass 2: GAUSS_SUPPORT),
+// `uv` in nominal radii.
+fn splat_vertex(vi: u32, ii: u32, ellipse: bool, depth_push: bool, support: f32) -> VsOut {
     var out: VsOut;
     let p = splat_position(ii);
     var clip = frame.view_proj * vec4<f32>(p, 1.0);
@@ -174,7 +179,7 @@ fn splat_vertex(vi: u32, ii: u32, ellipse: bool, depth_push: bool) -> VsOut {
         n = oct_decode(normals[ii]);
     }
     let l = normalize(frame.eye - p);
-    let c = CORNERS[vi];
+    let c = CORNERS[vi] * support;
     var offset = c * size * 0.5; // pixels
     if (ellipse && has_normal) {
         // Minor axis along the projected normal, minor/major = |n̂·v̂| clamped at 1/10.
@@ -205,17 +210,22 @@ fn splat_vertex(vi: u32, ii: u32, ellipse: bool, depth_push: bool) -> VsOut {
 
 @vertex
 fn vs_main(@builtin(vertex_index) vi: u32, @builtin(instance_index) ii: u32) -> VsOut {
-    return splat_vertex(vi, ii, false, false);
+    return splat_vertex(vi, ii, false, false, 1.0);
 }
 
 @vertex
 fn vs_ellipse(@builtin(vertex_index) vi: u32, @builtin(instance_index) ii: u32) -> VsOut {
-    return splat_vertex(vi, ii, true, false);
+    return splat_vertex(vi, ii, true, false, 1.0);
 }
 
 @vertex
 fn vs_gauss_depth(@builtin(vertex_index) vi: u32, @builtin(instance_index) ii: u32) -> VsOut {
-    return splat_vertex(vi, ii, false, true);
+    return splat_vertex(vi, ii, false, true, 1.0);
+}
+
+@vertex
+fn vs_gauss_accum(@builtin(vertex_index) vi: u32, @builtin(instance_index) ii: u32) -> VsOut {
+    return splat_vertex(vi, ii, false, false, GAUSS_SUPPORT);
 }
 
 @fragment
@@ -231,13 +241,15 @@ fn fs_circle(in: VsOut) -> @location(0) vec4<f32> {
     return in.color;
 }
 
-/// Gaussian weight at unit-disk coordinate `uv` (σ = 1/2 of the splat radius), 0 outside.
+/// QSplat's "spline in opacity that falls to 1/2 at the nominal radius of the splat" (§3.3):
+/// 1 − smoothstep(0, GAUSS_SUPPORT, r), the cubic Hermite spline 1 − 3t² + 2t³ in t = r / 2,
+/// at `uv` in nominal radii: 1 at the centre, 1/2 at r = 1, 0 with zero slope at r = 2.
 fn gauss_weight(uv: vec2<f32>) -> f32 {
-    let r2 = dot(uv, uv);
-    if (r2 > 1.0) {
+    let t = length(uv) / GAUSS_SUPPORT;
+    if (t >= 1.0) {
         return 0.0;
     }
-    return exp(-2.0 * r2);
+    return 1.0 - t * t * (3.0 - 2.0 * t);
 }
 
 @fragment

@@ -9,6 +9,32 @@ pub const BASE_COLOR: [f32; 3] = [0.8, 0.8, 0.8];
 /// Gaussian kernel, pass 1: depth pushed back by this × the splat's object-space diameter,
 /// so splats within that distance of the front surface blend in pass 2.
 pub const GAUSS_DEPTH_OFFSET: f32 = 0.5;
+/// Gaussian kernel, pass 2: the footprint's half-size in nominal splat radii (`GAUSS_SUPPORT`
+/// in `splat.wgsl`, which a test holds equal): where [`gauss_weight`] reaches 0.
+pub const GAUSS_SUPPORT: f32 = 2.0;
+
+/// Gaussian kernel, pass 3: a pixel whose summed weight (its opacity) is at least this is
+/// covered (`GAUSS_COVERED` in `normalize.wgsl`): the spline's value at the nominal radius,
+/// so a lone splat covers its nominal disc. Its colour is the weighted colour over the
+/// black background, `Σwc / max(Σw, 1)`: full opacity from Σw = 1 on.
+pub const GAUSS_COVERED: f32 = 0.5;
+
+/// The gaussian kernel's weight at `r` nominal radii from the splat's centre (`gauss_weight`
+/// in `splat.wgsl`): QSplat's "spline in opacity that falls to 1/2 at the nominal radius of
+/// the splat" (§3.3), which the paper does not give further. Ours is the cubic Hermite spline
+/// `1 − smoothstep(0, GAUSS_SUPPORT, r)` = `1 − 3t² + 2t³`, `t = r / 2`: 1 at the centre,
+/// exactly 1/2 at the nominal radius, 0 with zero slope at twice it — a gaussian's shape
+/// (C¹, bell-like) with compact support. The quad of pass 2 is [`GAUSS_SUPPORT`] × the
+/// splat's, four times the area, which matches the paper's "Gaussians take approximately
+/// four times as long" as squares (Fig. 3).
+pub fn gauss_weight(r: f32) -> f32 {
+    let t = r / GAUSS_SUPPORT;
+    if t >= 1.0 {
+        0.0
+    } else {
+        1.0 - t * t * (3.0 - 2.0 * t)
+    }
+}
 
 /// `Frame` uniform of `splat.wgsl`.
 #[repr(C)]
@@ -141,5 +167,42 @@ pub fn frame_uniform(view: &View, shade: &Shade) -> FrameUniform {
         shading: shade.shading.shader_code(),
         elevation_lo: shade.elevation[0],
         elevation_scale: shade.elevation_scale(),
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// QSplat §3.3: the spline falls to 1/2 at the nominal radius; ours is 1 at the centre,
+    /// 0 from GAUSS_SUPPORT on, decreasing in between, and the shader has the same support.
+    #[test]
+    fn the_gaussian_spline_is_one_half_at_the_nominal_radius() {
+        assert_eq!(gauss_weight(0.0), 1.0);
+        assert_eq!(gauss_weight(1.0), 0.5);
+        assert_eq!(gauss_weight(GAUSS_SUPPORT), 0.0);
+        assert_eq!(gauss_weight(3.0), 0.0);
+        let samples: Vec<f32> = (0..=200).map(|i| gauss_weight(i as f32 / 100.0)).collect();
+        assert!(
+            samples.windows(2).all(|w| w[1] < w[0]),
+            "strictly decreasing on [0, 2)"
+        );
+        // C¹ at the support's edge: the slope tends to 0 (1 − 3t² + 2t³ has 6t² − 6t = 0 at 1).
+        let eps = 1e-3;
+        assert!(gauss_weight(GAUSS_SUPPORT - eps) / eps < 1e-2);
+        assert!(
+            SPLAT_WGSL.contains(&format!("const GAUSS_SUPPORT: f32 = {GAUSS_SUPPORT:?};")),
+            "splat.wgsl's GAUSS_SUPPORT is this one"
+        );
+        assert_eq!(
+            gauss_weight(1.0),
+            GAUSS_COVERED,
+            "a lone splat covers its nominal disc"
+        );
+        assert!(
+            include_str!("normalize.wgsl")
+                .contains(&format!("const GAUSS_COVERED: f32 = {GAUSS_COVERED:?};")),
+            "normalize.wgsl's GAUSS_COVERED is this one"
+        );
     }
 }

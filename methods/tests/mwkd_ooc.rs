@@ -9,7 +9,7 @@ mod common;
 use std::path::Path;
 
 use common::{entries, with_threads};
-use methods::mwkd::ooc::{self, Shape, UNIT_BYTES_PER_SAMPLE};
+use methods::mwkd::ooc::{self, UNIT_BYTES_PER_SAMPLE};
 use methods::mwkd::{MwkdParams, codec, index};
 use methods::spill::{Budget, SpillHook};
 use methods::{MethodError, MethodKind, Params};
@@ -37,11 +37,7 @@ fn in_units(
 ) -> Result<(Vec<u8>, Vec<u8>, u64), MethodError> {
     std::fs::create_dir_all(dir).unwrap();
     let p = MwkdParams::from_params(&Params::parse(params).unwrap()).unwrap();
-    let shape = Shape {
-        fanout: p.effective_fanout(),
-        vbo: p.vbo,
-        reps: p.rep_config(),
-    };
+    let shape = p.ooc_shape();
     let budget = Budget {
         mem_bytes: cap * UNIT_BYTES_PER_SAMPLE,
         dir,

@@ -283,8 +283,10 @@ pub fn bottom_up<T: Send>(
 
 /// One node, encoded and compressed (the output of the disk build's `map`).
 pub struct Encoded {
-    /// LZO-compressed bytes ([`store::compress`]).
+    /// The bytes to store: LZO-compressed, or as is ([`store::Compression::pack`]).
     pub stored: Vec<u8>,
+    /// How `stored` was packed.
+    pub how: store::Compression,
     /// Uncompressed length.
     pub raw_len: usize,
     /// The codec header (box, radius range, count).
@@ -295,8 +297,8 @@ pub struct Encoded {
     pub cone: Cone,
 }
 
-/// Encodes and compresses what node `id` holds.
-pub fn encode_node(id: usize, s: &Splats) -> Result<Encoded, MethodError> {
+/// Encodes what node `id` holds and packs it with `how`.
+pub fn encode_node(id: usize, s: &Splats, how: store::Compression) -> Result<Encoded, MethodError> {
     let positions: Vec<[f32; 3]> = s.positions.iter().map(|p| p.to_array()).collect();
     let normals: Option<Vec<[f32; 3]>> = s
         .normals
@@ -315,9 +317,11 @@ pub fn encode_node(id: usize, s: &Splats) -> Result<Encoded, MethodError> {
         Some(n) => Cone::of_normals(n.iter().copied()),
         None => Cone::ALL,
     };
+    let raw_len = raw.len();
     Ok(Encoded {
-        stored: store::compress(&raw),
-        raw_len: raw.len(),
+        stored: how.pack(raw),
+        how,
+        raw_len,
         header,
         radius_mean: radius_mean.clamp(header.radius_min, header.radius_max),
         cone,
@@ -356,7 +360,7 @@ impl RepoSink {
 
     /// Appends node `i` of the tree, `n`, encoded as `e`.
     pub fn put(&mut self, i: usize, n: &Node, e: Encoded) -> Result<(), MethodError> {
-        let chunk = self.writer.append_compressed(&e.stored, e.raw_len)?;
+        let chunk = self.writer.append_packed(&e.stored, e.raw_len, e.how)?;
         self.raw_bytes += e.raw_len as u64;
         self.index[i] = IndexNode {
             min: e.header.min,
@@ -402,12 +406,13 @@ impl RepoSink {
     }
 }
 
-/// Builds the tree `tree` of `cloud` into `repo` (a repository file) and returns the index
-/// array (not yet written).
+/// Builds the tree `tree` of `cloud` into `repo` (a repository file, nodes packed with `how`)
+/// and returns the index array (not yet written).
 pub fn write_repository(
     input: &Input<'_>,
     repo: &std::path::Path,
     task_points: usize,
+    how: store::Compression,
     progress: &dyn Progress,
 ) -> Result<Written, MethodError> {
     let tree = input.tree;
@@ -416,7 +421,7 @@ pub fn write_repository(
     bottom_up(
         input,
         task_points,
-        &encode_node,
+        &|i, s: &Splats| encode_node(i, s, how),
         &mut |i, e: Encoded| out.put(i, &tree.nodes[i], e),
         progress,
     )?;

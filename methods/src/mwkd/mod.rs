@@ -101,11 +101,7 @@ pub fn build(
     // In units when the cloud exceeds one (the balanced trees; see `ooc`), else in memory.
     let in_units = p.tree != TreeKind::Octree && depth > 0 && n > ooc::unit_capacity(mem_bytes);
     let (written, nodes, depth, units, t_split, task_points) = if in_units {
-        let shape = ooc::Shape {
-            fanout: p.effective_fanout(),
-            vbo: p.vbo,
-            reps: p.rep_config(),
-        };
+        let shape = p.ooc_shape();
         let budget = crate::spill::Budget {
             mem_bytes,
             dir,
@@ -125,7 +121,8 @@ pub fn build(
             tree: &tree,
             reps: p.rep_config(),
         };
-        let written = build::write_repository(&input, &repo, task_points, progress)?;
+        let written =
+            build::write_repository(&input, &repo, task_points, p.compression(), progress)?;
         (
             written,
             tree.nodes,

@@ -80,6 +80,8 @@ pub struct Shape {
     pub vbo: u64,
     /// Representative selection.
     pub reps: RepConfig,
+    /// How nodes are stored.
+    pub compression: crate::store::Compression,
 }
 
 struct Unit {
@@ -289,7 +291,7 @@ impl Builder<'_> {
             .collect::<Result<Vec<_>, _>>()?;
         let empty = Splats::empty(self.layout.normals, self.layout.colors);
         let held = inner_held(&held, self.shape.vbo, &self.shape.reps, empty);
-        out.put(id, &node, encode_node(id, &held)?)?;
+        out.put(id, &node, encode_node(id, &held, self.shape.compression)?)?;
         progress.inc(1);
         Ok(held)
     }
@@ -353,7 +355,8 @@ impl Builder<'_> {
             reps: self.shape.reps,
         };
         let nodes = &self.nodes;
-        let map = |li: usize, s: &Splats| encode_node(global(li), s);
+        let how = self.shape.compression;
+        let map = |li: usize, s: &Splats| encode_node(global(li), s, how);
         bottom_up(
             &input,
             (root.len / 16).max(1),

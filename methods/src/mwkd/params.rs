@@ -126,6 +126,10 @@ pub struct MwkdParams {
     pub occlusion_threshold: u64,
     /// Asynchronous loading with stand-ins (default) or synchronous reads.
     pub load: LoadMode,
+    /// Store nodes LZO-compressed (the paper's choice, default) or, `lzo=false`, as is: the
+    /// comparison behind §V-B's "performance … and display quality are hardly affected at
+    /// all due to the current compression". A build parameter (the files differ).
+    pub lzo: bool,
 }
 
 impl Default for MwkdParams {
@@ -150,6 +154,7 @@ impl Default for MwkdParams {
             occlusion: false,
             occlusion_threshold: 0,
             load: LoadMode::Async,
+            lzo: true,
         }
     }
 }
@@ -241,6 +246,25 @@ impl MwkdParams {
             c0: self.c0,
             c1: self.c1,
             c2: self.c2,
+        }
+    }
+
+    /// What the unit build ([`super::ooc`]) needs of these parameters.
+    pub fn ooc_shape(&self) -> super::ooc::Shape {
+        super::ooc::Shape {
+            fanout: self.effective_fanout(),
+            vbo: self.vbo,
+            reps: self.rep_config(),
+            compression: self.compression(),
+        }
+    }
+
+    /// How nodes are stored.
+    pub fn compression(&self) -> crate::store::Compression {
+        if self.lzo {
+            crate::store::Compression::Lzo
+        } else {
+            crate::store::Compression::None
         }
     }
 

@@ -45,10 +45,47 @@ pub struct ChunkRef {
     pub offset: u64,
     /// Stored (compressed) length in bytes.
     pub stored: u32,
-    /// Decompressed length in bytes.
+    /// Decompressed length in bytes; bit 31 ([`VERBATIM`]) set: the chunk is stored as is,
+    /// not compressed (written with [`Compression::None`]; repositories from before that
+    /// option never set it, their chunks being far below 2 GiB).
     pub raw: u32,
     /// [`checksum`] of the stored bytes.
     pub checksum: u64,
+}
+
+/// [`ChunkRef::raw`]'s flag for a chunk stored without compression.
+pub const VERBATIM: u32 = 1 << 31;
+
+impl ChunkRef {
+    /// The chunk's decoded length in bytes.
+    pub fn raw_len(&self) -> usize {
+        (self.raw & !VERBATIM) as usize
+    }
+    /// Whether it is stored as is (no LZO).
+    pub fn is_verbatim(&self) -> bool {
+        self.raw & VERBATIM != 0
+    }
+}
+
+/// How a repository's chunks are stored: LZO1X-1 (the papers' choice: LPC and MWKD both
+/// compress with LZO) or as is (MWKD's `lzo=false`: what §V-B's "hardly affected at all by
+/// the compression" is measured against).
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum Compression {
+    /// LZO1X-1.
+    Lzo,
+    /// Stored as is.
+    None,
+}
+
+impl Compression {
+    /// The bytes to store for `raw`.
+    pub fn pack(self, raw: Vec<u8>) -> Vec<u8> {
+        match self {
+            Compression::Lzo => compress(&raw),
+            Compression::None => raw,
+        }
+    }
 }
 
 /// A 64-bit checksum (four independent multiply–rotate lanes over 8-byte words, so the CPU
@@ -173,6 +210,27 @@ impl RepoWriter {
         let stored = compress(raw);
         self.append_compressed(&stored, raw.len())
     }
+    /// Appends `stored`, packed from `raw_len` bytes with `how` ([`Compression::pack`]).
+    pub fn append_packed(
+        &mut self,
+        stored: &[u8],
+        raw_len: usize,
+        how: Compression,
+    ) -> Result<ChunkRef, MethodError> {
+        match how {
+            Compression::Lzo => self.append_compressed(stored, raw_len),
+            Compression::None if stored.len() != raw_len => Err(MethodError::Bug(format!(
+                "{}: a chunk stored as is has {} bytes, not its {raw_len}",
+                self.path.display(),
+                stored.len()
+            ))),
+            Compression::None => {
+                let mut r = self.append_compressed(stored, raw_len)?;
+                r.raw |= VERBATIM;
+                Ok(r)
+            }
+        }
+    }
     /// Appends bytes already compressed with [`compress`] from `raw_len` bytes (lets a
     /// builder compress in parallel and write in order).
     pub fn append_compressed(
@@ -182,14 +240,18 @@ impl RepoWriter {
     ) -> Result<ChunkRef, MethodError> {
         let too_big = |what: &str| {
             MethodError::Limit(format!(
-                "{}: a chunk of {what} bytes exceeds the 4 GiB chunk limit",
+                "{}: a chunk of {what} bytes exceeds the 2 GiB chunk limit",
                 self.path.display()
             ))
         };
+        let raw = u32::try_from(raw_len)
+            .ok()
+            .filter(|&n| n & VERBATIM == 0)
+            .ok_or_else(|| too_big("raw"))?;
         let r = ChunkRef {
             offset: self.offset,
             stored: u32::try_from(stored.len()).map_err(|_| too_big("stored"))?,
-            raw: u32::try_from(raw_len).map_err(|_| too_big("raw"))?,
+            raw,
             checksum: checksum(stored),
         };
         self.out
@@ -293,8 +355,9 @@ pub fn chunk_ref(refs: &[ChunkRef], id: u32) -> Result<&ChunkRef, MethodError> {
     refs.get(id as usize).ok_or(MethodError::NoChunk(id.into()))
 }
 
-/// Verifies the stored bytes of chunk `r` against its checksum and decompresses them; the
-/// error names the chunk (`what`), the caller adds the file or URL.
+/// Verifies the stored bytes of chunk `r` against its checksum and decompresses them (or,
+/// for a chunk stored as is, checks their length); the error names the chunk (`what`), the
+/// caller adds the file or URL.
 pub fn unpack(stored: &[u8], r: &ChunkRef, what: &str) -> Result<Vec<u8>, String> {
     let sum = checksum(stored);
     if sum != r.checksum {
@@ -303,7 +366,17 @@ pub fn unpack(stored: &[u8], r: &ChunkRef, what: &str) -> Result<Vec<u8>, String
             r.checksum
         ));
     }
-    decompress(stored, r.raw as usize, what)
+    if r.is_verbatim() {
+        if stored.len() != r.raw_len() {
+            return Err(format!(
+                "{what}: stored as is in {} bytes, but {} claimed",
+                stored.len(),
+                r.raw_len()
+            ));
+        }
+        return Ok(stored.to_vec());
+    }
+    decompress(stored, r.raw_len(), what)
 }
 
 #[cfg(test)]
@@ -322,6 +395,52 @@ mod tests {
             }
         }
         assert_ne!(checksum(&data[..999]), h);
+    }
+
+    /// A repository of LZO and verbatim chunks reads back every chunk exactly; a verbatim
+    /// chunk's length is checked, and its flag does not count in its length.
+    #[test]
+    fn verbatim_and_compressed_chunks_round_trip() {
+        let tmp = tempfile::tempdir().unwrap();
+        let path = tmp.path().join("repo.bin");
+        let chunks: Vec<Vec<u8>> = (0..6u32)
+            .map(|k| (0..1000 * (k + 1)).map(|i| (i % (7 + k)) as u8).collect())
+            .collect();
+        let mut w = RepoWriter::create(&path).unwrap();
+        let mut refs = Vec::new();
+        for (k, c) in chunks.iter().enumerate() {
+            let how = if k % 2 == 0 {
+                Compression::Lzo
+            } else {
+                Compression::None
+            };
+            let stored = how.pack(c.clone());
+            refs.push(w.append_packed(&stored, c.len(), how).unwrap());
+        }
+        assert!(matches!(
+            w.append_packed(&[1, 2, 3], 4, Compression::None),
+            Err(MethodError::Bug(_))
+        ));
+        w.finish().unwrap();
+        let repo = Repository::open(&path).unwrap();
+        for (k, (c, r)) in chunks.iter().zip(&refs).enumerate() {
+            assert_eq!(r.is_verbatim(), k % 2 == 1);
+            assert_eq!(r.raw_len(), c.len());
+            if r.is_verbatim() {
+                assert_eq!(r.stored as usize, c.len());
+            } else {
+                assert!((r.stored as usize) < c.len(), "these chunks compress");
+            }
+            assert_eq!(&repo.read(r, "chunk").unwrap(), c);
+        }
+        // A verbatim chunk whose stored length disagrees with its claim is an error.
+        let mut bad = refs[1];
+        bad.raw = (bad.raw_len() as u32 + 1) | VERBATIM;
+        let e = repo.read(&bad, "node 1").unwrap_err().to_string();
+        assert!(
+            e.contains("node 1: stored as is in 2000 bytes, but 2001 claimed"),
+            "{e}"
+        );
     }
 
     #[test]

@@ -122,6 +122,10 @@ pub struct RenderArgs {
     /// 64-bit atomics, square splats only; the reference is drawn the same way).
     #[arg(long, value_enum, default_value = "quads")]
     pub raster: harness::render::Raster,
+    /// Elliptical splats (`--kernel ellipse`): the largest major ÷ minor axis ratio (QSplat
+    /// §3.3 clamps at 10: "fills in practically all of these holes"); ≥ 1.
+    #[arg(long, default_value_t = harness::render::ELLIPSE_CLAMP)]
+    pub ellipse_clamp: f32,
     /// Rasteriser of the reference images (default: the run's). `compute` draws them as
     /// square splats, ≈ 15× faster on lavapipe: for references of 10⁸ samples.
     #[arg(long, value_enum)]
@@ -141,6 +145,14 @@ impl RenderArgs {
                 .ok_or_else(|| anyhow::anyhow!("--gpu-cache-mb is too large"))?,
             shade: harness::render::Shade {
                 shading,
+                ellipse_clamp: if self.ellipse_clamp.is_finite() && self.ellipse_clamp >= 1.0 {
+                    self.ellipse_clamp
+                } else {
+                    anyhow::bail!(
+                        "--ellipse-clamp {}: the largest major ÷ minor axis ratio must be a finite number ≥ 1",
+                        self.ellipse_clamp
+                    )
+                },
                 ..Default::default()
             },
             raster: self.raster,

@@ -433,3 +433,33 @@ fn negative_values_of_unsigned_flags_name_the_flag() {
         "invalid value '-5' for '--frames <",
     );
 }
+
+/// `--ellipse-clamp` below 1 (a minor axis longer than the major) or not finite is refused
+/// before anything is built, naming the flag and the value.
+#[test]
+fn an_ellipse_clamp_below_one_is_refused() {
+    let tmp = tempfile::tempdir().unwrap();
+    let out = tmp.path().join("o");
+    for v in ["0.5", "NaN", "inf"] {
+        fails_with(
+            &[
+                "run",
+                "--method",
+                "qsplat",
+                "--scene",
+                "statue:1000",
+                "--out",
+                out.to_str().unwrap(),
+                "--kernel",
+                "ellipse",
+                "--ellipse-clamp",
+                v,
+            ],
+            &format!(
+                "--ellipse-clamp {}: the largest major ÷ minor axis ratio must be a finite number ≥ 1",
+                v
+            ),
+        );
+        assert!(!out.exists(), "{v}: nothing written");
+    }
+}

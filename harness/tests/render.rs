@@ -332,6 +332,7 @@ fn shade_of(cloud: &PointCloud, shading: Shading) -> Shade {
     Shade {
         shading,
         elevation: [b.min.z, b.max.z],
+        ..Shade::default()
     }
 }
 
@@ -557,7 +558,7 @@ fn chunk_ranges_draw_exactly_their_splats() {
 /// the minor axis along the projected normal, and "clamping the maximum ratio of major to
 /// minor axis to 10". One 101 px splat at the centre of a front view (v̂ = +z), its normal
 /// tilted by θ towards +y or +x: the covered extent along the tilt ÷ across it is
-/// max(cos θ, 1/10), on the GPU and in the CPU mirror, within 2.5 px of 101 (a pixel of
+/// max(cos θ, 1/clamp) for the paper's clamp 10 and for 4, on the GPU and in the CPU mirror, within 2.5 px of 101 (a pixel of
 /// rounding at each end of each extent).
 #[test]
 fn ellipse_axis_ratio_is_n_dot_v_clamped_at_a_tenth() {
@@ -569,40 +570,55 @@ fn ellipse_axis_ratio_is_n_dot_v_clamped_at_a_tenth() {
     let m = full(&cloud, tmp.path());
     let (w, h, size) = (121u32, 121u32, 101.0f32);
     let v = front_view(w, h);
-    let mut r = Renderer::new(&gpu, settings(w, h, Kernel::Ellipse)).unwrap();
     // Covered pixels along the centre row (x) and the centre column (y).
     let extents = |img: &Image| {
         let along_x = (0..w).filter(|&x| img.pixel(x, h / 2)[3] > 0).count() as f32;
         let along_y = (0..h).filter(|&y| img.pixel(w / 2, y)[3] > 0).count() as f32;
         (along_x, along_y)
     };
-    for deg in [0.0f32, 60.0, 80.0, 89.0] {
-        let t = deg.to_radians();
-        let want = t.cos().max(0.1);
-        for (tilt_y, n) in [
-            (true, glam::Vec3::new(0.0, t.sin(), t.cos())),
-            (false, glam::Vec3::new(t.sin(), 0.0, t.cos())),
-        ] {
-            let mut list = stream(&[[0.0, 0.0, 0.0]], None, size);
-            if let DrawItem::Stream { batch, .. } = &mut list.items[0] {
-                batch.normals = Some(vec![methods::octnormal::encode(n)]);
-            }
-            let (_, img) = r.draw(&v, &list, m.as_ref(), true).unwrap();
-            let gpu_img = img.unwrap();
-            let cpu_img = cpu::rasterize(&v, &list, m.as_ref(), Kernel::Ellipse).unwrap();
-            for (who, img) in [("gpu", &gpu_img), ("cpu", &cpu_img)] {
-                let (ex, ey) = extents(img);
-                let (minor, major) = if tilt_y { (ey, ex) } else { (ex, ey) };
-                assert!(
-                    (major - size).abs() <= 2.5,
-                    "{who} θ = {deg}°: major axis {major} px, not {size}"
-                );
-                let ratio = minor / major;
-                assert!(
-                    (ratio - want).abs() <= 2.5 / size,
-                    "{who} θ = {deg}° (tilt towards {}): minor/major {ratio}, want {want}",
-                    if tilt_y { "y" } else { "x" }
-                );
+    // QSplat's clamp (10) and another (`--ellipse-clamp 4`): the ratio never falls below 1/clamp.
+    for clamp in [harness::render::ELLIPSE_CLAMP, 4.0] {
+        let shade = Shade {
+            ellipse_clamp: clamp,
+            ..Shade::default()
+        };
+        let mut r = Renderer::new(
+            &gpu,
+            RenderSettings {
+                shade,
+                ..settings(w, h, Kernel::Ellipse)
+            },
+        )
+        .unwrap();
+        for deg in [0.0f32, 60.0, 80.0, 89.0] {
+            let t = deg.to_radians();
+            let want = t.cos().max(1.0 / clamp);
+            for (tilt_y, n) in [
+                (true, glam::Vec3::new(0.0, t.sin(), t.cos())),
+                (false, glam::Vec3::new(t.sin(), 0.0, t.cos())),
+            ] {
+                let mut list = stream(&[[0.0, 0.0, 0.0]], None, size);
+                if let DrawItem::Stream { batch, .. } = &mut list.items[0] {
+                    batch.normals = Some(vec![methods::octnormal::encode(n)]);
+                }
+                let (_, img) = r.draw(&v, &list, m.as_ref(), true).unwrap();
+                let gpu_img = img.unwrap();
+                let cpu_img =
+                    cpu::rasterize_shaded(&v, &list, m.as_ref(), Kernel::Ellipse, &shade).unwrap();
+                for (who, img) in [("gpu", &gpu_img), ("cpu", &cpu_img)] {
+                    let (ex, ey) = extents(img);
+                    let (minor, major) = if tilt_y { (ey, ex) } else { (ex, ey) };
+                    assert!(
+                        (major - size).abs() <= 2.5,
+                        "{who} θ = {deg}°: major axis {major} px, not {size}"
+                    );
+                    let ratio = minor / major;
+                    assert!(
+                        (ratio - want).abs() <= 2.5 / size,
+                        "{who} θ = {deg}°, clamp {clamp} (tilt towards {}): minor/major {ratio}, want {want}",
+                        if tilt_y { "y" } else { "x" }
+                    );
+                }
             }
         }
     }

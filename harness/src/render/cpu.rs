@@ -245,7 +245,11 @@ fn footprints<'a>(
                     } else {
                         glam::Vec2::X
                     };
-                    Some((glam::Vec2::new(-d.y, d.x), d, n.dot(l).abs().max(0.1)))
+                    Some((
+                        glam::Vec2::new(-d.y, d.x),
+                        d,
+                        n.dot(l).abs().max(shade.ellipse_min_ratio()),
+                    ))
                 }
                 _ => None,
             };

@@ -91,7 +91,7 @@ pub use occlusion::OcclusionStats;
 use queries::QueryPipeline;
 pub(crate) use readback::read_texture;
 use readback::{TIMESTAMP_READBACK_BYTES, Timestamps, read_buffer, zeroed_counters};
-pub use shading::{Shade, Shading};
+pub use shading::{ELLIPSE_CLAMP, Shade, Shading};
 use splats::{PhaseItems, PhaseTarget};
 use upload::GpuBatch;
 pub use upload::splats_per_part;
@@ -287,6 +287,12 @@ impl<'g> Renderer<'g> {
                 settings.width,
                 settings.height,
                 gpu.adapter.name
+            );
+        }
+        let clamp = settings.shade.ellipse_clamp;
+        if !(clamp.is_finite() && clamp >= 1.0) {
+            bail!(
+                "--ellipse-clamp {clamp}: the largest major ÷ minor axis ratio must be a finite number ≥ 1"
             );
         }
         let size = wgpu::Extent3d {

@@ -113,26 +113,41 @@ impl std::fmt::Display for Shading {
     }
 }
 
-/// A renderer's shading: the mode and, for `elevation`, the heights that map to the two ends
-/// of the ramp (the runner uses the framed box's Z range, so far strays do not flatten it).
+/// A renderer's per-frame drawing settings: the shading mode and, for `elevation`, the heights
+/// that map to the two ends of the ramp (the runner uses the framed box's Z range, so far
+/// strays do not flatten it); the ellipse kernel's clamp.
 #[derive(Debug, Clone, Copy, PartialEq, serde::Serialize)]
 pub struct Shade {
     /// The mode; `auto` here draws as `lambert` (resolve it first to get `edl`).
     pub shading: Shading,
     /// Local Z at the bottom and top of the elevation ramp.
     pub elevation: [f32; 2],
+    /// The largest major ÷ minor axis ratio of an elliptical splat (`--ellipse-clamp`;
+    /// QSplat §3.3's 10, [`ELLIPSE_CLAMP`]): the minor axis is `max(|n̂·v̂|, 1/clamp)` of the
+    /// major. At least 1 (1: circles).
+    pub ellipse_clamp: f32,
 }
+
+/// QSplat §3.3: "clamping the maximum ratio of major to minor axis to 10 fills in
+/// practically all of these holes".
+pub const ELLIPSE_CLAMP: f32 = 10.0;
 
 impl Default for Shade {
     fn default() -> Self {
         Self {
             shading: Shading::Auto,
             elevation: [0.0, 1.0],
+            ellipse_clamp: ELLIPSE_CLAMP,
         }
     }
 }
 
 impl Shade {
+    /// The smallest minor ÷ major axis ratio of an ellipse (`1 / ellipse_clamp`).
+    pub fn ellipse_min_ratio(&self) -> f32 {
+        1.0 / self.ellipse_clamp
+    }
+
     /// `1 / (top − bottom)` of the elevation ramp, 0 for an empty range (every height then
     /// takes the ramp's first colour).
     pub fn elevation_scale(&self) -> f32 {

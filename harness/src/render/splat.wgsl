@@ -12,7 +12,7 @@ struct Frame {
     proj_scale: f32,        // offset 76: k = height / (2 tan(fov_y/2))
     viewport: vec2<f32>,    // offset 80
     ambient: f32,           // offset 88
-    _pad0: f32,             // offset 92
+    ellipse_min_ratio: f32, // offset 92: smallest minor/major ratio of an ellipse (1/clamp)
     base_color: vec4<f32>,  // offset 96: linear RGB used when the scene has no colour
     view: mat4x4<f32>,      // offset 112: world → view (ellipse axes)
     depth_offset: f32,      // offset 176: gaussian depth pass pushes splats back by this × radius
@@ -182,13 +182,13 @@ fn splat_vertex(vi: u32, ii: u32, ellipse: bool, depth_push: bool, support: f32)
     let c = CORNERS[vi] * support;
     var offset = c * size * 0.5; // pixels
     if (ellipse && has_normal) {
-        // Minor axis along the projected normal, minor/major = |n̂·v̂| clamped at 1/10.
+        // Minor axis along the projected normal, minor/major = |n̂·v̂| clamped at 1/clamp.
         let nv = (frame.view * vec4<f32>(n, 0.0)).xy;
         var d = vec2<f32>(1.0, 0.0);
         if (dot(nv, nv) > 1e-12) {
             d = normalize(nv);
         }
-        let ratio = max(abs(dot(n, l)), 0.1);
+        let ratio = max(abs(dot(n, l)), frame.ellipse_min_ratio);
         let major = vec2<f32>(-d.y, d.x);
         offset = (c.x * major + c.y * d * ratio) * size * 0.5;
     }

@@ -50,8 +50,8 @@ pub struct FrameUniform {
     pub viewport: [f32; 2],
     /// offset 88
     pub ambient: f32,
-    /// offset 92
-    pub _pad0: f32,
+    /// offset 92: the smallest minor ÷ major ratio of an ellipse ([`Shade::ellipse_min_ratio`])
+    pub ellipse_min_ratio: f32,
     /// offset 96
     pub base_color: [f32; 4],
     /// offset 112
@@ -160,7 +160,7 @@ pub fn frame_uniform(view: &View, shade: &Shade) -> FrameUniform {
         proj_scale: view.proj_scale(),
         viewport: [view.width as f32, view.height as f32],
         ambient: AMBIENT,
-        _pad0: 0.0,
+        ellipse_min_ratio: shade.ellipse_min_ratio(),
         base_color: [BASE_COLOR[0], BASE_COLOR[1], BASE_COLOR[2], 1.0],
         view: view.view_matrix().to_cols_array_2d(),
         depth_offset: GAUSS_DEPTH_OFFSET,

@@ -203,11 +203,12 @@ impl<'g> Reference<'g> {
 
     fn key(&self, view: &View) -> String {
         let mut h = scenes::hash::Fnv64::default();
+        // The ellipse clamp is keyed below, only when it is not the default: the keys of the
+        // references made before it was a setting (its bytes were padding, 0) stay valid.
+        let mut uniform = crate::render::frame_uniform(view, &self.settings.shade);
+        uniform.ellipse_min_ratio = 0.0;
         h.write(&self.scene_hash.to_le_bytes())
-            .write(bytemuck::bytes_of(&crate::render::frame_uniform(
-                view,
-                &self.settings.shade,
-            )))
+            .write(bytemuck::bytes_of(&uniform))
             .write_str(self.settings.shade.shading.name())
             .write(&view.camera.near.to_le_bytes())
             .write(&view.camera.far.to_le_bytes())
@@ -220,6 +221,9 @@ impl<'g> Reference<'g> {
         // before the compute rasteriser existed.
         if self.settings.raster != crate::render::Raster::Quads {
             h.write_str(self.settings.raster.name());
+        }
+        if self.settings.shade.ellipse_clamp != crate::render::ELLIPSE_CLAMP {
+            h.write(&self.settings.shade.ellipse_clamp.to_le_bytes());
         }
         format!("{:016x}", h.finish())
     }

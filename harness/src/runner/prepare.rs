@@ -61,6 +61,7 @@ pub fn load_scene(
         shade: Shade {
             shading: render.shade.shading.resolve(cloud.attributes()),
             elevation: [framing.framed.min.z, framing.framed.max.z],
+            ..render.shade
         },
         ..render
     };

@@ -379,17 +379,25 @@ fn an_index_claiming_gigabytes_for_a_chunk_is_an_error_not_an_abort() {
     let tmp = tempfile::tempdir().unwrap();
     build(&cloud, &["fanout=4", "vbo=100"], tmp.path());
     let path = tmp.path().join("index.bin");
-    let mut nodes = index::read(&path).unwrap();
-    nodes[0].chunk.raw = u32::MAX - 8;
-    index::write(&path, &nodes).unwrap();
-    let e = Mwkd::open(tmp.path(), Manifest::read(tmp.path()).unwrap())
-        .map(drop)
-        .unwrap_err()
-        .to_string();
-    assert!(
-        e.contains("repo.bin") && e.contains("4294967287 decompressed bytes claimed"),
-        "{e}"
-    );
+    let original = index::read(&path).unwrap();
+    // The fuzzer's value sets the verbatim flag (bit 31) since `lzo=false` exists: a chunk
+    // stored as is must have as many bytes as it claims. Below the flag, LZO's bound.
+    for (raw, needle) in [
+        (u32::MAX - 8, "node 0: stored as is in 948 bytes, but 2147483639 claimed"),
+        (
+            methods::store::VERBATIM - 9,
+            "2147483639 decompressed bytes claimed",
+        ),
+    ] {
+        let mut nodes = original.clone();
+        nodes[0].chunk.raw = raw;
+        index::write(&path, &nodes).unwrap();
+        let e = Mwkd::open(tmp.path(), Manifest::read(tmp.path()).unwrap())
+            .map(drop)
+            .unwrap_err()
+            .to_string();
+        assert!(e.contains("repo.bin") && e.contains(needle), "{e}");
+    }
 }
 
 /// `lzo=false` (MWKD §V-B, claim `mwkd-compression-no-cost`): the nodes are stored as is and

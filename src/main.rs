@@ -96,6 +96,7 @@ enum Command {
 
 fn main() {
     let cli = Cli::parse();
+    quiet_headless_vulkan(&cli.command);
     // `check` has three outcomes (holds, regression, unusable input): its own exit status.
     if let Command::Check(a) = &cli.command {
         std::process::exit(check::main(a));
@@ -104,6 +105,30 @@ fn main() {
         eprintln!("Error: {e:#}");
         std::process::exit(1);
     }
+}
+
+/// Mesa's implicit Vulkan layer `VK_LAYER_MESA_device_select` connects to a Wayland display
+/// while the devices are listed, and without one libwayland prints "error: XDG_RUNTIME_DIR is
+/// invalid or not set in the environment." twice on every headless run (issue 37: noise that
+/// looks like failure). A command that opens no window has no display to choose a device by,
+/// so it turns the layer off with Mesa's own switch, `NODEVICE_SELECT=1` — unless the user
+/// set it, or chose a device with `MESA_VK_DEVICE_SELECT` (the layer's purpose). wgpu still
+/// picks the adapter (`WGPU_ADAPTER_NAME`, `WGPU_BACKEND`). `view` keeps the layer.
+///
+/// The one `unsafe` of the crate (`unsafe_code` is denied elsewhere): the loader reads the
+/// variable from this process's environment, and re-executing the binary to set it would
+/// cost a second start and a second process between the user and the signals.
+#[allow(unsafe_code)]
+fn quiet_headless_vulkan(command: &Command) {
+    let user_chose = ["NODEVICE_SELECT", "MESA_VK_DEVICE_SELECT"]
+        .iter()
+        .any(|v| std::env::var_os(v).is_some());
+    if matches!(command, Command::View(_)) || user_chose {
+        return;
+    }
+    // SAFETY: the first thing `main` does after parsing its arguments: no other thread exists
+    // yet to read the environment concurrently.
+    unsafe { std::env::set_var("NODEVICE_SELECT", "1") };
 }
 
 fn real_main(command: Command) -> anyhow::Result<()> {

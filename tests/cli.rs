@@ -491,3 +491,41 @@ fn a_corrupted_repository_is_reported_and_fails_the_run() {
         assert!(!err.contains("with --param"), "{err}");
     }
 }
+
+/// A headless run prints only splatbench's own lines (issue 37, item 3): Mesa's
+/// device-select layer connected to a Wayland display while listing devices, and libwayland
+/// printed "error: XDG_RUNTIME_DIR is invalid or not set in the environment." twice on every
+/// run; `main` turns the layer off for commands that open no window. Run with the variables
+/// a plain shell on a headless machine has (no XDG_RUNTIME_DIR, no WAYLAND_DISPLAY, none of
+/// the layer's switches).
+#[test]
+fn a_headless_run_prints_no_window_system_noise() {
+    if !have_gpu("a_headless_run_prints_no_window_system_noise") {
+        return;
+    }
+    let tmp = tempfile::tempdir().unwrap();
+    let out = bin()
+        .args([
+            "run",
+            "--method",
+            "full",
+            "--scene",
+            "statue:1000",
+            "--frames",
+            "1",
+        ])
+        .args(["--width", "32", "--height", "32", "--out"])
+        .arg(tmp.path().join("run"))
+        .arg("--cache")
+        .arg(tmp.path().join("cache"))
+        .env_remove("XDG_RUNTIME_DIR")
+        .env_remove("WAYLAND_DISPLAY")
+        .env_remove("NODEVICE_SELECT")
+        .env_remove("MESA_VK_DEVICE_SELECT")
+        .output()
+        .unwrap();
+    let stderr = String::from_utf8_lossy(&out.stderr);
+    assert!(out.status.success(), "{stderr}");
+    assert!(!stderr.contains("XDG_RUNTIME_DIR"), "{stderr}");
+    assert!(stderr.contains("adapter: "), "{stderr}");
+}

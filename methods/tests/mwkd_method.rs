@@ -383,7 +383,10 @@ fn an_index_claiming_gigabytes_for_a_chunk_is_an_error_not_an_abort() {
     // The fuzzer's value sets the verbatim flag (bit 31) since `lzo=false` exists: a chunk
     // stored as is must have as many bytes as it claims. Below the flag, LZO's bound.
     for (raw, needle) in [
-        (u32::MAX - 8, "node 0: stored as is in 948 bytes, but 2147483639 claimed"),
+        (
+            u32::MAX - 8,
+            "node 0: stored as is in 948 bytes, but 2147483639 claimed",
+        ),
         (
             methods::store::VERBATIM - 9,
             "2147483639 decompressed bytes claimed",

@@ -36,18 +36,26 @@ pub fn open_gpu() -> anyhow::Result<Gpu> {
     }
 }
 
+/// One line per run, medians over its frames: points drawn (thousands grouped), the frame
+/// time splats/s divides by (GPU or wall, with its unit once), splats/s, FLIP and holes (%).
 pub fn print_summary(s: &Summary) {
-    let f = |v: Option<f64>| v.map(|v| format!("{v:.4}")).unwrap_or_else(|| "-".into());
+    use harness::reproduce::exec::thousands;
+    let m = &s.medians;
+    let show = |v: Option<f64>, f: &dyn Fn(f64) -> String| v.map(f).unwrap_or_else(|| "-".into());
+    // The time splats/s divides by: the GPU's where the adapter has timestamps, else the wall.
+    let (clock, ms) = match s.splats_per_s_basis {
+        "gpu_ms" => ("gpu", m.gpu_ms),
+        _ => ("wall", m.wall_ms),
+    };
     println!(
-        "{:<8} {:<22} frames {:>4}  points {:>10}  {} ms {:>8}  splats/s {:>12}  flip {:>7}  holes {:>7}",
+        "{:<8} {:<22} frames {:>4}  points {:>11}  {clock} {:>9} ms  splats/s {:>13}  flip {:>6}  holes {:>7}",
         s.method,
         s.scene.label,
         s.frames,
-        f(s.medians.points_drawn),
-        s.splats_per_s_basis,
-        f(s.medians.gpu_ms.or(s.medians.wall_ms)),
-        f(s.medians.splats_per_s),
-        f(s.medians.flip_mean),
-        f(s.medians.hole_ratio),
+        show(m.points_drawn, &thousands),
+        show(ms, &|v| format!("{v:.1}")),
+        show(m.splats_per_s, &thousands),
+        show(m.flip_mean, &|v| format!("{v:.4}")),
+        show(m.hole_ratio, &|v| format!("{:.2} %", v * 100.0)),
     );
 }

@@ -528,4 +528,15 @@ fn a_headless_run_prints_no_window_system_noise() {
     assert!(out.status.success(), "{stderr}");
     assert!(!stderr.contains("XDG_RUNTIME_DIR"), "{stderr}");
     assert!(stderr.contains("adapter: "), "{stderr}");
+    // The summary line (issue 37, item 7): integers as integers, thousands grouped, each
+    // unit once.
+    let stdout = String::from_utf8_lossy(&out.stdout);
+    let line = stdout.lines().find(|l| l.starts_with("full ")).unwrap();
+    assert!(line.contains("points       1,000  "), "{line}");
+    assert!(
+        line.contains(" ms  splats/s ") && !line.contains("ms ms"),
+        "{line}"
+    );
+    // `full` is the reference: no error, no hole.
+    assert!(line.ends_with("flip 0.0000  holes  0.00 %"), "{line}");
 }

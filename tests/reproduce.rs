@@ -384,16 +384,22 @@ rule = "at_least"
 needs_gpu = true
 "#;
 
-#[test]
-fn a_tiny_spec_runs_every_kind_of_measure() {
-    let Some(_gpu) = harness::gpu::gpu_for_test("a_tiny_spec_runs_every_kind_of_measure") else {
-        return;
-    };
+/// A temporary directory with `specs/tiny.toml` ([`TINY`]); `(dir, specs, out)`.
+fn tiny_spec_dir() -> (tempfile::TempDir, std::path::PathBuf, std::path::PathBuf) {
     let d = tempfile::tempdir().unwrap();
     let specs = d.path().join("specs");
     std::fs::create_dir_all(&specs).unwrap();
     std::fs::write(specs.join("tiny.toml"), TINY).unwrap();
     let out = d.path().join("out");
+    (d, specs, out)
+}
+
+#[test]
+fn a_tiny_spec_runs_every_kind_of_measure() {
+    let Some(_gpu) = harness::gpu::gpu_for_test("a_tiny_spec_runs_every_kind_of_measure") else {
+        return;
+    };
+    let (d, specs, out) = tiny_spec_dir();
     let run = |out: &Path| {
         bin()
             .args(["reproduce", "--specs"])
@@ -507,11 +513,7 @@ fn a_resumed_reproduction_takes_finished_measures_from_their_checkpoints() {
     ) else {
         return;
     };
-    let d = tempfile::tempdir().unwrap();
-    let specs = d.path().join("specs");
-    std::fs::create_dir_all(&specs).unwrap();
-    std::fs::write(specs.join("tiny.toml"), TINY).unwrap();
-    let out = d.path().join("out");
+    let (d, specs, out) = tiny_spec_dir();
     let run = |resume: bool| {
         let mut c = bin();
         c.args(["reproduce", "--specs"])

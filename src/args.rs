@@ -200,7 +200,8 @@ pub struct SweepTargetArgs {
     /// Pixel tolerances, comma-separated, one run each (e.g. 8,4,2,1).
     #[arg(long, value_name = "PX,...", allow_hyphen_values = true)]
     pub eps: Option<String>,
-    /// Camera path: orbit, zoom, flythrough, or a keyframe .toml file.
+    /// Camera path: a built-in (orbit, zoom, flythrough, extremes; `splatbench list` says what
+    /// each does) or a keyframe .toml file.
     #[arg(long, default_value = "orbit")]
     pub path: String,
     /// Frames along the path.

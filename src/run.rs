@@ -21,7 +21,8 @@ pub struct RunArgs {
     pub render: RenderArgs,
     #[command(flatten)]
     pub target: TargetArgs,
-    /// Camera path: orbit, zoom, flythrough, or a keyframe .toml file.
+    /// Camera path: a built-in (orbit, zoom, flythrough, extremes; `splatbench list` says what
+    /// each does) or a keyframe .toml file.
     #[arg(long, default_value = "orbit")]
     pub path: String,
     /// Frames along the path.
@@ -86,8 +87,15 @@ pub fn main(args: &RunArgs) -> anyhow::Result<()> {
     let s = harness::runner::run(&cfg, &gpu, &harness::progress::Bar::new())?;
     let plots = harness::plot::plot_run(&cfg.out)?;
     print_summary(&s);
+    let images = if cfg.save_images {
+        // Every frame and, with metrics, its reference (`frame_NNNN.png`, `ref_NNNN.png`).
+        let n = std::fs::read_dir(cfg.out.join("images")).map_or(0, |d| d.count());
+        format!(", {n} images under images/")
+    } else {
+        String::new()
+    };
     println!(
-        "wrote {}/frames.csv, summary.json and {} plot files",
+        "wrote {}/frames.csv, summary.json, {} plot files{images}",
         cfg.out.display(),
         plots.len()
     );

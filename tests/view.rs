@@ -136,7 +136,9 @@ fn a_scripted_session_screenshots_runs_image_and_records_a_path_run_reads() {
             run_out.to_str().unwrap(),
         ])
         .assert()
-        .success();
+        .success()
+        // The last line names the images (issue 37, item 7): one frame and its reference.
+        .stdout(predicates::str::contains(", 2 images under images/"));
     let ran = Image::load_png(&run_out.join("images/frame_0000.png")).unwrap();
     let viewed = Image::load_png(&out.join("shot-001.png")).unwrap();
     let flip = harness::metrics::flip_mean(&ran, &viewed).unwrap();

@@ -191,6 +191,12 @@ impl SceneSpec {
             spec: text.to_string(),
             msg,
         };
+        if Path::new(text).is_dir() {
+            // A folder such as `laspy-2.7.0` reads as a file with the extension `.0`.
+            return Err(err(format!(
+                "is a directory: name one of its point-cloud files ({FILE_EXTENSIONS})"
+            )));
+        }
         let lower = text.to_ascii_lowercase();
         let ext = |e: &str| lower.ends_with(e);
         let source = if ext(".toml") {

@@ -585,6 +585,21 @@ fn unsupported_extensions_are_named_with_the_supported_list() {
     // Generators are not files, and still get the generator message.
     let e = SceneSpec::parse("statue", None, 1).unwrap_err().to_string();
     assert!(e.contains("missing point count"), "{e}");
+    // A directory (issue 37: `laspy-2.7.0` was "'.0' files are not read") says so, with or
+    // without a dot in its name.
+    let dir = tempfile::tempdir().unwrap();
+    for name in ["laspy-2.7.0", "scans"] {
+        let d = dir.path().join(name);
+        std::fs::create_dir(&d).unwrap();
+        let e = SceneSpec::parse(d.to_str().unwrap(), None, 1)
+            .unwrap_err()
+            .to_string();
+        assert!(
+            e.contains(name)
+                && e.contains("is a directory: name one of its point-cloud files (.ply"),
+            "{e}"
+        );
+    }
 }
 
 /// E57 intensity: kept per valid point when every scan has it, used by `--shading

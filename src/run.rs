@@ -9,7 +9,7 @@ use methods::Params;
 use scenes::paths::PathSpec;
 
 use crate::args::{CacheArgs, MethodArgs, RemoteArgs, RenderArgs, SceneArgs, TargetArgs};
-use crate::shared::{open_gpu, print_summary};
+use crate::shared::{check_scene_file, open_gpu, print_summary};
 
 #[derive(Args, Clone)]
 pub struct RunArgs {
@@ -83,6 +83,7 @@ pub fn run_config(a: &RunArgs) -> anyhow::Result<RunConfig> {
 pub fn main(args: &RunArgs) -> anyhow::Result<()> {
     // Flags first: a bad value is reported without waiting for an adapter.
     let cfg = run_config(args)?;
+    check_scene_file(&cfg.scene)?;
     let gpu = open_gpu()?;
     let s = harness::runner::run(&cfg, &gpu, &harness::progress::Bar::new())?;
     let plots = harness::plot::plot_run(&cfg.out)?;

@@ -20,6 +20,15 @@ pub fn default_cache() -> PathBuf {
     }
 }
 
+/// The scene's file, when it is read from one, exists: checked before the adapter is opened,
+/// so a mistyped path fails at once, naming the flag, not after the adapter line.
+pub fn check_scene_file(scene: &scenes::SceneSpec) -> anyhow::Result<()> {
+    match scene.file() {
+        Some(f) if !f.is_file() => bail!("--scene {}: no such file", f.display()),
+        _ => Ok(()),
+    }
+}
+
 pub fn open_gpu() -> anyhow::Result<Gpu> {
     match Gpu::new()? {
         Some(g) => {

@@ -12,7 +12,7 @@ use crate::args::{
 };
 use crate::build::build;
 use crate::run::{RunArgs, run_config};
-use crate::shared::{open_gpu, print_summary};
+use crate::shared::{check_scene_file, open_gpu, print_summary};
 
 #[derive(Args, Clone)]
 pub struct SweepArgs {
@@ -88,6 +88,7 @@ pub fn main(a: &SweepArgs) -> anyhow::Result<()> {
         ],
     };
     let (base, build_dir) = base_config(a, &targets)?;
+    check_scene_file(&base.scene)?;
     let gpu = open_gpu()?;
     std::fs::create_dir_all(&a.out).with_context(|| format!("creating {}", a.out.display()))?;
     // A sweep.csv (or plot) of an earlier sweep must not outlive a failure of this one.

@@ -463,3 +463,35 @@ fn an_ellipse_clamp_below_one_is_refused() {
         assert!(!out.exists(), "{v}: nothing written");
     }
 }
+
+/// A scene file that does not exist fails before the adapter is opened (issue 37, item 7:
+/// the adapter line printed first), naming the flag and the file; nothing is written.
+#[test]
+fn a_missing_scene_file_fails_before_the_adapter_line() {
+    let tmp = tempfile::tempdir().unwrap();
+    let out = tmp.path().join("o");
+    for command in ["run", "sweep"] {
+        let mut c = bin();
+        c.args([
+            command,
+            "--method",
+            "qsplat",
+            "--scene",
+            "/nonexistent/scan.ply",
+        ])
+        .arg("--out")
+        .arg(&out);
+        if command == "sweep" {
+            c.args(["--eps", "2,1"]);
+        }
+        let o = c.output().unwrap();
+        let err = String::from_utf8_lossy(&o.stderr);
+        assert!(!o.status.success());
+        assert!(
+            err.contains("--scene /nonexistent/scan.ply: no such file"),
+            "{command}: {err}"
+        );
+        assert!(!err.contains("adapter:"), "{command}: {err}");
+        assert!(!out.exists(), "{command}: nothing written");
+    }
+}

@@ -20,6 +20,16 @@ pub fn default_cache() -> PathBuf {
     }
 }
 
+/// The viewer's folder unless `--out` is given: `splatbench/view` in the user's data
+/// directory (`~/.local/share` on Linux), not the current directory (issue 37: a
+/// `splatbench-view/` appeared wherever the viewer was started); the system's temporary
+/// directory when there is no data directory.
+pub fn default_view_dir() -> PathBuf {
+    dirs::data_dir()
+        .map(|d| d.join("splatbench").join("view"))
+        .unwrap_or_else(|| std::env::temp_dir().join("splatbench-view"))
+}
+
 /// The scene's file, when it is read from one, exists: checked before the adapter is opened,
 /// so a mistyped path fails at once, naming the flag, not after the adapter line.
 pub fn check_scene_file(scene: &scenes::SceneSpec) -> anyhow::Result<()> {

@@ -40,8 +40,9 @@ pub struct ViewArgs {
     /// instead of building.
     #[arg(long, requires = "method")]
     pub build_dir: Option<PathBuf>,
-    /// Where builds (reused by the next start), screenshots and recorded paths go.
-    #[arg(long, default_value = "splatbench-view")]
+    /// Where builds (reused by the next start), screenshots and recorded paths go (default:
+    /// splatbench/view in the user's data directory, e.g. ~/.local/share/splatbench/view).
+    #[arg(long, default_value_os_t = crate::shared::default_view_dir())]
     pub out: PathBuf,
     /// Timed key and mouse events (one per line, `FRAME EVENT [ARGS]`; see the README),
     /// played on a virtual clock of 30 frames per second.
@@ -154,6 +155,10 @@ pub fn main(a: &ViewArgs) -> anyhow::Result<()> {
         },
         &bar,
     )?;
+    eprintln!(
+        "view: builds, screenshots and paths go to {}",
+        a.out.display()
+    );
     let title = format!("splatbench view: {}", scene.label);
     let times = window::run(
         display,

@@ -252,3 +252,22 @@ fn bad_view_flags_and_scripts_are_named() {
         "unknown camera path 'spiral'",
     );
 }
+
+/// The viewer writes under the user's data directory unless `--out` says otherwise (issue 37,
+/// item 7: a `splatbench-view/` appeared in whatever directory it was started from).
+#[test]
+#[cfg(target_os = "linux")]
+fn the_viewers_default_folder_is_in_the_users_data_directory() {
+    let tmp = tempfile::tempdir().unwrap();
+    let help = bin()
+        .args(["view", "--help"])
+        .env("XDG_DATA_HOME", tmp.path())
+        .output()
+        .unwrap();
+    let text = String::from_utf8_lossy(&help.stdout);
+    let want = tmp.path().join("splatbench").join("view");
+    assert!(
+        text.contains(&format!("[default: {}]", want.display())),
+        "{text}"
+    );
+}

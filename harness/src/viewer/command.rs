@@ -82,6 +82,13 @@ pub enum Action {
     Quit,
 }
 
+/// Every key name [`action`] knows (`=` and `-` are also `plus` and `minus`), as a script's
+/// error lists them.
+pub const KEY_NAMES: &[&str] = &[
+    "w", "a", "s", "d", "q", "e", "shift", "tab", "r", "plus", "minus", "k", "f", "g", "h", "l",
+    "c", "space", "enter", "p", "f12", "escape", "1", "2", "3", "4", "5", "6", "7", "8", "9",
+];
+
 /// The action of the key named `name` (lower case, as scripts spell it; the window maps
 /// its keys to these names).
 pub fn action(name: &str) -> Option<Action> {
@@ -189,9 +196,9 @@ impl Script {
             };
             let key = |s: &str| -> Result<String, String> {
                 let k = s.to_ascii_lowercase();
-                action(&k)
-                    .map(|_| k)
-                    .ok_or_else(|| err(format!("unknown key '{s}'")))
+                action(&k).map(|_| k).ok_or_else(|| {
+                    err(format!("unknown key '{s}' (keys: {})", KEY_NAMES.join(" ")))
+                })
             };
             match args {
                 ["down", k] => events.push((frame, Event::Key(key(k)?, true))),
@@ -236,12 +243,7 @@ mod tests {
 
     #[test]
     fn every_documented_key_has_an_action() {
-        for k in [
-            "w", "a", "s", "d", "q", "e", "shift", "tab", "r", "plus", "minus", "k", "f", "g", "h",
-            "l", "c", "space", "enter", "p", "f12", "escape", "1", "9",
-        ] {
-            assert!(action(k).is_some(), "{k}");
-        }
+        // Every name (the README's list is KEY_NAMES): the next test.
         assert_eq!(action("3"), Some(Action::Method(2)));
         assert_eq!(action("0"), None);
         assert_eq!(action("x"), None);
@@ -285,12 +287,44 @@ mod tests {
         assert_eq!(s.last_frame(), Some(30));
     }
 
+    /// The list a bad key's error shows is exactly the keys `action` knows: each listed name
+    /// maps to an action, and no other name of one or two letters, digit or common key does.
+    #[test]
+    fn the_listed_key_names_are_exactly_the_known_ones() {
+        for k in KEY_NAMES {
+            assert!(action(k).is_some(), "{k}");
+        }
+        let mut others: Vec<String> = (b'a'..=b'z').map(|c| (c as char).to_string()).collect();
+        others.extend((b'0'..=b'9').map(|c| (c as char).to_string()));
+        others.extend((1..=12).map(|n| format!("f{n}")));
+        others.extend(
+            [
+                "ctrl",
+                "alt",
+                "up",
+                "down",
+                "left",
+                "right",
+                "return",
+                "esc",
+                "backspace",
+            ]
+            .map(String::from),
+        );
+        for k in others.iter().filter(|k| !KEY_NAMES.contains(&k.as_str())) {
+            assert!(action(k).is_none(), "'{k}' works but is not listed");
+        }
+    }
+
     #[test]
     fn bad_scripts_name_the_line() {
         for (text, want) in [
             ("0 down w\nx up w", "line 2: 'x' is not a frame number"),
             ("5 down w\n4 up w", "line 2: frame 4 comes after frame 5"),
-            ("0 press zz", "line 1: unknown key 'zz'"),
+            (
+                "0 press zz",
+                "line 1: unknown key 'zz' (keys: w a s d q e shift",
+            ),
             ("0 drag 1 nan", "line 1: 'nan' is not a finite number"),
             ("0 jump", "line 1: expected"),
         ] {

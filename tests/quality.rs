@@ -469,6 +469,18 @@ fn a_far_stray_changes_neither_the_framing_nor_the_holes() {
             "{method}: strays=apart frames are the clean statue's"
         );
     }
+    // The warning names the remedy (issue 37, item 2: it did not, and `strays=apart` takes
+    // QSplat's FLIP on laspy's append-bug-cpy.laz from 0.72 to 0.032).
+    let summary: serde_json::Value = serde_json::from_str(
+        &std::fs::read_to_string(tmp.path().join("qsplat-stray/summary.json")).unwrap(),
+    )
+    .unwrap();
+    let warnings = summary["scene"]["warnings"].to_string();
+    assert!(
+        warnings.contains("1 of 20001 samples lie far outside the rest")
+            && warnings.contains("`--param strays=apart` builds it over the others"),
+        "{warnings}"
+    );
 }
 
 /// QSplat from inside a closed model (issue 13, item 2): the last frames of `zoom` put the

@@ -49,7 +49,10 @@ pub fn load_scene(
     if framing.outside > 0 {
         let w = format!(
             "{}: {} of {} samples lie far outside the rest (beyond half the robust extent of \
-             the 0.1–99.9 % quantile box): drawn, but the camera paths frame the others",
+             the 0.1–99.9 % quantile box): drawn, but the camera paths frame the others. \
+             Every method's hierarchy spans them by default (the papers' rule), which coarsens \
+             the rest; `--param strays=apart` builds it over the others and draws the strays \
+             beside it (methods/src/strays.rs)",
             spec.text,
             framing.outside,
             cloud.len()

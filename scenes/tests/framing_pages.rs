@@ -53,11 +53,13 @@ fn framed_with_pages_released(stray: bool) {
     let grown = rss_file().saturating_sub(before).max(grown_box);
     assert_eq!(inlier.is_some(), stray, "an inlier box only with a stray");
     assert_eq!(f.outside, u64::from(stray));
-    // Both read all 48 MB (the framing every sample, the quantiles every page); what stays
-    // is at most the pages of a block boundary: 4 MB leaves room for those and for the
-    // test harness's own file-backed pages (code faulted in while it runs).
+    // Both read all 48 MB (the framing every sample, the quantiles every page); the defect
+    // kept all of it. What stays is the pages of block boundaries and the test binary's own
+    // file-backed pages (code faulted in while it runs): measured 2.9 MB alone (every run),
+    // 4.7 MB once with the whole suite and a 186 M-sample build on the same 2 cores
+    // (2026-12-06). 8 MB, a sixth of the column, keeps both cases apart with margin.
     assert!(
-        grown < 4 << 20,
+        grown < 8 << 20,
         "{grown} bytes of the 48 MB column stayed resident after the framing (stray: {stray})"
     );
 }

@@ -145,14 +145,8 @@ impl RenderArgs {
                 .ok_or_else(|| anyhow::anyhow!("--gpu-cache-mb is too large"))?,
             shade: harness::render::Shade {
                 shading,
-                ellipse_clamp: if self.ellipse_clamp.is_finite() && self.ellipse_clamp >= 1.0 {
-                    self.ellipse_clamp
-                } else {
-                    anyhow::bail!(
-                        "--ellipse-clamp {}: the largest major ÷ minor axis ratio must be a finite number ≥ 1",
-                        self.ellipse_clamp
-                    )
-                },
+                ellipse_clamp: harness::render::Shade::check_ellipse_clamp(self.ellipse_clamp)
+                    .map_err(anyhow::Error::msg)?,
                 ..Default::default()
             },
             raster: self.raster,

@@ -289,12 +289,7 @@ impl<'g> Renderer<'g> {
                 gpu.adapter.name
             );
         }
-        let clamp = settings.shade.ellipse_clamp;
-        if !(clamp.is_finite() && clamp >= 1.0) {
-            bail!(
-                "--ellipse-clamp {clamp}: the largest major ÷ minor axis ratio must be a finite number ≥ 1"
-            );
-        }
+        Shade::check_ellipse_clamp(settings.shade.ellipse_clamp).map_err(anyhow::Error::msg)?;
         let size = wgpu::Extent3d {
             width: settings.width,
             height: settings.height,

@@ -148,6 +148,19 @@ impl Shade {
         1.0 / self.ellipse_clamp
     }
 
+    /// `clamp` as an ellipse clamp ([`Shade::ellipse_clamp`]), or why not: the one check
+    /// behind `--ellipse-clamp` and [`super::Renderer::new`].
+    pub fn check_ellipse_clamp(clamp: f32) -> Result<f32, String> {
+        if clamp.is_finite() && clamp >= 1.0 {
+            Ok(clamp)
+        } else {
+            Err(format!(
+                "--ellipse-clamp {clamp}: the largest major ÷ minor axis ratio must be a finite \
+                 number ≥ 1"
+            ))
+        }
+    }
+
     /// `1 / (top − bottom)` of the elevation ramp, 0 for an empty range (every height then
     /// takes the ramp's first colour).
     pub fn elevation_scale(&self) -> f32 {

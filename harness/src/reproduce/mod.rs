@@ -266,17 +266,18 @@ fn run_spec(
     bar.set_prefix(spec.id.clone());
     let needs_gpu_rows = spec.rows.iter().any(|r| r.needs_gpu || r.judge_on_gpu);
     let real_gpu = needs_gpu_rows && ctx.has_real_gpu().unwrap_or(false);
+    // What a checkpoint of this spec's measures must match ([`resume`]): the same for all.
+    let identity = resume::Identity::now(
+        opts.profile,
+        run.spec_hash,
+        ctx.gpu().ok().flatten().map(|g| g.adapter.clone()),
+    );
     let mut results: BTreeMap<String, MeasureResult> = BTreeMap::new();
     let mut lines = Vec::new();
     for (j, m) in needed.iter().enumerate() {
         bar.set_message(m.id.clone());
         let gpu_only = uses.get(m.id.as_str()).copied().unwrap_or(false);
         let checkpoint = resume::path(&opts.out, &spec.id, &m.id);
-        let identity = resume::Identity::now(
-            opts.profile,
-            run.spec_hash,
-            ctx.gpu().ok().flatten().map(|g| g.adapter.clone()),
-        );
         let mut resumed = None;
         let mut r = if gpu_only && !real_gpu {
             MeasureResult {

@@ -55,7 +55,8 @@ pub struct ReproduceArgs {
     /// Take every measure that an earlier run of this same commit, profile and spec finished
     /// (its checkpoint under OUT/measures/ and its runs under OUT/runs/) instead of running it
     /// again: how a part killed mid-way goes on. A measure whose checkpoint does not match
-    /// runs. Without it, every measure runs.
+    /// runs, and stderr says why (another commit, an edited spec, its runs gone, …). Without
+    /// it, every measure runs.
     #[arg(long)]
     pub resume: bool,
     /// Run only the K-th selected spec (0-based) into --out: what an emitted job line does.

@@ -525,15 +525,16 @@ fn a_resumed_reproduction_takes_finished_measures_from_their_checkpoints() {
         if resume {
             c.arg("--resume");
         }
-        c.assert().success();
+        let output = c.assert().success().get_output().clone();
         let results: serde_json::Value =
             serde_json::from_str(&std::fs::read_to_string(out.join("results.json")).unwrap())
                 .unwrap();
         let report = std::fs::read_to_string(out.join("report.md")).unwrap();
-        (results, report)
+        let stderr = String::from_utf8_lossy(&output.stderr).into_owned();
+        (results, report, stderr)
     };
     let rows = |v: &serde_json::Value| v["tables"][0]["rows"].to_string();
-    let (first, report) = run(false);
+    let (first, report, _) = run(false);
     assert!(!report.contains("resumed"), "{report}");
     let frames = out.join("runs/tiny/r/frames.csv");
     let before = std::fs::read(&frames).unwrap();
@@ -544,7 +545,7 @@ fn a_resumed_reproduction_takes_finished_measures_from_their_checkpoints() {
             "note: {commit} is a dirty build: checking that it neither writes nor reads checkpoints"
         );
         assert!(!out.join("measures").exists());
-        let (_, report) = run(true);
+        let (_, report, _) = run(true);
         assert!(!report.contains("resumed"), "{report}");
         return;
     }
@@ -552,7 +553,8 @@ fn a_resumed_reproduction_takes_finished_measures_from_their_checkpoints() {
     for m in ["b", "r", "iso", "sw"] {
         assert!(out.join(format!("measures/tiny/{m}.json")).is_file(), "{m}");
     }
-    let (second, report) = run(true);
+    let (second, report, stderr) = run(true);
+    assert!(!stderr.contains("not resumed"), "{stderr}");
     assert_eq!(
         report.matches("resumed: measured").count(),
         4,
@@ -579,14 +581,28 @@ fn a_resumed_reproduction_takes_finished_measures_from_their_checkpoints() {
     assert!(second["meta"]["seconds"].as_f64().unwrap() >= total);
     // A run whose directory is gone runs again; the others stay resumed.
     std::fs::remove_dir_all(out.join("runs/tiny/iso")).unwrap();
-    let (_, report) = run(true);
+    let (_, report, stderr) = run(true);
     assert_eq!(report.matches("resumed: measured").count(), 3, "{report}");
+    // ... and says why, naming the measure.
+    assert!(
+        stderr.contains("tiny.iso: not resumed, measuring again: its runs")
+            && stderr.contains("are gone"),
+        "{stderr}"
+    );
+    assert_eq!(stderr.matches("not resumed").count(), 1, "{stderr}");
     // An edited spec is another experiment: nothing resumes.
     std::fs::write(specs.join("tiny.toml"), format!("{TINY}\n# edited\n")).unwrap();
-    let (_, report) = run(true);
+    let (_, report, stderr) = run(true);
     assert!(!report.contains("resumed"), "{report}");
+    assert_eq!(
+        stderr
+            .matches("not resumed, measuring again: it was measured with the spec as it was (edited since)")
+            .count(),
+        4,
+        "{stderr}"
+    );
     // Without --resume nothing resumes, and the checkpoints are rewritten.
-    let (_, report) = run(false);
+    let (_, report, _) = run(false);
     assert!(!report.contains("resumed"), "{report}");
 }
 

@@ -286,8 +286,22 @@ fn run_spec(
             }
         } else if let Some(done) = opts
             .resume
-            .then(|| resume::load(&checkpoint, &identity).ok())
-            .flatten()
+            .then(|| resume::load(&checkpoint, &identity))
+            .and_then(|loaded| {
+                // Why a checkpoint that exists was not taken (a missing one needs no word).
+                loaded
+                    .map_err(|why| {
+                        if checkpoint.exists() {
+                            multi.suspend(|| {
+                                eprintln!(
+                                    "{}.{}: not resumed, measuring again: {why}",
+                                    spec.id, m.id
+                                )
+                            });
+                        }
+                    })
+                    .ok()
+            })
         {
             resumed_seconds += done.result.seconds;
             resumed = Some(done.date);

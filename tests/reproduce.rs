@@ -178,6 +178,74 @@ fn the_paper_profile_takes_its_own_values_or_the_full_ones() {
     );
 }
 
+/// A measure's own `profiles` leaves it out of the others, with every row that reads it and
+/// its sweeps in figures; the table says which rows another profile measures.
+#[test]
+fn a_measure_limited_to_profiles_takes_its_rows_along() {
+    let d = tempfile::tempdir().unwrap();
+    let f = d.path().join("t.toml");
+    let text = GOOD.replace(
+        "[[row]]",
+        "[[measure]]\nid = \"x\"\nkind = \"build\"\nmethod = \"lpc\"\nscene = \"s\"\nprofiles = [\"full\", \"paper\"]\n\n\
+         [[row]]\nwhat = \"x nodes\"\nours = \"x.nodes\"\nrule = \"report\"\n\n\
+         [[row]]\nwhat = \"both\"\nours = [\"b.nodes\", \"x.nodes\"]\nrule = \"report\"\n\n[[row]]",
+    );
+    std::fs::write(&f, &text).unwrap();
+    let quick = spec::load(&f, &root(), Profile::Quick).unwrap();
+    let ids = |s: &spec::Spec| s.measures.iter().map(|m| m.id.clone()).collect::<Vec<_>>();
+    let whats = |s: &spec::Spec| s.rows.iter().map(|r| r.what.clone()).collect::<Vec<_>>();
+    assert_eq!(ids(&quick), ["b"]);
+    assert_eq!(whats(&quick), ["w"]);
+    assert_eq!(
+        quick.rows_elsewhere,
+        vec![
+            spec::RowElsewhere {
+                what: "x nodes".into(),
+                profiles: vec![Profile::Full, Profile::Paper]
+            },
+            spec::RowElsewhere {
+                what: "both".into(),
+                profiles: vec![Profile::Full, Profile::Paper]
+            },
+        ]
+    );
+    let full = spec::load(&f, &root(), Profile::Full).unwrap();
+    assert_eq!(ids(&full), ["b", "x"]);
+    assert_eq!(whats(&full), ["x nodes", "both", "w"]);
+    assert!(full.rows_elsewhere.is_empty());
+    // Errors: an empty list, a profile the spec is not in, a reason that reads a measure
+    // its row does not, and a profile left with no row at all.
+    let cases: &[(String, &str)] = &[
+        (
+            text.replace("profiles = [\"full\", \"paper\"]", "profiles = []"),
+            "measure 'x': profiles: lists no profile",
+        ),
+        (
+            text.replace(
+                "title = \"T\"",
+                "title = \"T\"\nprofiles = [\"quick\", \"full\"]",
+            ),
+            "measure 'x': profiles: 'paper' is not one of the spec's profiles",
+        ),
+        (
+            text.replace(
+                "rule = \"exact\"",
+                "rule = \"exact\"\nreason = \"{x.nodes}\"",
+            ),
+            "row 3 ('w'): reason: reads measure 'x', which the quick profile leaves out",
+        ),
+        (
+            text.replace("ours = \"b.bytes_per_node\"", "ours = \"x.bytes_per_node\"")
+                .replace("ours = [\"b.nodes\", \"x.nodes\"]", "ours = \"x.nodes\""),
+            "profiles: the quick profile leaves out every row",
+        ),
+    ];
+    for (text, needle) in cases {
+        let e = load_err(text);
+        assert!(e.contains(needle), "expected '{needle}' in: {e}");
+    }
+}
+
 #[test]
 fn bad_specs_name_the_file_and_the_field() {
     let d = tempfile::tempdir().unwrap();
@@ -382,6 +450,18 @@ paper = 1e15
 ours = "r.median.splats_per_s"
 rule = "at_least"
 needs_gpu = true
+
+[[measure]]
+id = "slow"
+kind = "build"
+method = "qsplat"
+scene = "s"
+profiles = ["full", "paper"]
+
+[[row]]
+what = "a figure only the larger profiles measure"
+ours = "slow.bytes_per_node"
+rule = "report"
 "#;
 
 /// A temporary directory with `specs/tiny.toml` ([`TINY`]); `(dir, specs, out)`.
@@ -437,6 +517,15 @@ fn a_tiny_spec_runs_every_kind_of_measure() {
         "{report}"
     );
     assert!(report.contains("Sweep `sw`"), "{report}");
+    // The measure limited to the larger profiles did not run; its row is named.
+    assert!(
+        report.contains(
+            "Rows this profile leaves out (measured in the profiles named): \
+             *a figure only the larger profiles measure* (full, paper)."
+        ),
+        "{report}"
+    );
+    assert!(!report.contains("`slow`"), "{report}");
     assert!(
         report.contains("![FLIP against points](figures/tiny-f.png)"),
         "{report}"

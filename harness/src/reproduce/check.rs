@@ -12,7 +12,9 @@ use scenes::paths::PathSpec;
 
 use super::expr::Expr;
 use super::raw::{RawMeasure, RawRow, RawScene, RawSpec};
-use super::spec::{Figure, Format, Measure, MeasureKind, Piece, Profile, Row, Spec, SpecError};
+use super::spec::{
+    Figure, Format, Measure, MeasureKind, Piece, Profile, Row, RowElsewhere, Spec, SpecError,
+};
 use super::verdict::{Paper, Rule, check_shape};
 use crate::render::{Kernel, Raster};
 use crate::sweep::SweepTarget;
@@ -77,26 +79,70 @@ impl Checker<'_> {
                 }
             }
         };
+        let spec_profiles = match &raw.profiles {
+            None => Profile::ALL.to_vec(),
+            Some(p) if p.is_empty() => {
+                return Err(self.err("profiles", "lists no profile (omit it for all)"));
+            }
+            Some(p) => p.clone(),
+        };
         let mut measures: Vec<Measure> = Vec::new();
+        // Measures this profile leaves out (a measure's own `profiles`), with where they run.
+        let mut elsewhere: BTreeMap<&str, &[Profile]> = BTreeMap::new();
         for m in &raw.measures {
             let mut checked = self.measure(m, &scenes)?;
             if matches!(checked.kind, MeasureKind::Run | MeasureKind::Sweep) {
                 checked.reference_raster = reference;
             }
-            if measures.iter().any(|o| o.id == checked.id) {
+            if measures.iter().any(|o| o.id == checked.id) || elsewhere.contains_key(m.id.as_str())
+            {
                 return Err(self.err(format!("measure '{}'", m.id), "id given twice"));
             }
-            measures.push(checked);
+            match &m.profiles {
+                None => measures.push(checked),
+                Some(p) => {
+                    let field = format!("measure '{}': profiles", m.id);
+                    if p.is_empty() {
+                        return Err(self.err(field, "lists no profile (omit it for all)"));
+                    }
+                    if let Some(x) = p.iter().find(|x| !spec_profiles.contains(x)) {
+                        return Err(
+                            self.err(field, format!("'{x}' is not one of the spec's profiles"))
+                        );
+                    }
+                    if p.contains(&self.profile) {
+                        measures.push(checked);
+                    } else {
+                        elsewhere.insert(&m.id, p);
+                    }
+                }
+            }
         }
         if raw.rows.is_empty() {
             return Err(self.err("row", "a spec needs at least one [[row]]"));
         }
-        let rows = raw
-            .rows
-            .iter()
-            .enumerate()
-            .map(|(i, r)| self.row(i, r, &measures))
-            .collect::<Result<Vec<_>, _>>()?;
+        let mut rows = Vec::new();
+        let mut rows_elsewhere = Vec::new();
+        for (i, r) in raw.rows.iter().enumerate() {
+            // A row that reads a measure this profile leaves out is left out with it (it is
+            // checked in the profiles that run the measure).
+            match self.row_profiles(i, r, &elsewhere)? {
+                Some(p) => rows_elsewhere.push(RowElsewhere {
+                    what: r.what.clone(),
+                    profiles: p,
+                }),
+                None => rows.push(self.row(i, r, &measures)?),
+            }
+        }
+        if rows.is_empty() {
+            return Err(self.err(
+                "profiles",
+                format!(
+                    "the {} profile leaves out every row (give the spec's own profiles instead)",
+                    self.profile
+                ),
+            ));
+        }
         let mut figures = Vec::new();
         for f in &raw.figures {
             let field = format!("figure '{}'", f.name);
@@ -111,7 +157,16 @@ impl Checker<'_> {
             if f.sweeps.is_empty() {
                 return Err(self.err(field, "sweeps: name at least one sweep measure"));
             }
-            for s in &f.sweeps {
+            let sweeps: Vec<String> = f
+                .sweeps
+                .iter()
+                .filter(|s| !elsewhere.contains_key(s.as_str()))
+                .cloned()
+                .collect();
+            if sweeps.is_empty() {
+                continue;
+            }
+            for s in &sweeps {
                 match measures.iter().find(|m| &m.id == s) {
                     Some(m) if m.kind == MeasureKind::Sweep => {}
                     Some(_) => return Err(self.err(field, format!("sweeps: '{s}' is not a sweep"))),
@@ -123,7 +178,7 @@ impl Checker<'_> {
             figures.push(Figure {
                 name: f.name.clone(),
                 title: f.title.clone(),
-                sweeps: f.sweeps.clone(),
+                sweeps,
             });
         }
         let spec = Spec {
@@ -133,16 +188,11 @@ impl Checker<'_> {
             title: raw.title.clone(),
             source: raw.source.clone(),
             notes: raw.notes.clone(),
-            profiles: match &raw.profiles {
-                None => Profile::ALL.to_vec(),
-                Some(p) if p.is_empty() => {
-                    return Err(self.err("profiles", "lists no profile (omit it for all)"));
-                }
-                Some(p) => p.clone(),
-            },
+            profiles: spec_profiles,
             scenes,
             measures,
             rows,
+            rows_elsewhere,
             figures,
         };
         let used = spec.measure_uses();
@@ -561,6 +611,74 @@ impl Checker<'_> {
             out.push(t);
         }
         Ok(out)
+    }
+
+    /// Where row `i` is measured, when this profile leaves out a measure its `ours` reads
+    /// (`elsewhere`: the measures left out, with their profiles); `None`: it is measured here.
+    /// A reason may not read a measure its row does not: the row would be judged in a profile
+    /// whose reason cannot be filled in.
+    fn row_profiles(
+        &self,
+        i: usize,
+        r: &RawRow,
+        elsewhere: &BTreeMap<&str, &[Profile]>,
+    ) -> Result<Option<Vec<Profile>>, SpecError> {
+        if elsewhere.is_empty() {
+            return Ok(None);
+        }
+        let field = |f: &str| format!("row {} ('{}'): {f}", i + 1, r.what);
+        let refs = |text: &str, f: &str| -> Result<Vec<String>, SpecError> {
+            let mut out = Vec::new();
+            if f == "reason" {
+                for p in template(text).map_err(|e| self.err(field(f), e))? {
+                    if let Piece::Value(e, _) = p {
+                        out.extend(e.measures().into_iter().map(str::to_string));
+                    }
+                }
+            } else {
+                let e = Expr::parse(text).map_err(|e| self.err(field(f), e))?;
+                out.extend(e.measures().into_iter().map(str::to_string));
+            }
+            Ok(out)
+        };
+        let mut ours = Vec::new();
+        match &r.ours {
+            toml::Value::String(t) => ours.extend(refs(t, "ours")?),
+            toml::Value::Array(a) => {
+                for t in a.iter().filter_map(|v| v.as_str()) {
+                    ours.extend(refs(t, "ours")?);
+                }
+            }
+            _ => {}
+        }
+        // The profiles that run every measure the row reads.
+        let mut here: Option<Vec<Profile>> = None;
+        for m in &ours {
+            if let Some(p) = elsewhere.get(m.as_str()) {
+                here = Some(match here {
+                    None => p.to_vec(),
+                    Some(h) => h.into_iter().filter(|x| p.contains(x)).collect(),
+                });
+            }
+        }
+        if here.is_none() {
+            if let Some(text) = &r.reason {
+                if let Some(m) = refs(text, "reason")?
+                    .into_iter()
+                    .find(|m| elsewhere.contains_key(m.as_str()))
+                {
+                    return Err(self.err(
+                        field("reason"),
+                        format!(
+                            "reads measure '{m}', which the {} profile leaves out, \
+                             though the row does not",
+                            self.profile
+                        ),
+                    ));
+                }
+            }
+        }
+        Ok(here)
     }
 
     fn row(&self, i: usize, r: &RawRow, measures: &[Measure]) -> Result<Row, SpecError> {

@@ -131,7 +131,11 @@ pub fn check(claims: &[Claim], specs: &[Spec]) -> Vec<String> {
         for r in &c.rows {
             match specs.iter().find(|s| s.id == r.spec) {
                 None => out.push(format!("{who}: no spec '{}'", r.spec)),
-                Some(s) if !s.rows.iter().any(|row| row.what == r.what) => {
+                // A row the spec's profile leaves out (a measure's `profiles`) is a row too.
+                Some(s)
+                    if !s.rows.iter().any(|row| row.what == r.what)
+                        && !s.rows_elsewhere.iter().any(|row| row.what == r.what) =>
+                {
                     out.push(format!("{who}: spec '{}' has no row '{}'", r.spec, r.what))
                 }
                 Some(_) => {}

@@ -81,6 +81,9 @@ pub struct TableResult {
     pub notes: Option<String>,
     /// Rows.
     pub rows: Vec<RowResult>,
+    /// Rows measured in other profiles only (a measure they read has its own `profiles`).
+    #[serde(default, skip_serializing_if = "Vec::is_empty")]
+    pub rows_elsewhere: Vec<spec::RowElsewhere>,
     /// The table's verdict (its worst row).
     pub verdict: Verdict,
     /// Wall seconds, including the builds it made.
@@ -417,6 +420,7 @@ fn run_spec(
         source: spec.source.clone(),
         notes: spec.notes.clone(),
         rows,
+        rows_elsewhere: spec.rows_elsewhere.clone(),
         verdict,
         seconds,
         measures: lines,

@@ -62,6 +62,8 @@ pub(super) struct RawMeasure {
     pub(super) metrics: Option<bool>,
     pub(super) isolate: Option<bool>,
     pub(super) points: Option<toml::Value>,
+    #[serde(default)]
+    pub(super) profiles: Option<Vec<Profile>>,
 }
 
 #[derive(Debug, serde::Deserialize)]

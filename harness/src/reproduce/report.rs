@@ -190,6 +190,20 @@ pub fn markdown(meta: &Meta, tables: &[TableResult], figures: &str) -> String {
                 ))
             }),
         );
+        if !t.rows_elsewhere.is_empty() {
+            let _ = writeln!(
+                o,
+                "\nRows this profile leaves out (measured in the profiles named): {}.",
+                t.rows_elsewhere
+                    .iter()
+                    .map(|r| {
+                        let p: Vec<String> = r.profiles.iter().map(|p| p.to_string()).collect();
+                        format!("*{}* ({})", cell(&r.what), p.join(", "))
+                    })
+                    .collect::<Vec<_>>()
+                    .join("; ")
+            );
+        }
         if let Some(n) = &t.notes {
             let _ = writeln!(o, "\n{}", n.trim());
         }

@@ -55,6 +55,11 @@
 //! - `sweep`: as `run`, with lists `eps = [8, 4, 2, 1]` or `budget = [25_000, …]`.
 //! - `plan`: `splatbench plan`'s tree shape (`method = "mwkd"`, `points`, `params`).
 //!
+//! Any measure may say `profiles = ["full", "paper"]` (a subset of the spec's): the other
+//! profiles leave it out, with every row that reads it (the report lists those rows under the
+//! table, with the profiles that measure them) and its sweeps in figures. For an experiment
+//! too slow for `quick` (an item-5 sweep that moves a cause) beside rows that `quick` keeps.
+//!
 //! A row with `needs_gpu = true` is a GPU's figure (throughput): on a CPU adapter it is
 //! listed as "needs a GPU" and the measures only it uses are not run. A row with
 //! `judge_on_gpu = true` (a relative speed, whose ratio a CPU rasteriser's costs distort) is
@@ -176,6 +181,8 @@ pub struct Spec {
     pub measures: Vec<Measure>,
     /// Rows in file order.
     pub rows: Vec<Row>,
+    /// Rows this profile leaves out with a measure they read (its `profiles`).
+    pub rows_elsewhere: Vec<RowElsewhere>,
     /// Figures.
     pub figures: Vec<Figure>,
 }
@@ -221,6 +228,15 @@ pub struct Measure {
     pub points: Option<u64>,
     /// The reference images' rasteriser (the spec's `reference`; `None`: the run's).
     pub reference_raster: Option<Raster>,
+}
+
+/// A row measured in other profiles only: a measure it reads has `profiles` without this one.
+#[derive(Debug, Clone, PartialEq, serde::Serialize, serde::Deserialize)]
+pub struct RowElsewhere {
+    /// The row's `what`.
+    pub what: String,
+    /// The profiles that measure it.
+    pub profiles: Vec<Profile>,
 }
 
 /// One row of a spec's table.

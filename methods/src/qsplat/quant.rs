@@ -595,28 +595,34 @@ mod tests {
 #[cfg(test)]
 mod scan {
     use super::*;
-    /// Scans the warp parameter: `cargo test -p methods warp_scan -- --ignored --nocapture`.
+
+    /// The worst angular error of the normal quantiser with warp `a`, over 10⁶ seeded random
+    /// directions.
+    fn worst_error(a: f64) -> f64 {
+        let table: Vec<Vec3> = (0..NORMAL_CODES)
+            .map(|c| normal_dir(c, a).as_vec3())
+            .collect();
+        let mut rng = scenes::rng::Pcg32::new(1);
+        let mut worst = 0.0f64;
+        for _ in 0..1_000_000 {
+            let v = rng.unit_vec3();
+            let d = table[encode_normal_with(v, a, &table) as usize];
+            worst = worst.max(angle(v.as_dvec3(), d.as_dvec3()));
+        }
+        worst
+    }
+
+    /// [`NORMAL_WARP`] was chosen by scanning the warp: it balances the face-centre cells
+    /// against the corners, so its worst error is below its neighbours' on both sides (0.66,
+    /// 0.68, 0.72; measured 0.02027, 0.01994, 0.01995 against 0.01986 at 0.70), while the mean
+    /// error (≈ 0.0107 rad) hardly moves. Deterministic: a fixed seed and table.
     #[test]
-    #[ignore]
-    fn warp_scan() {
-        for a in [0.66, 0.68, 0.70, 0.72] {
-            let table: Vec<Vec3> = (0..NORMAL_CODES)
-                .map(|c| normal_dir(c, a).as_vec3())
-                .collect();
-            let mut rng = scenes::rng::Pcg32::new(1);
-            let (mut worst, mut sum, mut at) = (0.0f64, 0.0, Vec3::ZERO);
-            let n = 1_000_000;
-            for _ in 0..n {
-                let v = rng.unit_vec3();
-                let d = table[encode_normal_with(v, a, &table) as usize];
-                let e = angle(v.as_dvec3(), d.as_dvec3());
-                sum += e;
-                if e > worst {
-                    worst = e;
-                    at = v / v.abs().max_element();
-                }
-            }
-            eprintln!("a {a}: mean {:.5} max {worst:.5} at {at}", sum / n as f64);
+    fn the_warp_minimises_the_worst_normal_error_among_its_neighbours() {
+        let at = worst_error(NORMAL_WARP);
+        assert!(at < 0.02, "worst {at}");
+        for a in [NORMAL_WARP - 0.04, NORMAL_WARP - 0.02, NORMAL_WARP + 0.02] {
+            let other = worst_error(a);
+            assert!(at < other, "warp {a}: worst {other} ≤ {at} at {NORMAL_WARP}");
         }
     }
 }

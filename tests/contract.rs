@@ -2,7 +2,9 @@
 //! (`MethodKind::ALL`). Methods added by later issues must pass it unchanged.
 //!
 //! 1. Tolerance 0 draws every sample that could be seen: at least as many splats as input
-//!    samples inside the frustum and facing the camera (methods may cull the rest).
+//!    samples inside the frustum and facing the camera (methods may cull the rest), and a
+//!    every such sample inside a splat sent (identities, not only a count: see
+//!    `assert_visible_samples_covered`).
 //! 2. Points drawn never decrease as the tolerance shrinks or the budget grows.
 //!
 //! "Drawn" in 1 and in 2's tolerance sweep is [`LodMethod::drawn_points`]: the splats sent
@@ -56,6 +58,111 @@ fn visible_samples(cloud: &PointCloud, view: &View) -> u64 {
                     .is_none_or(|n| Vec3::from(n[i]).dot(eye - p) > 0.0)
         })
         .count() as u64
+}
+
+/// Every splat `list` sends (a chunk's range, a sequential prefix, a stream): its centre and
+/// its radius in object units as drawn in `view` (a pixel size converted at its depth).
+fn sent_splats(
+    kind: MethodKind,
+    m: &dyn LodMethod,
+    list: &DrawList,
+    view: &View,
+) -> Vec<(Vec3, f32)> {
+    let pixel = |c: Vec3| view.view_depth(c).max(0.0) / view.proj_scale();
+    let mut out = Vec::new();
+    for item in &list.items {
+        let chunk = |id: &u64| {
+            m.chunk(*id)
+                .unwrap_or_else(|e| panic!("{kind}: chunk {id}: {e:#}"))
+        };
+        let (batch, range, size) = match item {
+            DrawItem::Chunk {
+                id,
+                first,
+                points,
+                size,
+            } => (
+                chunk(id),
+                *first as usize..(*first + *points) as usize,
+                *size,
+            ),
+            DrawItem::Sequential {
+                id, prefix, size, ..
+            } => (chunk(id), 0..*prefix as usize, *size),
+            DrawItem::Stream { batch, size } => {
+                (std::sync::Arc::new(batch.clone()), 0..batch.len(), *size)
+            }
+        };
+        for i in range {
+            let c = Vec3::from(batch.positions[i]);
+            let r = match size {
+                SplatSize::Pixels(px) => 0.5 * px * pixel(c),
+                SplatSize::Radius { scale, min_px } => {
+                    let stored = batch.radii.as_ref().map_or(0.0, |r| r[i]);
+                    (scale * stored).max(0.5 * min_px * pixel(c))
+                }
+            };
+            out.push((c, r));
+        }
+    }
+    out
+}
+
+/// 1, by identity rather than count: every visible sample lies inside a splat sent at
+/// tolerance 0 (within the splat's radius as drawn of its centre). The methods store
+/// quantised positions (QSplat a leaf's centre to 1/13 of its parent's radius, LPC and MWKD to
+/// a grid of their cell), so a sample's own splat need not sit on it, but it covers it; at
+/// tolerance 0 the splats are spacing-sized, so a method that sends as many splats as there
+/// are visible samples but not theirs (a region twice, another never) leaves samples
+/// uncovered.
+fn assert_visible_samples_covered(
+    kind: MethodKind,
+    vi: usize,
+    view: &View,
+    cloud: &PointCloud,
+    splats: &[(Vec3, f32)],
+) {
+    let reach = splats.iter().map(|s| s.1).fold(0.0f32, f32::max).max(1e-6);
+    let cell = |p: Vec3| (p / reach).floor().as_ivec3();
+    let mut grid: std::collections::HashMap<glam::IVec3, Vec<usize>> = Default::default();
+    for (k, s) in splats.iter().enumerate() {
+        grid.entry(cell(s.0)).or_default().push(k);
+    }
+    let f = view.frustum();
+    let eye = view.camera.position;
+    let mut visible = 0usize;
+    let mut missed = Vec::new();
+    for i in 0..cloud.len() {
+        let p = Vec3::from(cloud.positions()[i]);
+        let facing = cloud
+            .normals()
+            .is_none_or(|n| Vec3::from(n[i]).dot(eye - p) > 0.0);
+        if !(f.contains(p) && facing) {
+            continue;
+        }
+        visible += 1;
+        let c = cell(p);
+        let near = |d: glam::IVec3| {
+            grid.get(&(c + d)).is_some_and(|ks| {
+                ks.iter().any(|&k| {
+                    let (q, r) = splats[k];
+                    q.distance(p) <= r * (1.0 + 1e-5)
+                })
+            })
+        };
+        let covered =
+            (-1..=1).any(|z| (-1..=1).any(|y| (-1..=1).any(|x| near(glam::IVec3::new(x, y, z)))));
+        if !covered {
+            missed.push(i);
+        }
+    }
+    assert!(
+        missed.is_empty(),
+        "{kind} view {vi}: {} of {visible} visible samples lie in no splat sent at tolerance 0 \
+         (first: {:?})",
+        missed.len(),
+        &missed[..missed.len().min(5)]
+    );
 }
 
 fn build(kind: MethodKind, cloud: &PointCloud, dir: &std::path::Path) -> Box<dyn LodMethod> {
@@ -151,6 +258,13 @@ fn contract_for(kind: MethodKind, cloud: &PointCloud) {
             "{kind} view {vi}: tolerance 0 drew {n0} splats, {vis} samples are visible"
         );
         assert!(n0 <= all.points(), "{kind}: drew more than it sent");
+        let splats = sent_splats(kind, m.as_ref(), &all, view);
+        assert_eq!(
+            splats.len() as u64,
+            all.points(),
+            "{kind}: DrawList::points"
+        );
+        assert_visible_samples_covered(kind, vi, view, cloud, &splats);
         check_chunks(kind, m.as_ref(), cloud, &all);
         // 2. Monotone in the tolerance.
         let mut last = 0;
@@ -253,4 +367,31 @@ fn every_method_obeys_the_contract_on_coloured_terrain() {
     for &kind in MethodKind::ALL {
         contract_for(kind, &cloud);
     }
+}
+
+/// The identity check of 1 can fail: every sample as its own spacing-sized splat passes; the
+/// same number of splats where the samples right of the median are replaced by copies of the
+/// others (a region twice, another never) does not.
+#[test]
+fn the_coverage_check_catches_splats_of_the_wrong_samples() {
+    let cloud = Generator::Statue.generate(N, 1).unwrap();
+    let view = &views(&cloud)[0];
+    let spacing = scenes::spacing::knn_spacing(cloud.positions(), 8);
+    let own: Vec<(Vec3, f32)> = cloud
+        .positions()
+        .iter()
+        .zip(&spacing)
+        .map(|(p, r)| (Vec3::from(*p), *r))
+        .collect();
+    assert_visible_samples_covered(MethodKind::Full, 0, view, &cloud, &own);
+    let mut xs: Vec<f32> = own.iter().map(|s| s.0.x).collect();
+    xs.sort_by(f32::total_cmp);
+    let median = xs[xs.len() / 2];
+    let left: Vec<(Vec3, f32)> = own.iter().copied().filter(|s| s.0.x < median).collect();
+    let wrong: Vec<(Vec3, f32)> = (0..own.len()).map(|i| left[i % left.len()]).collect();
+    assert_eq!(wrong.len(), own.len());
+    let caught = std::panic::catch_unwind(|| {
+        assert_visible_samples_covered(MethodKind::Full, 0, view, &cloud, &wrong)
+    });
+    assert!(caught.is_err(), "half the statue missing went unnoticed");
 }

@@ -622,7 +622,10 @@ mod scan {
         assert!(at < 0.02, "worst {at}");
         for a in [NORMAL_WARP - 0.04, NORMAL_WARP - 0.02, NORMAL_WARP + 0.02] {
             let other = worst_error(a);
-            assert!(at < other, "warp {a}: worst {other} ≤ {at} at {NORMAL_WARP}");
+            assert!(
+                at < other,
+                "warp {a}: worst {other} ≤ {at} at {NORMAL_WARP}"
+            );
         }
     }
 }

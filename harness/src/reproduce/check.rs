@@ -661,22 +661,19 @@ impl Checker<'_> {
                 });
             }
         }
-        if here.is_none() {
-            if let Some(text) = &r.reason {
-                if let Some(m) = refs(text, "reason")?
-                    .into_iter()
-                    .find(|m| elsewhere.contains_key(m.as_str()))
-                {
-                    return Err(self.err(
-                        field("reason"),
-                        format!(
-                            "reads measure '{m}', which the {} profile leaves out, \
-                             though the row does not",
-                            self.profile
-                        ),
-                    ));
-                }
-            }
+        if let (None, Some(text)) = (&here, &r.reason)
+            && let Some(m) = refs(text, "reason")?
+                .into_iter()
+                .find(|m| elsewhere.contains_key(m.as_str()))
+        {
+            return Err(self.err(
+                field("reason"),
+                format!(
+                    "reads measure '{m}', which the {} profile leaves out, \
+                     though the row does not",
+                    self.profile
+                ),
+            ));
         }
         Ok(here)
     }

@@ -130,9 +130,33 @@ pub struct RenderArgs {
     /// square splats, ≈ 15× faster on lavapipe: for references of 10⁸ samples.
     #[arg(long, value_enum)]
     pub reference_raster: Option<harness::render::Raster>,
+    /// Splat kernel of the reference images (default: the run's): compares runs of different
+    /// kernels against one image of the full cloud. Square only with the compute rasteriser.
+    #[arg(long, value_enum)]
+    pub reference_kernel: Option<Kernel>,
 }
 
 impl RenderArgs {
+    /// `--reference-kernel`, refused where the references' rasteriser cannot draw it.
+    pub fn reference_kernel(&self) -> anyhow::Result<Option<Kernel>> {
+        let raster = self.reference_raster.unwrap_or(self.raster);
+        match self.reference_kernel {
+            Some(k) if k != Kernel::Square && raster == harness::render::Raster::Compute => {
+                anyhow::bail!(
+                    "--reference-kernel {}: the references are drawn by the compute rasteriser \
+                     ({}), which draws square splats only; give --reference-raster quads",
+                    k.name(),
+                    if self.reference_raster.is_some() {
+                        "--reference-raster compute"
+                    } else {
+                        "--raster compute"
+                    }
+                )
+            }
+            k => Ok(k),
+        }
+    }
+
     /// The renderer settings these flags name, shaded by `shading` (`--shading`).
     pub fn settings(&self, shading: Shading) -> anyhow::Result<harness::render::RenderSettings> {
         Ok(harness::render::RenderSettings {

@@ -57,6 +57,7 @@ fn demo(out: &std::path::Path, frames: usize) -> anyhow::Result<()> {
             build_url: None,
             allow_missing_chunks: false,
             reference_raster: None,
+            reference_kernel: None,
         };
         let s = harness::runner::run(&cfg, &gpu, &bar)?;
         harness::plot::plot_run(&dir)?;

@@ -76,6 +76,7 @@ pub fn run_config(a: &RunArgs) -> anyhow::Result<RunConfig> {
         build_url: a.remote.remote()?,
         allow_missing_chunks: a.allow_missing_chunks,
         reference_raster: a.render.reference_raster,
+        reference_kernel: a.render.reference_kernel()?,
     })
 }
 

@@ -464,6 +464,41 @@ fn an_ellipse_clamp_below_one_is_refused() {
     }
 }
 
+/// A reference kernel that the references' rasteriser cannot draw (compute: squares only) is
+/// refused before anything is built, naming both flags.
+#[test]
+fn a_reference_kernel_the_compute_rasteriser_cannot_draw_is_refused() {
+    let tmp = tempfile::tempdir().unwrap();
+    let out = tmp.path().join("o");
+    let base = [
+        "run",
+        "--method",
+        "qsplat",
+        "--scene",
+        "statue:1000",
+        "--out",
+    ];
+    for (extra, needle) in [
+        (
+            vec!["--reference-raster", "compute"],
+            "--reference-kernel gaussian: the references are drawn by the compute rasteriser \
+             (--reference-raster compute), which draws square splats only",
+        ),
+        (
+            vec!["--raster", "compute"],
+            "--reference-kernel gaussian: the references are drawn by the compute rasteriser \
+             (--raster compute)",
+        ),
+    ] {
+        let mut args: Vec<&str> = base.to_vec();
+        args.push(out.to_str().unwrap());
+        args.extend(["--reference-kernel", "gaussian"]);
+        args.extend(extra);
+        fails_with(&args, needle);
+        assert!(!out.exists(), "nothing written");
+    }
+}
+
 /// A scene file that does not exist fails before the adapter is opened (issue 37, item 7:
 /// the adapter line printed first), naming the flag and the file; nothing is written.
 #[test]

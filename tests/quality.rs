@@ -772,3 +772,73 @@ fn a_compute_reference_is_the_full_cloud_drawn_by_the_compute_rasteriser() {
         harness::render::Raster::Quads
     );
 }
+
+/// `reference_kernel` (issue 35, the gaussian's FLIP rank): a run's references drawn with
+/// another kernel are exactly the full cloud drawn with that kernel (a `full` run of it), and
+/// `summary.json` records the kernel; without it the references take the run's kernel.
+#[test]
+fn a_reference_kernel_draws_the_full_cloud_with_that_kernel() {
+    let Some(gpu) =
+        harness::gpu::gpu_for_test("a_reference_kernel_draws_the_full_cloud_with_that_kernel")
+    else {
+        return;
+    };
+    let tmp = tempfile::tempdir().unwrap();
+    let base = config(
+        MethodKind::Qsplat,
+        &[],
+        "statue:20000:3",
+        "orbit",
+        2,
+        96,
+        tmp.path(),
+        "gauss",
+    );
+    let gauss = RunConfig {
+        save_images: true,
+        render: RenderSettings {
+            kernel: Kernel::Gaussian,
+            ..base.render
+        },
+        reference_kernel: Some(Kernel::Square),
+        ..base.clone()
+    };
+    let s = run(&gauss, &gpu, &scenes::NoProgress).unwrap();
+    assert_eq!(
+        (s.kernel, s.reference_kernel),
+        (Kernel::Gaussian, Kernel::Square)
+    );
+    let full = RunConfig {
+        method: MethodKind::Full,
+        save_images: true,
+        out: tmp.path().join("full"),
+        ..base.clone()
+    };
+    let f = run(&full, &gpu, &scenes::NoProgress).unwrap();
+    assert_eq!(f.reference_kernel, Kernel::Square);
+    let png =
+        |run: &str, f: &str| std::fs::read(tmp.path().join(run).join("images").join(f)).unwrap();
+    for i in 0..2 {
+        let r = format!("ref_{i:04}.png");
+        assert_eq!(
+            png("gauss", &r),
+            png("full", &r),
+            "frame {i}: one square reference"
+        );
+        assert_eq!(
+            png("full", &format!("frame_{i:04}.png")),
+            png("full", &r),
+            "frame {i}: the full cloud is its reference"
+        );
+    }
+    // Without it, the run's kernel.
+    let own = RunConfig {
+        out: tmp.path().join("own"),
+        save_images: true,
+        reference_kernel: None,
+        ..gauss
+    };
+    let o = run(&own, &gpu, &scenes::NoProgress).unwrap();
+    assert_eq!(o.reference_kernel, Kernel::Gaussian);
+    assert_ne!(png("own", "ref_0000.png"), png("gauss", "ref_0000.png"));
+}

@@ -286,6 +286,13 @@ fn bad_specs_name_the_file_and_the_field() {
             "measure 'b': eps: 2 is given twice",
         ),
         (GOOD.replace("[[row]]", "[[measure]]\nid = \"x\"\nkind = \"build\"\nmethod = \"lpc\"\nscene = \"s\"\n\n[[row]]"), "measure 'x': no row, reason or figure uses it"),
+        (with("kind = \"build\"", "kind = \"build\"\nreference_kernel = \"square\""), "measure 'b': reference_kernel: does not apply to a build measure"),
+        (with("kind = \"build\"", "kind = \"run\"\nframes = 1\neps = 1\nreference_kernel = \"blob\""), "measure 'b': reference_kernel: unknown kernel 'blob' (known: square"),
+        (
+            with("kind = \"build\"", "kind = \"run\"\nframes = 1\neps = 1\nreference_kernel = \"gaussian\"")
+                .replace("title = \"T\"", "title = \"T\"\nreference = { quick = \"compute\", full = \"quads\" }"),
+            "measure 'b': reference_kernel: 'gaussian': the quick profile draws the spec's references by the compute rasteriser",
+        ),
     ];
     for (text, needle) in cases {
         let e = load_err(text);

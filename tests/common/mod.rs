@@ -143,6 +143,7 @@ pub fn config(
         build_dir: None,
         build_url: None,
         allow_missing_chunks: false,
+        reference_kernel: None,
         reference_raster: None,
     }
 }

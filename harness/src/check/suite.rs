@@ -303,6 +303,7 @@ pub fn run(
                         build_url: None,
                         allow_missing_chunks: false,
                         reference_raster: None,
+                        reference_kernel: None,
                     };
                     crate::sweep::run_targets(&base, targets, &dir, gpu, progress, |_| {})
                         .with_context(|| format!("suite sweep {}", dir.display()))?;

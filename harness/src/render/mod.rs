@@ -262,6 +262,20 @@ pub const SHADER_MODULES: &[(&str, &str)] = &[
     ("present.wgsl", crate::viewer::present::PRESENT_WGSL),
 ];
 
+/// A hash of the source of every shader that draws an image (all of [`SHADER_MODULES`] but
+/// the viewer's presentation pass): part of a cached reference image's key, so that a change
+/// to a kernel's shader can never leave images drawn by the old one in a cache (the gaussian
+/// spline of 8def070 did: references cached before it kept being compared with runs after).
+pub fn image_shaders_hash() -> u64 {
+    let mut h = scenes::hash::Fnv64::default();
+    for (name, src) in SHADER_MODULES {
+        if *name != "present.wgsl" {
+            h.write_str(name).write_str(src);
+        }
+    }
+    h.finish()
+}
+
 /// The occlusion-query shader (phase 2 of occlusion culling).
 pub const OCCLUSION_WGSL: &str = include_str!("occlusion.wgsl");
 

@@ -93,6 +93,19 @@ impl Checker<'_> {
             let mut checked = self.measure(m, &scenes)?;
             if matches!(checked.kind, MeasureKind::Run | MeasureKind::Sweep) {
                 checked.reference_raster = reference;
+                if let (Some(Raster::Compute), Some(k)) = (reference, checked.reference_kernel)
+                    && k != Kernel::Square
+                {
+                    return Err(self.err(
+                        format!("measure '{}': reference_kernel", m.id),
+                        format!(
+                            "'{}': the {} profile draws the spec's references by the compute \
+                             rasteriser (`reference`), which draws square splats only",
+                            k.name(),
+                            self.profile
+                        ),
+                    ));
+                }
             }
             if measures.iter().any(|o| o.id == checked.id) || elsewhere.contains_key(m.id.as_str())
             {
@@ -526,16 +539,32 @@ impl Checker<'_> {
                 }
             }
         };
+        let kernel_named = |name: &str, k: &str| {
+            Kernel::ALL
+                .iter()
+                .copied()
+                .find(|x| x.name() == k)
+                .ok_or_else(|| {
+                    let known: Vec<_> = Kernel::ALL.iter().map(|x| x.name()).collect();
+                    self.err(
+                        field(name),
+                        format!("unknown kernel '{k}' (known: {})", known.join(", ")),
+                    )
+                })
+        };
         let kernel = match &m.kernel {
             None => Kernel::Square,
-            Some(k) => *Kernel::ALL.iter().find(|x| x.name() == k).ok_or_else(|| {
-                let known: Vec<_> = Kernel::ALL.iter().map(|x| x.name()).collect();
-                self.err(
-                    field("kernel"),
-                    format!("unknown kernel '{k}' (known: {})", known.join(", ")),
-                )
-            })?,
+            Some(k) => kernel_named("kernel", k)?,
         };
+        deny(
+            "reference_kernel",
+            m.reference_kernel.is_some() && !is_render,
+        )?;
+        let reference_kernel = m
+            .reference_kernel
+            .as_deref()
+            .map(|k| kernel_named("reference_kernel", k))
+            .transpose()?;
         Ok(Measure {
             id: m.id.clone(),
             kind: m.kind,
@@ -556,6 +585,7 @@ impl Checker<'_> {
             isolate: m.isolate.unwrap_or(false),
             points,
             reference_raster: None,
+            reference_kernel,
         })
     }
 

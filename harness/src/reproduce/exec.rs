@@ -401,6 +401,7 @@ impl<'a> Context<'a> {
             build_url: None,
             allow_missing_chunks: false,
             reference_raster: m.reference_raster,
+            reference_kernel: m.reference_kernel,
         })
     }
 
@@ -457,6 +458,9 @@ impl<'a> Context<'a> {
         }
         if let Some(r) = m.reference_raster {
             cmd.args(["--reference-raster", r.name()]);
+        }
+        if let Some(k) = m.reference_kernel {
+            cmd.args(["--reference-kernel", k.name()]);
         }
         let o = cmd
             .stdin(std::process::Stdio::null())

@@ -64,6 +64,7 @@ pub(super) struct RawMeasure {
     pub(super) points: Option<toml::Value>,
     #[serde(default)]
     pub(super) profiles: Option<Vec<Profile>>,
+    pub(super) reference_kernel: Option<String>,
 }
 
 #[derive(Debug, serde::Deserialize)]

@@ -310,10 +310,11 @@ pub fn describe(spec: &Spec, m: &Measure, root: &Path) -> String {
             m.width,
             m.height,
             m.kernel.name(),
-            match (m.metrics, m.reference_raster) {
-                (false, _) => ", no image metrics".to_string(),
-                (true, Some(r)) => format!(", references by the {} rasteriser", r.name()),
-                (true, None) => String::new(),
+            match (m.metrics, m.reference_raster, m.reference_kernel) {
+                (false, _, _) => ", no image metrics".to_string(),
+                (true, Some(r), _) => format!(", references by the {} rasteriser", r.name()),
+                (true, None, Some(k)) => format!(", references with {} splats", k.name()),
+                (true, None, None) => String::new(),
             },
             if m.isolate { ", own process" } else { "" }
         );

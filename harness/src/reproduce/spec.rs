@@ -51,7 +51,8 @@
 //!   `width`/`height` (512), `kernel` (`square`), `gpu_cache_mb` (512), `metrics` (true:
 //!   FLIP, holes… against the reference), `skip` (frames left out of the statistics, e.g.
 //!   while an out-of-core method loads), `isolate` (run in a child process, so that its
-//!   memory figures are its own).
+//!   memory figures are its own), `reference_kernel` (the references' kernel, default the
+//!   run's: runs of several kernels against one image of the full cloud).
 //! - `sweep`: as `run`, with lists `eps = [8, 4, 2, 1]` or `budget = [25_000, …]`.
 //! - `plan`: `splatbench plan`'s tree shape (`method = "mwkd"`, `points`, `params`).
 //!
@@ -228,6 +229,8 @@ pub struct Measure {
     pub points: Option<u64>,
     /// The reference images' rasteriser (the spec's `reference`; `None`: the run's).
     pub reference_raster: Option<Raster>,
+    /// The reference images' kernel (the measure's `reference_kernel`; `None`: the run's).
+    pub reference_kernel: Option<Kernel>,
 }
 
 /// A row measured in other profiles only: a measure it reads has `profiles` without this one.

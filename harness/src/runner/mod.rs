@@ -5,7 +5,8 @@
 //! The **reference** for a view is the `full` method (every sample a splat of its own leaf
 //! radius, ≥ 1 px) rendered with the same renderer settings. Reference images are cached in
 //! `<cache>/refs/` under a key hashing the scene's content, the camera, the resolution, the
-//! kernel, the adapter (name and backend) and [`REFERENCE_VERSION`]; the `full` build they need lives in
+//! kernel, the adapter (name and backend), the image shaders' sources
+//! ([`crate::render::image_shaders_hash`]) and [`REFERENCE_VERSION`]; the `full` build they need lives in
 //! `<cache>/full/<scene hash>/` and is made only when an image is missing.
 //!
 //! Timing: one untimed warm-up frame (shader compilation) precedes the path. `splats_per_s`
@@ -52,7 +53,8 @@ pub use prepare::{
 };
 pub use summary::{FailedChunk, Medians, SceneStats, Summary, TrafficTotals};
 
-/// Bump when the renderer's output changes, to invalidate cached reference images.
+/// Bump when the renderer's output changes through its Rust side (a shader's change is in the
+/// key already: [`crate::render::image_shaders_hash`]), to invalidate cached reference images.
 pub const REFERENCE_VERSION: u32 = 1;
 
 /// The git commit this binary was built from.
@@ -102,15 +104,24 @@ pub struct RunConfig {
     /// `compute` draws the reference as square splats whatever the run's kernel: ≈ 15×
     /// faster on lavapipe, what makes references of 10⁸ samples affordable.
     pub reference_raster: Option<crate::render::Raster>,
+    /// The splat kernel of the reference images (`--reference-kernel`; `None`: the run's):
+    /// what compares runs of different kernels against one image of the full cloud.
+    pub reference_kernel: Option<crate::render::Kernel>,
 }
 
 /// The settings the reference images of a run drawn with `render` use: the run's, with
-/// `raster` as its rasteriser when given (square splats for `compute`, the only kernel it
-/// draws).
+/// `kernel` as their kernel and `raster` as their rasteriser when given (square splats for
+/// `compute`, the only kernel it draws: a kernel other than square with `compute` is refused
+/// where the flags are read).
 pub fn reference_settings(
     render: RenderSettings,
     raster: Option<crate::render::Raster>,
+    kernel: Option<crate::render::Kernel>,
 ) -> RenderSettings {
+    let render = RenderSettings {
+        kernel: kernel.unwrap_or(render.kernel),
+        ..render
+    };
     match raster {
         None => render,
         Some(crate::render::Raster::Compute) => RenderSettings {
@@ -216,7 +227,8 @@ impl<'g> Reference<'g> {
             // Rasterisers differ by a pixel here and there: a reference is its adapter's.
             .write_str(&self.gpu.adapter.name)
             .write_str(&self.gpu.adapter.backend)
-            .write(&REFERENCE_VERSION.to_le_bytes());
+            .write(&REFERENCE_VERSION.to_le_bytes())
+            .write(&crate::render::image_shaders_hash().to_le_bytes());
         // The rasteriser, for compute only: quads keys stay those of the references made
         // before the compute rasteriser existed.
         if self.settings.raster != crate::render::Raster::Quads {
@@ -347,7 +359,7 @@ pub fn run(cfg: &RunConfig, gpu: &Gpu, progress: &dyn Progress) -> anyhow::Resul
         ..
     } = prepared;
     let mut renderer = Renderer::new(gpu, render)?;
-    let reference_render = reference_settings(render, cfg.reference_raster);
+    let reference_render = reference_settings(render, cfg.reference_raster, cfg.reference_kernel);
     let mut reference = cfg.metrics.then(|| {
         Reference::new(
             gpu,
@@ -372,6 +384,7 @@ pub fn run(cfg: &RunConfig, gpu: &Gpu, progress: &dyn Progress) -> anyhow::Resul
         kernel: cfg.render.kernel,
         raster: cfg.render.raster,
         reference_raster: reference_render.raster,
+        reference_kernel: reference_render.kernel,
         shading: render.shade.shading,
         path: cfg.path.name(),
         frames: cfg.frames,

@@ -47,6 +47,9 @@ pub struct Summary {
     pub raster: crate::render::Raster,
     /// The reference images' rasteriser (the run's unless `--reference-raster`).
     pub reference_raster: crate::render::Raster,
+    /// The reference images' splat kernel (the run's unless `--reference-kernel`; square
+    /// with the compute rasteriser).
+    pub reference_kernel: crate::render::Kernel,
     /// The shading drawn (`--shading`, with `auto` resolved for the scene).
     pub shading: crate::render::Shading,
     /// Camera path.

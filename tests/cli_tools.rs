@@ -460,3 +460,51 @@ fn export_reports_what_the_file_holds() {
         "{help}"
     );
 }
+
+/// Every subcommand's `--help` reads as text: no rustdoc link syntax (``[`Shading::resolve`]``)
+/// leaks from the doc comments clap takes its help from (issue 37, item 7).
+#[test]
+fn help_texts_carry_no_rustdoc_links() {
+    let out = bin()
+        .arg("--help")
+        .assert()
+        .success()
+        .get_output()
+        .stdout
+        .clone();
+    let top = String::from_utf8(out).unwrap();
+    // The subcommands, as the top-level help lists them.
+    let commands: Vec<String> = top
+        .lines()
+        .skip_while(|l| !l.starts_with("Commands:"))
+        .skip(1)
+        .take_while(|l| l.starts_with("  "))
+        .filter_map(|l| l.split_whitespace().next().map(str::to_string))
+        .filter(|c| c != "help")
+        .collect();
+    assert!(commands.len() >= 10, "{commands:?}");
+    for c in std::iter::once(String::new()).chain(commands) {
+        let mut cmd = bin();
+        if !c.is_empty() {
+            cmd.arg(&c);
+        }
+        let out = cmd
+            .arg("--help")
+            .assert()
+            .success()
+            .get_output()
+            .stdout
+            .clone();
+        let text = String::from_utf8(out).unwrap();
+        for bad in ["[`", "`]"] {
+            assert!(
+                !text.contains(bad),
+                "splatbench {c} --help: '{bad}' in\n{}",
+                text.lines()
+                    .filter(|l| l.contains(bad))
+                    .collect::<Vec<_>>()
+                    .join("\n")
+            );
+        }
+    }
+}

@@ -143,7 +143,7 @@ pub enum Raster {
     Quads,
     /// A compute shader per splat: 64-bit atomic depth|colour into a visibility buffer,
     /// resolved into the colour and depth targets (square splats and 1 px points;
-    /// [`compute`]). Needs 64-bit integer atomics.
+    /// see the `compute` module). Needs 64-bit integer atomics.
     Compute,
 }
 

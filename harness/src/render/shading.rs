@@ -34,7 +34,7 @@ use scenes::{Attributes, Scalar};
 )]
 #[serde(rename_all = "lowercase")]
 pub enum Shading {
-    /// Resolved from the scene's attributes ([`Shading::resolve`]).
+    /// Resolved from the scene's attributes (see `Shading::resolve`).
     #[default]
     Auto,
     /// Lambert headlight on the normals (flat without normals).

@@ -523,6 +523,7 @@ impl SceneSpec {
         cache_dir: Option<&Path>,
         progress: &dyn Progress,
     ) -> Result<(Loaded, Option<Vec<f32>>), SceneError> {
+        check_magic(&self.source)?;
         let plain = match &self.source {
             SceneSource::Generator {
                 generator,
@@ -623,6 +624,48 @@ impl SceneSpec {
 
 /// The extension of a `--scene` value that names a file (`scan.xyz` → `xyz`), if it has one
 /// and is not a generator spec (`statue:1000` has no extension; `a.b:7` is not a file either).
+/// The file formats a file's first bytes identify: (magic, format, its extensions).
+const MAGICS: &[(&[u8], &str, &str)] = &[
+    (b"LASF", "LAS", ".las or .laz"),
+    (b"ply", "PLY", ".ply"),
+    (b"ASTM-E57", "E57", ".e57"),
+    (b"SPLATCOL", "splatbench column", ".sbc"),
+    (b"# .PCD", "PCD", ".pcd"),
+];
+
+/// Refuses a file whose first bytes are another known format's than its extension names (a
+/// LAS file renamed `.ply`), naming what it is; first bytes that name no known format are
+/// left to the reader, whose error says what it expected.
+fn check_magic(source: &SceneSource) -> Result<(), SceneError> {
+    use std::io::Read as _;
+    let (path, expected) = match source {
+        SceneSource::Generator { .. } => return Ok(()),
+        SceneSource::Ply { path, .. } => (path, "PLY"),
+        SceneSource::Las { path } => (path, "LAS"),
+        SceneSource::E57 { path } => (path, "E57"),
+        SceneSource::Pcd { path } => (path, "PCD"),
+        SceneSource::Columns { path } => (path, "splatbench column"),
+    };
+    let mut head = [0u8; 8];
+    let n = std::fs::File::open(path)
+        .and_then(|mut f| f.read(&mut head))
+        .map_err(|e| SceneError::io(path, e))?;
+    match MAGICS.iter().find(|(m, _, _)| head[..n].starts_with(m)) {
+        Some((_, format, ext)) if *format != expected => Err(SceneError::format(
+            path,
+            format!(
+                "this is a {format} file (it starts with {:?}), not a {expected} file as its \
+                 extension says: give it the extension {ext}",
+                String::from_utf8_lossy(&head[..n.min(8)])
+                    .split(|c: char| c.is_control())
+                    .next()
+                    .unwrap_or_default()
+            ),
+        )),
+        _ => Ok(()),
+    }
+}
+
 fn file_extension(text: &str) -> Option<&str> {
     let name = text.rsplit(['/', '\\']).next().unwrap_or(text);
     let (stem, ext) = name.rsplit_once('.')?;

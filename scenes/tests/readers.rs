@@ -1184,3 +1184,54 @@ fn large_las_files_are_cached_as_column_files() {
     scenes::las::write(&small, &terrain(100, true)).unwrap();
     assert_eq!(scenes::spec::las_cache_path(&cache, &small), None);
 }
+
+/// A file whose first bytes are another known format's than its extension names (a LAS file
+/// renamed `.ply`, a PLY file renamed `.las`) is refused naming what it is and the extension
+/// to give it (issue 37, item 7), not with the expected reader's "not a PLY file".
+#[test]
+fn a_file_with_another_formats_extension_is_named_for_what_it_is() {
+    let dir = tmp();
+    let d = dir.path();
+    let cloud = scenes::generators::Generator::Statue
+        .generate(500, 1)
+        .unwrap();
+    let las = d.join("scan.las");
+    scenes::las::write(&las, &cloud.clone().without_normals()).unwrap();
+    let ply = d.join("scan.ply");
+    scenes::ply::write(&ply, &cloud, scenes::ply::PlyFormat::BinaryLittleEndian).unwrap();
+    let cases = [
+        (
+            &las,
+            "renamed.ply",
+            "this is a LAS file (it starts with \"LASF\"), not a PLY file as its extension says: give it the extension .las or .laz",
+        ),
+        (
+            &ply,
+            "renamed.las",
+            "this is a PLY file (it starts with \"ply\"), not a LAS file as its extension says: give it the extension .ply",
+        ),
+        (
+            &ply,
+            "renamed.pcd",
+            "this is a PLY file (it starts with \"ply\"), not a PCD file as its extension says",
+        ),
+    ];
+    for (from, name, needle) in cases {
+        let to = d.join(name);
+        std::fs::copy(from, &to).unwrap();
+        let spec = scenes::spec::SceneSpec::parse(to.to_str().unwrap(), None, 1).unwrap();
+        let e = spec
+            .load(None, &scenes::NoProgress)
+            .unwrap_err()
+            .to_string();
+        assert!(e.contains(name) && e.contains(needle), "{name}: {e}");
+    }
+    // The right extensions still load.
+    for f in [&las, &ply] {
+        let spec = scenes::spec::SceneSpec::parse(f.to_str().unwrap(), None, 1).unwrap();
+        assert_eq!(
+            spec.load(None, &scenes::NoProgress).unwrap().cloud.len(),
+            500
+        );
+    }
+}

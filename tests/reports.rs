@@ -7,7 +7,8 @@
 use std::path::{Path, PathBuf};
 
 use harness::reproduce::inputs::{self, QUICK_BASELINE};
-use harness::reproduce::spec::{Profile, Spec, load_dir};
+use harness::reproduce::load::load_dir;
+use harness::reproduce::spec::{Profile, Spec};
 use harness::reproduce::{claims, verdict};
 
 fn root() -> PathBuf {

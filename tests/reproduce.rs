@@ -7,6 +7,7 @@
 use std::path::{Path, PathBuf};
 
 use assert_cmd::Command;
+use harness::reproduce::load;
 use harness::reproduce::spec::{self, Profile};
 
 fn root() -> PathBuf {
@@ -25,7 +26,7 @@ fn bin() -> Command {
 fn every_committed_spec_loads_for_every_profile() {
     let dir = root().join("paper/specs");
     for p in Profile::ALL {
-        let specs = spec::load_dir(&dir, &root(), p).unwrap_or_else(|e| panic!("{e}"));
+        let specs = load::load_dir(&dir, &root(), p).unwrap_or_else(|e| panic!("{e}"));
         let ids: Vec<&str> = specs.iter().map(|s| s.id.as_str()).collect();
         if p == Profile::Paper {
             // The papers' experiments at their sizes; our own tables stay out.
@@ -90,7 +91,7 @@ fn load_err(text: &str) -> String {
     let d = tempfile::tempdir().unwrap();
     let f = d.path().join("t.toml");
     std::fs::write(&f, text).unwrap();
-    let e = spec::load(&f, &root(), Profile::Quick).unwrap_err();
+    let e = load::load(&f, &root(), Profile::Quick).unwrap_err();
     assert_eq!(e.file, f, "the error names the file");
     e.to_string()
 }
@@ -124,9 +125,9 @@ fn the_paper_profile_takes_its_own_values_or_the_full_ones() {
         .replace("rule = \"exact\"", "rule = \"report\"")
         .replace("paper = 4\n", "");
     std::fs::write(&f, &text).unwrap();
-    let quick = spec::load(&f, &root(), Profile::Quick).unwrap();
+    let quick = load::load(&f, &root(), Profile::Quick).unwrap();
     assert_eq!(quick.scenes["s"].text, "statue:2000:1:random");
-    let paper = spec::load(&f, &root(), Profile::Paper).unwrap();
+    let paper = load::load(&f, &root(), Profile::Paper).unwrap();
     assert_eq!(paper.scenes["s"].text, "isosurface-deep:5000:1:even");
     let m = &paper.measures[0];
     assert_eq!((m.frames, m.skip, m.width), (6, 4, 1024));
@@ -149,7 +150,7 @@ fn the_paper_profile_takes_its_own_values_or_the_full_ones() {
         "title = \"T\"\nreference = { quick = \"quads\", full = \"quads\", paper = \"compute\" }",
     );
     std::fs::write(&f, &compute).unwrap();
-    let raster = |p| spec::load(&f, &root(), p).unwrap().measures[0].reference_raster;
+    let raster = |p| load::load(&f, &root(), p).unwrap().measures[0].reference_raster;
     assert_eq!(raster(Profile::Quick), None);
     assert_eq!(raster(Profile::Full), None);
     assert_eq!(
@@ -162,16 +163,16 @@ fn the_paper_profile_takes_its_own_values_or_the_full_ones() {
         "title = \"T\"\nprofiles = [\"quick\", \"full\"]",
     );
     std::fs::write(&f, &limited).unwrap();
-    let s = spec::load(&f, &root(), Profile::Paper).unwrap();
+    let s = load::load(&f, &root(), Profile::Paper).unwrap();
     assert_eq!(s.profiles, vec![Profile::Quick, Profile::Full]);
     assert_eq!(
-        spec::load_dir(d.path(), &root(), Profile::Paper)
+        load::load_dir(d.path(), &root(), Profile::Paper)
             .unwrap()
             .len(),
         0
     );
     assert_eq!(
-        spec::load_dir(d.path(), &root(), Profile::Full)
+        load::load_dir(d.path(), &root(), Profile::Full)
             .unwrap()
             .len(),
         1
@@ -191,7 +192,7 @@ fn a_measure_limited_to_profiles_takes_its_rows_along() {
          [[row]]\nwhat = \"both\"\nours = [\"b.nodes\", \"x.nodes\"]\nrule = \"report\"\n\n[[row]]",
     );
     std::fs::write(&f, &text).unwrap();
-    let quick = spec::load(&f, &root(), Profile::Quick).unwrap();
+    let quick = load::load(&f, &root(), Profile::Quick).unwrap();
     let ids = |s: &spec::Spec| s.measures.iter().map(|m| m.id.clone()).collect::<Vec<_>>();
     let whats = |s: &spec::Spec| s.rows.iter().map(|r| r.what.clone()).collect::<Vec<_>>();
     assert_eq!(ids(&quick), ["b"]);
@@ -209,7 +210,7 @@ fn a_measure_limited_to_profiles_takes_its_rows_along() {
             },
         ]
     );
-    let full = spec::load(&f, &root(), Profile::Full).unwrap();
+    let full = load::load(&f, &root(), Profile::Full).unwrap();
     assert_eq!(ids(&full), ["b", "x"]);
     assert_eq!(whats(&full), ["x nodes", "both", "w"]);
     assert!(full.rows_elsewhere.is_empty());
@@ -251,7 +252,7 @@ fn bad_specs_name_the_file_and_the_field() {
     let d = tempfile::tempdir().unwrap();
     let f = d.path().join("t.toml");
     std::fs::write(&f, GOOD).unwrap();
-    let s = spec::load(&f, &root(), Profile::Full).unwrap();
+    let s = load::load(&f, &root(), Profile::Full).unwrap();
     assert_eq!(
         s.scenes["s"].text, "statue:3000:1",
         "the full profile's size"

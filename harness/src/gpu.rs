@@ -5,6 +5,11 @@
 
 use anyhow::Context as _;
 
+/// 64-bit integer atomics (`atomicMin`/`atomicMax` on `u64`): requested where the adapter has
+/// them, for the compute rasteriser (`render::compute::FEATURES`).
+pub const INT64_ATOMICS: wgpu::Features =
+    wgpu::Features::SHADER_INT64.union(wgpu::Features::SHADER_INT64_ATOMIC_MIN_MAX);
+
 /// What results files record about the adapter.
 #[derive(Debug, Clone, PartialEq, serde::Serialize, serde::Deserialize)]
 pub struct AdapterDesc {
@@ -72,7 +77,7 @@ impl Gpu {
             features |= wgpu::Features::TIMESTAMP_QUERY;
         }
         // 64-bit atomics for the compute rasteriser, where the adapter has them.
-        let int64 = crate::render::compute::FEATURES;
+        let int64 = INT64_ATOMICS;
         if adapter.features().contains(int64) {
             features |= int64;
         }

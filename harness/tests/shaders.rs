@@ -36,9 +36,17 @@ fn module(name: &str, src: &str) -> (naga::Module, naga::valid::ModuleInfo) {
     (m, info)
 }
 
+/// The renderer's modules and the viewer's presentation pass.
+fn all_modules() -> Vec<(&'static str, &'static str)> {
+    let mut all = SHADER_MODULES.to_vec();
+    all.push(("present.wgsl", harness::viewer::present::PRESENT_WGSL));
+    all
+}
+
 #[test]
 fn every_shader_module_validates_and_covers_every_wgsl_file() {
-    for (name, src) in SHADER_MODULES {
+    let all = all_modules();
+    for (name, src) in &all {
         module(name, src);
     }
     let files = shaders();
@@ -46,9 +54,7 @@ fn every_shader_module_validates_and_covers_every_wgsl_file() {
     for f in files {
         let text = std::fs::read_to_string(&f).unwrap();
         assert!(
-            SHADER_MODULES
-                .iter()
-                .any(|(_, src)| src.contains(text.trim())),
+            all.iter().any(|(_, src)| src.contains(text.trim())),
             "{} is not part of any shader module the renderer compiles",
             f.display()
         );

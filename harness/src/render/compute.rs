@@ -57,9 +57,8 @@ pub(super) struct ComputeRaster {
     _resolve_ubo: wgpu::Buffer,
 }
 
-/// The features the compute rasteriser needs.
-pub const FEATURES: wgpu::Features =
-    wgpu::Features::SHADER_INT64.union(wgpu::Features::SHADER_INT64_ATOMIC_MIN_MAX);
+/// The features the compute rasteriser needs (defined with the device they are asked of).
+pub const FEATURES: wgpu::Features = crate::gpu::INT64_ATOMICS;
 
 /// Why a device with `features` and storage binding limit `max_binding` (bytes) on `adapter`
 /// cannot run the compute rasteriser at `width` × `height`, if it cannot.

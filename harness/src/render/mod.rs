@@ -248,7 +248,9 @@ pub const SPLAT_WGSL: &str = concat!(
 );
 
 /// Every shader module the renderer compiles, as (name, source): the naga test validates
-/// each, and checks that every `.wgsl` file of the crate is part of one.
+/// each (and the viewer's `PRESENT_WGSL`), and checks that every `.wgsl` file of the crate is
+/// part of one. All of them draw images: their sources key the cached references
+/// ([`image_shaders_hash`]).
 pub const SHADER_MODULES: &[(&str, &str)] = &[
     ("interval.wgsl + splat.wgsl", SPLAT_WGSL),
     (
@@ -259,19 +261,16 @@ pub const SHADER_MODULES: &[(&str, &str)] = &[
     ("normalize.wgsl", include_str!("normalize.wgsl")),
     ("occlusion.wgsl", OCCLUSION_WGSL),
     ("edl.wgsl", edl::EDL_WGSL),
-    ("present.wgsl", crate::viewer::present::PRESENT_WGSL),
 ];
 
-/// A hash of the source of every shader that draws an image (all of [`SHADER_MODULES`] but
-/// the viewer's presentation pass): part of a cached reference image's key, so that a change
+/// A hash of the source of every shader that draws an image ([`SHADER_MODULES`]; the
+/// viewer's presentation pass draws none): part of a cached reference image's key, so that a change
 /// to a kernel's shader can never leave images drawn by the old one in a cache (the gaussian
 /// spline of 8def070 did: references cached before it kept being compared with runs after).
 pub fn image_shaders_hash() -> u64 {
     let mut h = scenes::hash::Fnv64::default();
     for (name, src) in SHADER_MODULES {
-        if *name != "present.wgsl" {
-            h.write_str(name).write_str(src);
-        }
+        h.write_str(name).write_str(src);
     }
     h.finish()
 }

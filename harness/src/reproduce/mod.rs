@@ -16,10 +16,12 @@
 //! (lavapipe), and measured when a real GPU is present.
 
 mod check;
+mod check_rows;
 pub mod claims;
 pub mod exec;
 pub mod expr;
 pub mod inputs;
+pub mod load;
 mod raw;
 pub mod report;
 pub mod resume;
@@ -132,7 +134,7 @@ impl Outcome {
 
 /// Loads the specs and keeps those `only` names (an unknown id is an error listing them).
 pub fn select(opts: &Options) -> anyhow::Result<Vec<Spec>> {
-    let mut specs = spec::load_dir(&opts.specs, &opts.root, opts.profile)?;
+    let mut specs = load::load_dir(&opts.specs, &opts.root, opts.profile)?;
     // The papers in order of publication, then our own tables; by id within each.
     let rank = |id: &str| {
         ["qsplat-", "spt-", "lpc-", "mwkd-"]

@@ -13,7 +13,7 @@ use std::time::Duration;
 use methods::store::ChunkRef;
 use methods::store::http::RemoteFile;
 
-use crate::targets::Seed;
+use crate::corpus::Seed;
 
 /// Longest a request may take: a mutated `Content-Length` larger than the body makes the
 /// client wait for bytes that never come, until the server closes (at once) or this.

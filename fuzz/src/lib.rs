@@ -2,9 +2,10 @@
 //!
 //! Contract:
 //! - [`targets`]: each target is a decoder (a scenes reader, a method's repository files)
-//!   with seed files (small real files, files the writers and method builders produce from
-//!   a tiny generated scene) and a way to drive it with an input.
-//! - [`mutate`]: input `i` of a run is a seed file with 1–4 stacked mutations drawn from
+//!   with seed files ([`seeds`]: small real files, files the writers and method builders
+//!   produce from a tiny generated scene, held in a [`corpus::Corpus`]) and a way to drive it
+//!   with an input ([`execute`]).
+//! - [`inputs`] with [`mutate`]: input `i` of a run is a seed file with 1–4 stacked mutations drawn from
 //!   `Pcg32::stream(seed, i)`: byte flips, random and interesting bytes and integers,
 //!   truncation, extension, splices, and header-field edits that know PLY, LAS/LAZ, PCD and
 //!   TOML/JSON.
@@ -14,7 +15,11 @@
 //!   `fuzz/crashes/TARGET-<hash>.bin` with a `.txt` note. A decoder returning an error is the
 //!   expected outcome for most inputs, not a finding.
 
+pub mod corpus;
+pub mod execute;
 pub mod http;
+pub mod inputs;
 pub mod mutate;
 pub mod run;
+pub mod seeds;
 pub mod targets;

@@ -13,7 +13,9 @@ use std::sync::Mutex;
 use std::sync::mpsc;
 use std::time::{Duration, Instant};
 
-use crate::targets::{self, Corpus, Target};
+use crate::corpus::{Corpus, Input};
+use crate::targets::Target;
+use crate::{execute, inputs, seeds};
 
 /// Set in the child's environment; its value is ignored.
 pub const CHILD_ENV: &str = "SPLATBENCH_FUZZ_CHILD";
@@ -166,7 +168,7 @@ pub fn child(target: Target, opts: &Options, start: u64) -> Result<(), String> {
     }));
     let _ = MAIN_THREAD.set(std::thread::current().id());
     let work = scratch_dir("child");
-    let corpus = targets::corpus(target, &work.join("seeds"))?;
+    let corpus = seeds::corpus(target, &work.join("seeds"))?;
     let mut out = std::io::stdout().lock();
     let mut say = |line: String| {
         let _ = out.write_all(line.as_bytes());
@@ -178,8 +180,8 @@ pub fn child(target: Target, opts: &Options, start: u64) -> Result<(), String> {
     for i in start..opts.iters {
         say(format!("S {i}\n"));
         let caught = std::panic::catch_unwind(std::panic::AssertUnwindSafe(|| {
-            let input = targets::input(target, &corpus, opts.seed, i);
-            targets::execute(target, &corpus, &input, &scratch)
+            let input = inputs::input(target, &corpus, opts.seed, i);
+            execute::execute(target, &corpus, &input, &scratch)
         }));
         let main = MAIN_PANIC.lock().ok().and_then(|mut s| s.take());
         let thread = THREAD_PANIC.lock().ok().and_then(|mut s| s.take());
@@ -278,13 +280,13 @@ impl Saver<'_> {
     fn save(&mut self, f: &Finding) -> Result<PathBuf, String> {
         if self.corpus.is_none() {
             let work = scratch_dir("parent").join("seeds");
-            self.corpus = Some(targets::corpus(self.target, &work)?);
+            self.corpus = Some(seeds::corpus(self.target, &work)?);
         }
         let corpus = self.corpus.as_ref().ok_or("no corpus")?;
         // The child already reported a panic of the input generator itself; here it would
         // stop the whole run.
         let input = std::panic::catch_unwind(|| {
-            targets::input(self.target, corpus, self.opts.seed, f.iteration)
+            inputs::input(self.target, corpus, self.opts.seed, f.iteration)
         })
         .map_err(|_| format!("input {} could not be made again", f.iteration))?;
         let hash = scenes::hash::fnv1a64(&input.bytes);
@@ -455,12 +457,12 @@ pub fn replay(target: Target, file: &Path) -> Result<Result<(), String>, String>
         .find_map(|l| l.strip_prefix("seed_file = "))
         .map(|s| s.trim_matches('"').to_owned());
     let work = scratch_dir("replay");
-    let corpus = targets::corpus(target, &work.join("seeds"))?;
+    let corpus = seeds::corpus(target, &work.join("seeds"))?;
     let seed = seed_name
         .and_then(|n| corpus.seeds.iter().position(|s| s.name == n))
         .unwrap_or(0);
-    let input = targets::Input { seed, bytes };
-    let out = targets::execute(target, &corpus, &input, &work.join("run"));
+    let input = Input { seed, bytes };
+    let out = execute::execute(target, &corpus, &input, &work.join("run"));
     let _ = std::fs::remove_dir_all(&work);
     Ok(out)
 }

@@ -6,9 +6,51 @@ use methods::{MethodKind, Target};
 use plotters::prelude::*;
 
 use super::control::Mode;
-use super::session::{FrameInfo, Overlay};
 use crate::image::Image;
-use crate::render::RenderSettings;
+use crate::render::{FrameStats, RenderSettings};
+
+/// Which image the window shows.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Default)]
+pub enum Overlay {
+    /// The method's frame (the renderer's target).
+    #[default]
+    Method,
+    /// The full-resolution reference.
+    Reference,
+    /// FLIP heat map of the frame against the reference.
+    Flip,
+    /// The frame with the reference's splats it misses in red.
+    Holes,
+}
+
+impl Overlay {
+    /// The name the HUD shows.
+    pub fn name(self) -> &'static str {
+        match self {
+            Overlay::Method => "method",
+            Overlay::Reference => "reference",
+            Overlay::Flip => "FLIP map",
+            Overlay::Holes => "holes",
+        }
+    }
+}
+
+/// What the last frame cost and found, for the HUD.
+#[derive(Debug, Clone, Default)]
+pub struct FrameInfo {
+    /// The renderer's statistics.
+    pub stats: FrameStats,
+    /// Time the method took to select the draw list, ms.
+    pub cpu_select_ms: f64,
+    /// The whole frame (select + draw + overlays), ms.
+    pub frame_ms: f64,
+    /// FLIP of the frame measured on request (`C`), with the frame number.
+    pub flip: Option<(u64, f64)>,
+    /// Chunks that failed to load so far.
+    pub failed_chunks: usize,
+    /// The loader's requests issued / failed and bytes read so far (methods that load).
+    pub traffic: Option<methods::store::access::Traffic>,
+}
 
 /// What the HUD reports.
 pub struct HudState<'a> {

@@ -52,7 +52,7 @@ use glam::DVec3;
 use las::point::Format;
 use las::{Builder, Color, Point, PointDataBuilder, Reader, Transform, Vector, Writer};
 
-use crate::ply::{finish, write_atomically};
+use crate::atomic::{finish, write_atomically};
 use crate::{PointCloud, Scalar, SceneError};
 
 /// Points decoded per batch.

@@ -13,6 +13,7 @@
 //! - [`camera`] holds `Camera`/`View` (frustum planes, projection scale) and [`paths`] the
 //!   scripted camera paths.
 
+pub mod atomic;
 pub mod axis;
 pub mod camera;
 pub mod cloud;

@@ -34,7 +34,7 @@ use crate::hash::Fnv64;
 use crate::{PointCloud, Progress, SceneError};
 
 /// The most points `--sample` may resample a mesh to (the result is held in memory).
-pub const MAX_SAMPLE: usize = 500_000_000;
+pub use crate::ply::MAX_SAMPLE;
 
 /// Generated scenes at least this large are cached as column files.
 pub const CACHE_MIN_POINTS: usize = 2_000_000;

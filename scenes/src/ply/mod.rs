@@ -109,8 +109,10 @@ use header::{Encoding, parse_header};
 use input::Input;
 use mesh::{mesh_normals, mesh_radii, sample_surface};
 use vertices::{Vertices, read_vertices, select_vertex};
-pub(crate) use write::{finish, write_atomically};
 pub use write::{write, write_mesh};
+
+/// The most points `--sample` may resample a mesh to (the result is held in memory).
+pub const MAX_SAMPLE: usize = 500_000_000;
 
 /// Reading options.
 #[derive(Debug, Clone, Copy, Default)]
@@ -176,12 +178,12 @@ pub fn read_noted(path: &Path, opts: &PlyOptions) -> Result<(PointCloud, Vec<Str
             "cannot resample to 0 points: the sample count must be at least 1",
         ));
     }
-    if let Some(n) = opts.sample.filter(|&n| n > crate::spec::MAX_SAMPLE) {
+    if let Some(n) = opts.sample.filter(|&n| n > MAX_SAMPLE) {
         return Err(ferr(
             path,
             format!(
                 "cannot resample to {n} points: the limit is {} (held in memory)",
-                crate::spec::MAX_SAMPLE
+                MAX_SAMPLE
             ),
         ));
     }

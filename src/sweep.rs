@@ -2,7 +2,7 @@
 
 use std::path::PathBuf;
 
-use anyhow::{Context as _, bail};
+use anyhow::Context as _;
 use clap::Args;
 use harness::sweep::SweepTarget;
 use methods::Params;
@@ -169,52 +169,4 @@ fn base_config(
         allow_missing_chunks: false,
     })?;
     Ok((base, build_dir))
-}
-
-/// The targets of `--budgets` or `--eps` (exactly one of them), in the order given. Empty
-/// lists and items, non-numbers, a budget of 0, a negative or non-finite tolerance and a
-/// target given twice are errors naming the flag.
-pub(crate) fn sweep_targets(
-    budgets: Option<&str>,
-    eps: Option<&str>,
-) -> anyhow::Result<Vec<SweepTarget>> {
-    let (flag, list) = match (budgets, eps) {
-        (Some(_), Some(_)) => {
-            bail!("--budgets and --eps are exclusive: a sweep varies one kind of target")
-        }
-        (None, None) => bail!(
-            "a sweep needs its targets: --budgets POINTS,... (e.g. 25000,50000,100000) or \
-             --eps PX,... (e.g. 8,4,2,1)"
-        ),
-        (Some(b), None) => ("--budgets", b),
-        (None, Some(e)) => ("--eps", e),
-    };
-    if list.trim().is_empty() {
-        bail!("{flag}: the list is empty (give comma-separated values, e.g. {flag} 4,2,1)");
-    }
-    let mut targets: Vec<SweepTarget> = Vec::new();
-    for (i, item) in list.split(',').map(str::trim).enumerate() {
-        if item.is_empty() {
-            bail!("{flag} {list}: value {} is empty", i + 1);
-        }
-        let t = if flag == "--budgets" {
-            let n = scenes::spec::parse_count(item)
-                .map_err(|e| anyhow::anyhow!("{flag}: budget '{item}': {e}"))?;
-            SweepTarget::budget(n as u64)?
-        } else {
-            let px: f32 = item.parse().map_err(|_| {
-                anyhow::anyhow!("{flag}: '{item}' is not a number of pixels (e.g. 2 or 0.5)")
-            })?;
-            SweepTarget::tolerance(px).map_err(|_| {
-                anyhow::anyhow!(
-                    "{flag}: '{item}': a tolerance must be a finite number of pixels ≥ 0"
-                )
-            })?
-        };
-        if let Some(same) = targets.iter().find(|o| o.name == t.name) {
-            bail!("{flag}: {} is given twice", same.value);
-        }
-        targets.push(t);
-    }
-    Ok(targets)
 }

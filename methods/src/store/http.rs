@@ -18,7 +18,7 @@
 use std::sync::atomic::{AtomicU64, Ordering};
 use std::time::Duration;
 
-use super::access::ChunkSource;
+use super::source::{ChunkSource, MAX_IN_FLIGHT};
 use super::{ChunkRef, REPO_MAGIC, unpack};
 use crate::MethodError;
 
@@ -45,8 +45,8 @@ impl RemoteFile {
             .timeout_global(Some(timeout))
             // Every request in flight keeps its connection for the next (ureq keeps 3 per
             // host by default, which would reconnect the fourth of four in flight each time).
-            .max_idle_connections_per_host(super::access::MAX_IN_FLIGHT as usize)
-            .max_idle_connections(super::access::MAX_IN_FLIGHT as usize)
+            .max_idle_connections_per_host(MAX_IN_FLIGHT as usize)
+            .max_idle_connections(MAX_IN_FLIGHT as usize)
             .build();
         Self {
             agent: ureq::Agent::new_with_config(config),

@@ -14,6 +14,7 @@
 pub mod access;
 pub mod http;
 pub mod records;
+pub mod source;
 
 use std::fs::File;
 use std::io::{BufWriter, Write};

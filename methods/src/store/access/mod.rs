@@ -19,6 +19,7 @@ use std::sync::atomic::{AtomicU64, Ordering};
 use crate::store::{ChunkRef, Repository};
 use crate::{MethodError, SplatBatch};
 
+pub use super::source::{ChunkSource, MAX_IN_FLIGHT};
 pub use clock::{Clock, ManualClock};
 pub use loader::{DUE_WAIT, Loader, LoaderOptions, METER_WINDOW, Retry};
 
@@ -27,27 +28,6 @@ pub type Decoded = Arc<SplatBatch>;
 
 /// Turns a chunk's bytes into splats (the method's format); `id` names it in errors.
 pub type Decoder = Arc<dyn Fn(u32, &[u8]) -> Result<SplatBatch, MethodError> + Send + Sync>;
-
-/// Where the bytes of chunks come from (blocking reads).
-pub trait ChunkSource: Send + Sync {
-    /// Number of chunks.
-    fn len(&self) -> usize;
-    /// True if there are no chunks.
-    fn is_empty(&self) -> bool {
-        self.len() == 0
-    }
-    /// Verified, decompressed bytes of chunk `id`.
-    fn fetch(&self, id: u32) -> Result<Vec<u8>, MethodError>;
-    /// Stored (compressed) bytes read so far, over all fetches that returned their bytes.
-    fn bytes_read(&self) -> u64 {
-        0
-    }
-    /// Stored (compressed) bytes of chunk `id`: what one fetch of it reads (0 if unknown).
-    fn stored_bytes(&self, id: u32) -> u64 {
-        let _ = id;
-        0
-    }
-}
 
 /// Chunks of a local repository file.
 pub struct LocalSource {
@@ -121,9 +101,6 @@ macro_rules! loads_through_access {
 /// viewer loads at once (`Potree.maxNodesLoading`, 4), so that a link's latency is paid once
 /// per four chunks rather than once per chunk.
 pub const REMOTE_IN_FLIGHT: u32 = 4;
-
-/// The most requests a loader may have in flight (`in_flight`): each is a thread.
-pub const MAX_IN_FLIGHT: u32 = 64;
 
 /// Where a build's repository file is read from.
 #[derive(Clone)]

@@ -97,22 +97,8 @@ pub use super::spacing::{
     spacing_estimates,
 };
 
-/// Flag of a probe sample (spacing estimate).
-pub(super) const PROBE: u16 = 1;
-/// Expected number of probe samples of the spacing estimate.
-pub const PROBES: u64 = 16_384;
-/// Bytes of one sample record.
-pub const RECORD_BYTES: u64 = std::mem::size_of::<Sample>() as u64;
-/// Bytes per sample of a subtree partitioned in memory (source and destination buffers).
-pub const IN_CORE_BYTES_PER_SAMPLE: u64 = 2 * RECORD_BYTES;
-/// Samples per block when reading the scene or a temporary file.
-pub(super) const BLOCK: usize = 1 << 16;
-/// Samples per parallel chunk when converting the scene's columns.
-pub(super) const CONVERT_CHUNK: usize = 1 << 13;
-/// Capacity of each buffered reader / writer.
-pub(super) const IO_BUF: usize = 1 << 20;
-/// Added to every cone half-angle (radians): covers `f32` rounding of the dot products.
-pub const CONE_MARGIN: f32 = 1e-3;
+use super::layout::IO_BUF;
+pub use super::layout::{CONE_MARGIN, IN_CORE_BYTES_PER_SAMPLE, PROBES, RECORD_BYTES};
 
 /// Builds the index tree and the repository of `cloud` into `dir` with the memory budget
 /// `params.mem_mb`.

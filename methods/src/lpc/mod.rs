@@ -31,6 +31,7 @@
 pub mod build;
 pub mod cloud;
 pub mod index;
+mod layout;
 mod multilevel;
 mod partition;
 mod sizes;

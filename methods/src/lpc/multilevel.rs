@@ -63,9 +63,9 @@ use std::fs::File;
 use std::io::{BufWriter, Write};
 use std::path::PathBuf;
 
-use super::build::{BLOCK, IO_BUF, RECORD_BYTES};
 use super::cloud::Sample;
 use super::index::NONE;
+use super::layout::{BLOCK, IO_BUF, RECORD_BYTES};
 use super::partition::{Closed, Phase1, Scan, Task, Temps};
 use super::source::Source;
 use crate::MethodError;

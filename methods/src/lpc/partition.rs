@@ -11,9 +11,9 @@ use glam::{DVec3, Vec3};
 use scenes::rng::{Pcg32, splitmix64};
 use scenes::{Aabb, PointCloud, Progress};
 
-use super::build::{BLOCK, CONE_MARGIN, IN_CORE_BYTES_PER_SAMPLE, RECORD_BYTES};
 use super::cloud::{self, Sample};
 use super::index::NONE;
+use super::layout::{BLOCK, CONE_MARGIN, IN_CORE_BYTES_PER_SAMPLE, RECORD_BYTES};
 use super::multilevel::{FileTask, Item};
 use super::source::{Columns, Source, read_samples};
 use super::spacing::probe_knn;

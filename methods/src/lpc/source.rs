@@ -14,8 +14,8 @@ use rayon::prelude::*;
 use scenes::PointCloud;
 use scenes::rng::splitmix64;
 
-use super::build::{BLOCK, CONVERT_CHUNK, IO_BUF, PROBE, PROBES};
 use super::cloud::{self, Sample};
+use super::layout::{BLOCK, CONVERT_CHUNK, IO_BUF, PROBE, PROBES};
 use crate::MethodError;
 
 /// The scene's columns as sample records.

@@ -7,9 +7,9 @@ use rayon::prelude::*;
 use scenes::Aabb;
 
 use super::SpacingRule;
-use super::build::PROBE;
 use super::cloud::Sample;
 use super::index::NONE;
+use super::layout::PROBE;
 use crate::leaf::LEAF_K;
 
 /// The spacing `r_j` of every node by eqs. (1)–(2): `r_0 = r·sqrt(N/M_0)`,

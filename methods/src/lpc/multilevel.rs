@@ -66,7 +66,7 @@ use std::path::PathBuf;
 use super::cloud::Sample;
 use super::index::NONE;
 use super::layout::{BLOCK, IO_BUF, RECORD_BYTES};
-use super::partition::{Closed, Phase1, Scan, Task, Temps};
+use super::partition::{Closed, FileTask, Item, Phase1, Scan, Task, Temps};
 use super::source::Source;
 use crate::MethodError;
 
@@ -78,25 +78,6 @@ pub const MAX_SIMULATED: usize = 64;
 pub const MAX_LEVELS: u32 = 8;
 /// Capacity of the buffered writer of each frontier file.
 pub const WRITE_BUF: usize = 1 << 17;
-
-/// A temporary file of samples with its task.
-pub(super) struct FileTask {
-    pub(super) task: Task,
-    pub(super) path: PathBuf,
-}
-
-/// A node of a finished group, as phase 1 takes it (ids are given when it is attached).
-pub(super) enum Item {
-    /// A simulated node: its cloud (`m` samples) is at `off` in the cloud file.
-    Node {
-        closed: Closed,
-        off: u64,
-        m: u32,
-        kids: [Option<Box<Item>>; 2],
-    },
-    /// A frontier node: its samples are in a temporary file.
-    File(FileTask),
-}
 
 /// A simulated node's result of the last pass.
 struct Done {

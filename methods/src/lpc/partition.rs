@@ -14,7 +14,6 @@ use scenes::{Aabb, PointCloud, Progress};
 use super::cloud::{self, Sample};
 use super::index::NONE;
 use super::layout::{BLOCK, CONE_MARGIN, IN_CORE_BYTES_PER_SAMPLE, RECORD_BYTES};
-use super::multilevel::{FileTask, Item};
 use super::source::{Columns, Source, read_samples};
 use super::spacing::probe_knn;
 use crate::MethodError;
@@ -638,4 +637,23 @@ impl<'a> Phase1<'a> {
         debug_assert!(ids.is_empty());
         Ok(())
     }
+}
+
+/// A temporary file of samples with its task.
+pub(super) struct FileTask {
+    pub(super) task: Task,
+    pub(super) path: PathBuf,
+}
+
+/// A node of a finished group, as phase 1 takes it (ids are given when it is attached).
+pub(super) enum Item {
+    /// A simulated node: its cloud (`m` samples) is at `off` in the cloud file.
+    Node {
+        closed: Closed,
+        off: u64,
+        m: u32,
+        kids: [Option<Box<Item>>; 2],
+    },
+    /// A frontier node: its samples are in a temporary file.
+    File(FileTask),
 }

@@ -20,6 +20,7 @@
 use glam::Vec3;
 use scenes::PointCloud;
 
+use super::node::Binary;
 use super::stats::QuantStats;
 use crate::MethodError;
 use crate::spill::{Spill, SpillDir};
@@ -27,22 +28,7 @@ use crate::spill::{Spill, SpillDir};
 /// Ranges at least this long are split in parallel.
 pub const PAR_THRESHOLD: usize = 1 << 15;
 
-/// One quantised node, exactly the fields stored in the file.
-#[derive(Debug, Clone, Copy, PartialEq, Eq, Default)]
-pub struct QNode {
-    /// 13-bit child-sphere code (0 for the root, whose sphere is in the header).
-    pub sphere: u16,
-    /// 14-bit normal code (0 when the scene has no normals).
-    pub normal: u16,
-    /// 2-bit normal-cone class.
-    pub cone: u8,
-    /// Number of children: 0, 2, 3 or 4.
-    pub children: u8,
-    /// True if the node has children and none of them has children.
-    pub all_leaves: bool,
-    /// RGB565 colour (0 when the scene has no colours).
-    pub color: u16,
-}
+pub use super::node::QNode;
 
 /// A quantised tree in breadth-first order: `levels[l]` lists level `l`'s nodes; the
 /// children of level `l`'s nodes are consecutive in level `l + 1`, in order.
@@ -130,20 +116,6 @@ pub struct BuildOptions {
     pub combine: Combine,
     /// Sphere-code choice.
     pub fit: super::quant::Fit,
-}
-
-/// The binary partition tree, indexed by split position: the binary node covering
-/// `[lo, hi)` splits at `m` (`lo < m < hi`) into `[lo, m)` and `[m, hi)`; every position
-/// `1..n` is the split of exactly one binary node, so per-node data lives at index `m`.
-pub(super) struct Binary {
-    /// Split of the left child of the node splitting at `m` (0: the left child is a leaf).
-    left: Vec<u32>,
-    /// Split of the right child (0: a leaf).
-    right: Vec<u32>,
-    /// The node's children in the combined tree are its binary grandchildren.
-    grand: Vec<bool>,
-    /// Split of the root (0 when `n = 1`).
-    root: u32,
 }
 
 /// A binary node's subtree cost: (interior nodes of its combined subtree, the same summed
@@ -296,8 +268,9 @@ impl Binary {
 
 pub use super::forest::quantise_normal;
 pub(super) use super::forest::{
-    Forest, Parent, Samples, TrueNode, combine, encode_child, qnode, root_sphere,
+    Forest, Parent, Samples, combine, encode_child, qnode, root_sphere,
 };
+pub(super) use super::node::TrueNode;
 
 /// Which roots a subtree's forest has.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]

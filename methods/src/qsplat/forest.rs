@@ -6,28 +6,12 @@
 use glam::{DVec3, Vec3};
 use rayon::prelude::*;
 
-use super::build::{Binary, QNode};
+use super::node::{Binary, Encoded, QNode, TrueNode};
 use super::quant;
 use super::stats::QuantStats;
 use crate::MethodError;
 
 pub(super) use crate::spill::samples::SampleView as Samples;
-
-/// True (unquantised) properties of a node.
-#[derive(Debug, Clone, Copy)]
-pub(super) struct TrueNode {
-    pub(super) c: Vec3,
-    pub(super) r: f32,
-    /// Mean normal, unit (zero when the scene has none or the children cancel).
-    pub(super) n: Vec3,
-    /// Half-angle around `n` covering all normals below, radians (π = any).
-    pub(super) cone: f64,
-    pub(super) color: [f32; 3],
-    pub(super) weight: u32,
-}
-
-/// A sphere code, the sphere it decodes to, and the absolute margin it was encoded with.
-pub(super) type Encoded = (u16, (Vec3, f32), f64);
 
 /// Smallest `f32` ≥ `v`.
 pub(super) fn f32_up(v: f64) -> f32 {

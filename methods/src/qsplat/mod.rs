@@ -17,6 +17,7 @@
 pub mod build;
 mod forest;
 pub mod format;
+mod node;
 pub mod ooc;
 pub mod quant;
 pub mod select;

@@ -11,8 +11,7 @@
 use glam::Vec3;
 use rayon::prelude::*;
 
-use super::build::QNode;
-use super::forest::{Encoded, TrueNode};
+use super::node::{Encoded, QNode, TrueNode};
 use super::quant;
 
 /// Sums over a build's nodes (merge the parts of a build with [`QuantStats::merge`]).

@@ -34,6 +34,7 @@ pub mod regularity;
 pub mod rng;
 pub mod scalar;
 pub mod screen;
+pub mod sniff;
 pub mod spacing;
 pub mod spec;
 

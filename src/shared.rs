@@ -58,7 +58,7 @@ pub fn open_gpu() -> anyhow::Result<Gpu> {
 /// One line per run, medians over its frames: points drawn (thousands grouped), the frame
 /// time splats/s divides by (GPU or wall, with its unit once), splats/s, FLIP and holes (%).
 pub fn print_summary(s: &Summary) {
-    use harness::reproduce::exec::thousands;
+    use harness::reproduce::evaluate::thousands;
     let m = &s.medians;
     let show = |v: Option<f64>, f: &dyn Fn(f64) -> String| v.map(f).unwrap_or_else(|| "-".into());
     // The time splats/s divides by: the GPU's where the adapter has timestamps, else the wall.

@@ -18,6 +18,7 @@
 mod check;
 mod check_rows;
 pub mod claims;
+pub mod evaluate;
 pub mod exec;
 pub mod expr;
 pub mod inputs;
@@ -38,7 +39,8 @@ use indicatif::{MultiProgress, ProgressBar, ProgressStyle};
 pub use spec::{Profile, Spec, SpecError};
 pub use verdict::Verdict;
 
-use exec::{Context, MeasureResult, Results, RowResult, SweepLine};
+use evaluate::{Results, RowResult};
+use exec::{Context, MeasureResult, SweepLine};
 
 /// What to reproduce, and where.
 #[derive(Debug, Clone)]
@@ -362,7 +364,7 @@ fn run_spec(
     let rows: Vec<RowResult> = spec
         .rows
         .iter()
-        .map(|r| exec::evaluate(r, &env, real_gpu))
+        .map(|r| evaluate::evaluate(r, &env, real_gpu))
         .collect();
     let mut sweeps = Vec::new();
     for m in spec

@@ -5,7 +5,7 @@ use std::path::Path;
 
 use anyhow::Context as _;
 
-use super::exec::format_value;
+use super::evaluate::format_value;
 use super::spec::{Format, Measure, MeasureKind, Profile, Spec};
 use super::{TableResult, Verdict};
 use crate::gpu::AdapterDesc;

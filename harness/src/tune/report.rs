@@ -38,7 +38,7 @@ fn num(v: f64) -> String {
     }
     let a = v.abs();
     if a >= 1000.0 || (v.fract() == 0.0 && a < 1e15) {
-        crate::reproduce::exec::thousands(v)
+        crate::reproduce::evaluate::thousands(v)
     } else {
         let digits = (3 - a.log10().floor() as i32).clamp(0, 8) as usize;
         format!("{v:.digits$}")

@@ -2,62 +2,18 @@
 //! (see [`Loader`]).
 
 use std::cmp::Reverse;
-use std::collections::{BTreeMap, HashMap, VecDeque};
+use std::collections::{BTreeMap, HashMap};
 use std::panic::AssertUnwindSafe;
 use std::sync::atomic::{AtomicBool, Ordering};
 use std::sync::{Arc, Condvar, Mutex, MutexGuard};
 use std::thread::JoinHandle;
-use std::time::{Duration, Instant};
+use std::time::Instant;
 
+use super::meter::Meter;
+use super::options::{DUE_WAIT, LoaderOptions, Retry};
 use super::{ChunkSource, DataAccess, Decoded, Decoder, LocalSource, RepoAt, Throughput, Traffic};
 use crate::MethodError;
 use crate::store::{ChunkRef, Repository};
-
-/// Options of the local [`Loader`].
-#[derive(Debug, Clone, Copy, PartialEq, Eq)]
-pub struct LoaderOptions {
-    /// Bytes of decoded chunks kept in core (least recently used dropped beyond).
-    pub core_bytes: u64,
-    /// Frames ([`DataAccess::begin_frame`] calls) between a request and the moment its
-    /// chunk counts as available: simulated latency, exactly d frames for d ≥ 1 (see
-    /// [`Loader`], "Delay"); 0 = as soon as it is decoded.
-    pub delay_frames: u32,
-    /// Requests fetched at once: loader threads, each with one request in flight (≥ 1).
-    pub in_flight: u32,
-}
-
-/// How a loader retries a chunk whose fetch or decode failed: a network may fail for a
-/// moment (a reset connection, a server restarting), a local file does not heal.
-#[derive(Debug, Clone, Copy, PartialEq, Eq)]
-pub struct Retry {
-    /// Attempts in all (1: none repeated).
-    pub tries: u32,
-    /// Wait before the second attempt, doubled before each further one.
-    pub backoff: Duration,
-    /// A chunk given up on is fetched again when asked for this long after (the server came
-    /// back); `None`: never again.
-    pub cooldown: Option<Duration>,
-}
-
-impl Retry {
-    /// Local repositories: a failed read is final.
-    pub const NONE: Retry = Retry {
-        tries: 1,
-        backoff: Duration::ZERO,
-        cooldown: None,
-    };
-    /// Remote repositories: 4 attempts 0.25, 0.5 and 1 s apart; asked again 5 s after
-    /// giving up, a chunk is tried anew.
-    pub const REMOTE: Retry = Retry {
-        tries: 4,
-        backoff: Duration::from_millis(250),
-        cooldown: Some(Duration::from_secs(5)),
-    };
-}
-
-/// The longest [`DataAccess::begin_frame`] waits for the chunks due in its frame (delay ≥ 1)
-/// before the frame goes on without them: a source that hangs must not hang the run.
-pub const DUE_WAIT: Duration = Duration::from_secs(30);
 
 /// What the cache knows about one chunk.
 enum Entry {
@@ -125,77 +81,6 @@ struct State {
     failed: u64,
     /// Time spent fetching and the bytes it brought ([`Meter`]).
     meter: Meter,
-}
-
-/// Responses over which [`Throughput`] is measured.
-pub const METER_WINDOW: usize = 32;
-
-/// The loader's fetch time: the time during which at least one fetch was in flight ("busy"),
-/// and after each response the totals so far, for the last [`METER_WINDOW`] responses. Idle
-/// time (nothing asked) does not count, and parallel fetches count once, so bytes over busy
-/// time is the rate the source delivers at, whatever the number in flight.
-struct Meter {
-    /// Fetches in flight.
-    active: u32,
-    /// Start of the current busy stretch (while `active > 0`).
-    busy_since: Option<Instant>,
-    /// Busy time of the finished stretches.
-    busy: Duration,
-    /// Stored bytes and chunks received so far.
-    bytes: u64,
-    chunks: u64,
-    /// (bytes, chunks, busy seconds) after each of the last responses, and one before them.
-    recent: VecDeque<(u64, u64, f64)>,
-}
-
-impl Meter {
-    fn new() -> Self {
-        Self {
-            active: 0,
-            busy_since: None,
-            busy: Duration::ZERO,
-            bytes: 0,
-            chunks: 0,
-            recent: VecDeque::from([(0, 0, 0.0)]),
-        }
-    }
-
-    fn start(&mut self, now: Instant) {
-        if self.active == 0 {
-            self.busy_since = Some(now);
-        }
-        self.active += 1;
-    }
-
-    /// A fetch ended at `now`, bringing `stored` bytes (`None`: it failed).
-    fn end(&mut self, now: Instant, stored: Option<u64>) {
-        let since = self.busy_since.unwrap_or(now);
-        let busy = self.busy + now.saturating_duration_since(since);
-        if let Some(b) = stored {
-            self.bytes += b;
-            self.chunks += 1;
-        }
-        self.recent
-            .push_back((self.bytes, self.chunks, busy.as_secs_f64()));
-        if self.recent.len() > METER_WINDOW + 1 {
-            self.recent.pop_front();
-        }
-        self.active = self.active.saturating_sub(1);
-        if self.active == 0 {
-            self.busy = busy;
-            self.busy_since = None;
-        }
-    }
-
-    fn throughput(&self) -> Option<Throughput> {
-        let (&(b0, c0, t0), &(b1, c1, t1)) = (self.recent.front()?, self.recent.back()?);
-        let dt = t1 - t0;
-        (self.recent.len() > 1 && dt > 0.0).then(|| Throughput {
-            bytes_per_s: (b1 - b0) as f64 / dt,
-            chunks_per_s: (c1 - c0) as f64 / dt,
-            responses: self.recent.len() - 1,
-        })
-    }
 }
 
 /// Counts a fetch as in flight while alive (also if the source panics).

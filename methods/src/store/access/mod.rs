@@ -12,6 +12,8 @@
 
 mod clock;
 mod loader;
+mod meter;
+mod options;
 
 use std::sync::Arc;
 use std::sync::atomic::{AtomicU64, Ordering};
@@ -21,7 +23,9 @@ use crate::{MethodError, SplatBatch};
 
 pub use super::source::{ChunkSource, MAX_IN_FLIGHT};
 pub use clock::{Clock, ManualClock};
-pub use loader::{DUE_WAIT, Loader, LoaderOptions, METER_WINDOW, Retry};
+pub use loader::Loader;
+pub use meter::METER_WINDOW;
+pub use options::{DUE_WAIT, LoaderOptions, Retry};
 
 /// A decoded chunk, shared between the loader, the in-core cache and the caller.
 pub type Decoded = Arc<SplatBatch>;

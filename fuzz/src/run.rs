@@ -140,11 +140,7 @@ fn one_line(s: &str) -> String {
 pub fn child(target: Target, opts: &Options, start: u64) -> Result<(), String> {
     limit_memory(opts.mem_mb);
     std::panic::set_hook(Box::new(|info| {
-        let msg = info
-            .payload()
-            .downcast_ref::<&str>()
-            .map(|s| (*s).to_owned())
-            .or_else(|| info.payload().downcast_ref::<String>().cloned())
+        let msg = scenes::error::panic_message(info.payload())
             .unwrap_or_else(|| "(non-string panic)".into());
         let at = info
             .location()

@@ -56,3 +56,32 @@ impl SceneError {
         }
     }
 }
+
+/// The message a panic carried (`panic!("…")` gives a `&str` or a `String`), or `None` for a
+/// payload of another type: what the decoders' panic guards and the fuzzer report.
+pub fn panic_message(payload: &(dyn std::any::Any + Send)) -> Option<String> {
+    payload
+        .downcast_ref::<&str>()
+        .map(|s| (*s).to_owned())
+        .or_else(|| payload.downcast_ref::<String>().cloned())
+}
+
+#[cfg(test)]
+mod tests {
+    #[test]
+    fn a_panics_message_is_read_from_either_string_type() {
+        let quiet = std::panic::take_hook();
+        std::panic::set_hook(Box::new(|_| {}));
+        let literal = std::panic::catch_unwind(|| panic!("literal")).unwrap_err();
+        let n = 3;
+        let formatted = std::panic::catch_unwind(|| panic!("formatted {n}")).unwrap_err();
+        let other = std::panic::catch_unwind(|| std::panic::panic_any(7u8)).unwrap_err();
+        std::panic::set_hook(quiet);
+        assert_eq!(super::panic_message(&*literal).as_deref(), Some("literal"));
+        assert_eq!(
+            super::panic_message(&*formatted).as_deref(),
+            Some("formatted 3")
+        );
+        assert_eq!(super::panic_message(&*other), None);
+    }
+}

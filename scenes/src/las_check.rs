@@ -138,11 +138,7 @@ pub fn contained<T>(
     read: impl FnOnce() -> Result<T, SceneError>,
 ) -> Result<T, SceneError> {
     std::panic::catch_unwind(std::panic::AssertUnwindSafe(read)).unwrap_or_else(|payload| {
-        let msg = payload
-            .downcast_ref::<&str>()
-            .map(|s| (*s).to_owned())
-            .or_else(|| payload.downcast_ref::<String>().cloned())
-            .unwrap_or_else(|| "no message".into());
+        let msg = crate::error::panic_message(&*payload).unwrap_or_else(|| "no message".into());
         Err(SceneError::format(
             path,
             format!("the LAS/LAZ decoder failed on corrupted data ({msg})"),

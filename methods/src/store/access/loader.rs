@@ -209,11 +209,7 @@ impl Shared {
         match std::panic::catch_unwind(AssertUnwindSafe(run)) {
             Ok(r) => r,
             Err(panic) => {
-                let what = panic
-                    .downcast_ref::<&str>()
-                    .map(|s| s.to_string())
-                    .or_else(|| panic.downcast_ref::<String>().cloned())
-                    .unwrap_or_default();
+                let what = scenes::error::panic_message(&*panic).unwrap_or_default();
                 Err(MethodError::Bug(format!(
                     "chunk {id}: the chunk source or decoder panicked: {what}"
                 )))

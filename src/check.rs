@@ -46,7 +46,7 @@ pub struct CheckArgs {
 }
 
 /// `splatbench check`: the process's exit status (errors printed here).
-pub fn main(a: &CheckArgs) -> i32 {
+pub fn main(a: &CheckArgs) -> u8 {
     match check(a) {
         Ok(code) => code,
         // Input the check cannot use: a file missing or unreadable, another experiment.
@@ -57,7 +57,7 @@ pub fn main(a: &CheckArgs) -> i32 {
     }
 }
 
-fn check(a: &CheckArgs) -> anyhow::Result<i32> {
+fn check(a: &CheckArgs) -> anyhow::Result<u8> {
     if let Some(g) = a.timing_gate
         && !(g.is_finite() && g >= 1.0)
     {

@@ -94,16 +94,21 @@ enum Command {
     View(view::ViewArgs),
 }
 
-fn main() {
+fn main() -> std::process::ExitCode {
     let cli = Cli::parse();
     quiet_headless_vulkan(&cli.command);
     // `check` has three outcomes (holds, regression, unusable input): its own exit status.
+    // Returning the status (rather than `process::exit`) lets every destructor run first:
+    // buffered output flushed, temporary files removed.
     if let Command::Check(a) = &cli.command {
-        std::process::exit(check::main(a));
+        return std::process::ExitCode::from(check::main(a));
     }
-    if let Err(e) = real_main(cli.command) {
-        eprintln!("Error: {e:#}");
-        std::process::exit(1);
+    match real_main(cli.command) {
+        Ok(()) => std::process::ExitCode::SUCCESS,
+        Err(e) => {
+            eprintln!("Error: {e:#}");
+            std::process::ExitCode::FAILURE
+        }
     }
 }
 

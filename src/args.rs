@@ -16,9 +16,16 @@ pub struct MethodArgs {
     pub params: Vec<String>,
 }
 
-/// A build served over HTTP (`splatbench serve DIR`), for `run`, `sweep` and `tune`.
+/// Where `run`, `sweep` and `tune` take their build from instead of making one: a build
+/// directory, or a build served over HTTP (`splatbench serve DIR`).
 #[derive(Args, Clone)]
-pub struct RemoteArgs {
+pub struct BuildSourceArgs {
+    /// Run on an existing build (a `splatbench build --out` directory of the same method and
+    /// scene) instead of building: the run's memory is then the method's alone, and `--param`
+    /// may change only runtime parameters (LPC: fetch_per_frame, core_mb, delay_frames,
+    /// in_flight, occlusion, occlusion_threshold).
+    #[arg(long)]
+    pub build_dir: Option<PathBuf>,
     /// Run on the LPC or MWKD build served at this URL (`splatbench serve DIR`) instead of
     /// building: its index and manifest are fetched once into remote-build/ of each run, its
     /// chunks by HTTP range requests over kept-alive connections, checksums verified as for
@@ -32,7 +39,12 @@ pub struct RemoteArgs {
     pub remote_timeout: f64,
 }
 
-impl RemoteArgs {
+impl BuildSourceArgs {
+    /// True when the build is given (a directory or a URL), not made.
+    pub fn given(&self) -> bool {
+        self.build_dir.is_some() || self.build_url.is_some()
+    }
+
     /// The remote build, its timeout checked (finite, 0.1 s to 1 h).
     pub fn remote(&self) -> anyhow::Result<Option<harness::runner::RemoteBuild>> {
         let t = self.remote_timeout;
@@ -280,4 +292,29 @@ fn sweep_targets(
         targets.push(t);
     }
     Ok(targets)
+}
+
+/// `--emit-jobs` and the hidden `--part` of the commands that split into jobs (`sweep`,
+/// `tune`, `reproduce`).
+#[derive(Args, Clone)]
+pub struct JobArgs {
+    /// Write one command line per job (a sweep's target, a tune's build with its runs, a
+    /// reproduction's spec) to this file instead of running: for `parallel < FILE` or a Slurm
+    /// array; then `splatbench merge OUT/parts/* --out OUT` writes what a local run writes.
+    #[arg(long, value_name = "FILE")]
+    pub emit_jobs: Option<PathBuf>,
+    /// Run only job K (0-based) into --out: what an emitted job line does.
+    #[arg(long, value_name = "K", hide = true)]
+    pub part: Option<usize>,
+}
+
+impl JobArgs {
+    /// The file to write the job lines to, refusing `--part` beside it.
+    pub fn emit(&self) -> anyhow::Result<Option<&std::path::Path>> {
+        anyhow::ensure!(
+            self.emit_jobs.is_none() || self.part.is_none(),
+            "--emit-jobs and --part are exclusive"
+        );
+        Ok(self.emit_jobs.as_deref())
+    }
 }

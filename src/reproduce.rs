@@ -47,11 +47,8 @@ pub struct ReproduceArgs {
     /// Load and check every spec for every profile, list them, and run nothing.
     #[arg(long)]
     pub check: bool,
-    /// Write one command line per spec (its builds and runs) to this file instead of
-    /// running: for `parallel < FILE` or a Slurm array; then `splatbench merge
-    /// OUT/parts/* --out OUT` writes the report (and publishes, with --publish).
-    #[arg(long, value_name = "FILE")]
-    pub emit_jobs: Option<PathBuf>,
+    #[command(flatten)]
+    pub jobs: crate::args::JobArgs,
     /// Take every measure that an earlier run of this same commit, profile and spec finished
     /// (its checkpoint under OUT/measures/ and its runs under OUT/runs/) instead of running it
     /// again: how a part killed mid-way goes on. A measure whose checkpoint does not match
@@ -59,9 +56,6 @@ pub struct ReproduceArgs {
     /// it, every measure runs.
     #[arg(long)]
     pub resume: bool,
-    /// Run only the K-th selected spec (0-based) into --out: what an emitted job line does.
-    #[arg(long, value_name = "K", hide = true)]
-    pub part: Option<usize>,
 }
 
 /// `splatbench reproduce`.
@@ -109,8 +103,7 @@ pub fn main(a: &ReproduceArgs) -> anyhow::Result<()> {
         .into_iter()
         .map(|s| s.id)
         .collect();
-    if let Some(file) = &a.emit_jobs {
-        anyhow::ensure!(a.part.is_none(), "--emit-jobs and --part are exclusive");
+    if let Some(file) = a.jobs.emit()? {
         let n = crate::jobs::emit(file, &opts.out, specs.len())?;
         println!(
             "wrote {} ({} jobs: one per spec, {}); run them from this directory, then: \
@@ -124,7 +117,7 @@ pub fn main(a: &ReproduceArgs) -> anyhow::Result<()> {
         return Ok(());
     }
     let mut part = None;
-    if let Some(k) = a.part {
+    if let Some(k) = a.jobs.part {
         let spec = specs.get(k).ok_or_else(|| {
             anyhow::anyhow!("--part {k}: this reproduction has {} specs", specs.len())
         })?;

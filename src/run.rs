@@ -8,7 +8,7 @@ use harness::runner::RunConfig;
 use methods::Params;
 use scenes::paths::PathSpec;
 
-use crate::args::{CacheArgs, MethodArgs, RemoteArgs, RenderArgs, SceneArgs, TargetArgs};
+use crate::args::{BuildSourceArgs, CacheArgs, MethodArgs, RenderArgs, SceneArgs, TargetArgs};
 use crate::shared::{check_scene_file, open_gpu, print_summary};
 
 #[derive(Args, Clone)]
@@ -39,14 +39,8 @@ pub struct RunArgs {
     pub out: PathBuf,
     #[command(flatten)]
     pub cache: CacheArgs,
-    /// Run an existing build (a `splatbench build --out` directory of the same method and
-    /// scene) instead of building: the run's memory is then the method's alone. `--param`
-    /// may change only runtime parameters (LPC: fetch_per_frame, core_mb, delay_frames,
-    /// in_flight, occlusion, occlusion_threshold).
-    #[arg(long)]
-    pub build_dir: Option<PathBuf>,
     #[command(flatten)]
-    pub remote: RemoteArgs,
+    pub source: BuildSourceArgs,
     /// Exit 0 although chunks of an LPC or MWKD repository failed to load (a corrupted or
     /// truncated repo.bin). They are reported either way: on stderr, in frames.csv
     /// (`chunks_failed`) and in summary.json (`failed_chunks`); without this flag the run
@@ -72,8 +66,8 @@ pub fn run_config(a: &RunArgs) -> anyhow::Result<RunConfig> {
         metrics: !a.no_metrics,
         out: a.out.clone(),
         cache: a.cache.dir.clone(),
-        build_dir: a.build_dir.clone(),
-        build_url: a.remote.remote()?,
+        build_dir: a.source.build_dir.clone(),
+        build_url: a.source.remote()?,
         allow_missing_chunks: a.allow_missing_chunks,
         reference_raster: a.render.reference_raster,
         reference_kernel: a.render.reference_kernel()?,

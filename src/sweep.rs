@@ -8,7 +8,8 @@ use harness::sweep::SweepTarget;
 use methods::Params;
 
 use crate::args::{
-    CacheArgs, MethodArgs, RemoteArgs, RenderArgs, SceneArgs, SweepTargetArgs, TargetArgs,
+    BuildSourceArgs, CacheArgs, JobArgs, MethodArgs, RenderArgs, SceneArgs, SweepTargetArgs,
+    TargetArgs,
 };
 use crate::build::build;
 use crate::run::{RunArgs, run_config};
@@ -30,20 +31,10 @@ pub struct SweepArgs {
     pub out: PathBuf,
     #[command(flatten)]
     pub cache: CacheArgs,
-    /// Run every target on an existing build (as `run --build-dir`) instead of building into
-    /// OUT/build; `--param` may then change only runtime parameters.
-    #[arg(long)]
-    pub build_dir: Option<PathBuf>,
     #[command(flatten)]
-    pub remote: RemoteArgs,
-    /// Write one command line per target (its build, then its run) to this file instead of
-    /// running: for `parallel < FILE` or a Slurm array; then `splatbench merge
-    /// OUT/parts/* --out OUT`.
-    #[arg(long, value_name = "FILE")]
-    pub emit_jobs: Option<PathBuf>,
-    /// Run only target K (0-based) into --out: what an emitted job line does.
-    #[arg(long, value_name = "K", hide = true)]
-    pub part: Option<usize>,
+    pub source: BuildSourceArgs,
+    #[command(flatten)]
+    pub jobs: JobArgs,
 }
 
 /// `splatbench sweep`: targets, parameters, scene spec, path and frames are checked before
@@ -53,8 +44,7 @@ pub struct SweepArgs {
 /// `sweep.csv` and its plot.
 pub fn main(a: &SweepArgs) -> anyhow::Result<()> {
     let all = a.targets.list()?;
-    if let Some(file) = &a.emit_jobs {
-        anyhow::ensure!(a.part.is_none(), "--emit-jobs and --part are exclusive");
+    if let Some(file) = a.jobs.emit()? {
         // Checks every flag as a sweep would, without running.
         base_config(a, &all)?;
         let n = crate::jobs::emit(file, &a.out, all.len())?;
@@ -63,7 +53,7 @@ pub fn main(a: &SweepArgs) -> anyhow::Result<()> {
              splatbench merge {}/parts/part-* --out {}",
             file.display(),
             n,
-            if a.build_dir.is_some() || a.remote.build_url.is_some() {
+            if a.source.given() {
                 ""
             } else {
                 "making its own (identical) build, then "
@@ -73,7 +63,7 @@ pub fn main(a: &SweepArgs) -> anyhow::Result<()> {
         );
         return Ok(());
     }
-    let targets = match a.part {
+    let targets = match a.jobs.part {
         None => all.clone(),
         Some(k) => vec![
             all.get(k)
@@ -93,16 +83,16 @@ pub fn main(a: &SweepArgs) -> anyhow::Result<()> {
     std::fs::create_dir_all(&a.out).with_context(|| format!("creating {}", a.out.display()))?;
     // A sweep.csv (or plot) of an earlier sweep must not outlive a failure of this one.
     harness::sweep::remove_stale(&a.out)?;
-    if a.build_dir.is_none() && a.remote.build_url.is_none() {
+    if !a.source.given() {
         eprintln!("building {} into {}", a.method.method, build_dir.display());
         build(&a.method, &a.scene, &build_dir, &a.cache.dir)?;
     }
     let bar = harness::progress::Bar::new();
-    let mut part = a.part.map(|k| harness::sweep::SweepPart {
+    let mut part = a.jobs.part.map(|k| harness::sweep::SweepPart {
         command: crate::jobs::command_without(&crate::jobs::PART_FLAGS),
         targets: all.iter().map(harness::sweep::TargetRecord::of).collect(),
         part: k,
-        builds: a.build_dir.is_none() && a.remote.build_url.is_none(),
+        builds: !a.source.given(),
         complete: false,
         commit: harness::runner::GIT_COMMIT.into(),
     });
@@ -139,14 +129,18 @@ fn base_config(
     anyhow::ensure!(a.targets.frames >= 1, "--frames must be at least 1");
     let params = Params::parse(&a.method.params)?;
     a.method.method.check_params(&params)?;
-    let build_dir = a.build_dir.clone().unwrap_or_else(|| a.out.join("build"));
+    let build_dir = a
+        .source
+        .build_dir
+        .clone()
+        .unwrap_or_else(|| a.out.join("build"));
     let first = targets.first().map(|t| t.target);
     let base = run_config(&RunArgs {
         method: MethodArgs {
             method: a.method.method,
             // A build of our own already holds every --param (its method.json records
             // them); the runner lets a run of a build change runtime parameters only.
-            params: if a.build_dir.is_some() || a.remote.build_url.is_some() {
+            params: if a.source.given() {
                 a.method.params.clone()
             } else {
                 Vec::new()
@@ -164,8 +158,10 @@ fn base_config(
         no_metrics: false,
         out: a.out.clone(),
         cache: a.cache.clone(),
-        build_dir: a.remote.build_url.is_none().then(|| build_dir.clone()),
-        remote: a.remote.clone(),
+        source: BuildSourceArgs {
+            build_dir: a.source.build_url.is_none().then(|| build_dir.clone()),
+            ..a.source.clone()
+        },
         allow_missing_chunks: false,
     })?;
     Ok((base, build_dir))

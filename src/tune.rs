@@ -12,7 +12,9 @@ use harness::tune::{self, Cost, Grid, Plan, Record, TargetRecord};
 use methods::Params;
 use scenes::paths::PathSpec;
 
-use crate::args::{CacheArgs, MethodArgs, RemoteArgs, RenderArgs, SceneArgs, SweepTargetArgs};
+use crate::args::{
+    BuildSourceArgs, CacheArgs, JobArgs, MethodArgs, RenderArgs, SceneArgs, SweepTargetArgs,
+};
 use crate::jobs;
 
 #[derive(Args, Clone)]
@@ -47,19 +49,10 @@ pub struct TuneArgs {
     pub out: PathBuf,
     #[command(flatten)]
     pub cache: CacheArgs,
-    /// Run every setting on this existing build: only runtime parameters may then vary.
-    #[arg(long)]
-    pub build_dir: Option<PathBuf>,
     #[command(flatten)]
-    pub remote: RemoteArgs,
-    /// Write one command line per part (a build, then its runs) to this file instead of
-    /// running: for `parallel < FILE` or a Slurm array; then `splatbench merge
-    /// OUT/parts/* --out OUT`.
-    #[arg(long, value_name = "FILE")]
-    pub emit_jobs: Option<PathBuf>,
-    /// Run only part K (0-based) into --out: what an emitted job line does.
-    #[arg(long, value_name = "K", hide = true)]
-    pub part: Option<usize>,
+    pub source: BuildSourceArgs,
+    #[command(flatten)]
+    pub jobs: JobArgs,
 }
 
 /// The most repeats of one run.
@@ -77,16 +70,16 @@ pub fn plan(a: &TuneArgs) -> anyhow::Result<Plan> {
     let kind = a.method.method;
     let fixed = Params::parse(&a.method.params)?;
     kind.check_params(&fixed)?;
-    let remote = a.remote.remote()?;
+    let remote = a.source.remote()?;
     let grid = Grid::parse(
         kind,
         &a.grids,
         &fixed,
-        a.build_dir.is_some() || remote.is_some(),
+        a.source.build_dir.is_some() || remote.is_some(),
     )?;
     let spec = a.scene.spec()?;
     let path = PathSpec::parse(&a.targets.path)?;
-    if let Some(d) = &a.build_dir {
+    if let Some(d) = &a.source.build_dir {
         let m =
             methods::Manifest::read(d).with_context(|| format!("--build-dir {}", d.display()))?;
         anyhow::ensure!(
@@ -140,7 +133,7 @@ pub fn plan(a: &TuneArgs) -> anyhow::Result<Plan> {
         repeats: a.repeats,
         scene_args,
         run_args,
-        build_dir: a.build_dir.clone(),
+        build_dir: a.source.build_dir.clone(),
         build_url: remote.map(|r| r.url),
         cache: a.cache.dir.clone(),
         command: jobs::command_without(&jobs::PART_FLAGS),
@@ -151,8 +144,7 @@ pub fn plan(a: &TuneArgs) -> anyhow::Result<Plan> {
 pub fn main(a: &TuneArgs) -> anyhow::Result<()> {
     let plan = plan(a)?;
     let exe = std::env::current_exe().context("finding the splatbench binary")?;
-    if let Some(file) = &a.emit_jobs {
-        anyhow::ensure!(a.part.is_none(), "--emit-jobs and --part are exclusive");
+    if let Some(file) = a.jobs.emit()? {
         let n = jobs::emit(file, &a.out, plan.parts())?;
         println!(
             "wrote {} ({} jobs: one per build, each building then running its {} runs); run \
@@ -165,9 +157,9 @@ pub fn main(a: &TuneArgs) -> anyhow::Result<()> {
         );
         return Ok(());
     }
-    jobs::prepare_out(&a.out, "tune.json", a.build_dir.as_deref())?;
+    jobs::prepare_out(&a.out, "tune.json", a.source.build_dir.as_deref())?;
     let mut say = |s: &str| eprintln!("{s}");
-    if let Some(k) = a.part {
+    if let Some(k) = a.jobs.part {
         anyhow::ensure!(
             k < plan.parts(),
             "--part {k}: this tune has {} parts (0 to {})",

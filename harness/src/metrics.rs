@@ -42,6 +42,7 @@
 //! Empty (0×0) images compare as identical: PSNR 100, SSIM 1, FLIP 0, ratios 0.
 
 pub mod flip;
+pub mod magma;
 
 use rayon::prelude::*;
 
@@ -361,12 +362,11 @@ pub fn flip_map(reference: &Image, test: &Image) -> Result<Image, MetricsError> 
         });
     }
     let (r, t) = flip_features_of(reference, test);
-    let errors = nv_flip::FlipImageFloat::with_data(width, height, &flip::error_map(&r, &t));
-    let coloured = errors.apply_color_lut(&nv_flip::magma_lut());
-    let rgb = coloured.to_vec();
-    let mut rgba = Vec::with_capacity(rgb.len() / 3 * 4);
-    for p in rgb.chunks_exact(3) {
-        rgba.extend_from_slice(&[p[0], p[1], p[2], 255]);
+    let errors = flip::error_map(&r, &t);
+    let mut rgba = Vec::with_capacity(errors.len() * 4);
+    for &e in &errors {
+        let [r, g, b] = magma::colour(e);
+        rgba.extend_from_slice(&[r, g, b, 255]);
     }
     Ok(Image::from_rgba(width, height, rgba)?)
 }

@@ -383,6 +383,47 @@ fn assert_flip_matches_oracle(what: &str, reference: &Image, test: &Image) {
     assert!(worst <= 5e-4, "{what}: worst pixel differs by {worst}");
 }
 
+/// `flip_map` colours every pixel's error as `nv-flip`'s magma map does (the table in
+/// `metrics/magma.rs` was read from it): exact bytes, on every golden against the others of
+/// its size and on a ramp of every error value.
+#[test]
+fn flip_map_colours_errors_as_nv_flip_does() {
+    let oracle = |errors: &[f32], w: u32, h: u32| -> Vec<u8> {
+        nv_flip::FlipImageFloat::with_data(w, h, errors)
+            .apply_color_lut(&nv_flip::magma_lut())
+            .to_vec()
+    };
+    let ramp: Vec<f32> = (0..=1000).map(|i| i as f32 / 1000.0).collect();
+    let ours: Vec<u8> = ramp
+        .iter()
+        .flat_map(|&e| metrics::magma::colour(e))
+        .collect();
+    assert_eq!(ours, oracle(&ramp, 1001, 1));
+    let dir = std::path::Path::new(env!("CARGO_MANIFEST_DIR")).join("tests/golden");
+    let mut goldens: Vec<Image> = std::fs::read_dir(&dir)
+        .unwrap()
+        .map(|e| e.unwrap().path())
+        .filter(|p| p.extension().is_some_and(|e| e == "png"))
+        .map(|p| Image::load_png(&p).unwrap())
+        .collect();
+    goldens.sort_by_key(|i| (i.width, i.height, i.rgba.len()));
+    let mut pairs = 0;
+    for (i, a) in goldens.iter().enumerate() {
+        for b in goldens[i + 1..]
+            .iter()
+            .filter(|b| (b.width, b.height) == (a.width, a.height))
+        {
+            let map = metrics::flip_map(a, b).unwrap();
+            let fa = metrics::flip::FlipFeatures::new(a, None);
+            let fb = metrics::flip::FlipFeatures::new(b, None);
+            let want = oracle(&metrics::flip::error_map(&fa, &fb), a.width, a.height);
+            assert_eq!(map.to_rgb(), want);
+            pairs += 1;
+        }
+    }
+    assert!(pairs >= 1, "no golden pair of one size");
+}
+
 /// Every golden image against the others of its size (different kernels and shading of one
 /// scene: realistic renderer output) and against itself shifted and noised.
 #[test]

@@ -465,14 +465,21 @@ fn export_reports_what_the_file_holds() {
 /// leaks from the doc comments clap takes its help from (issue 37, item 7).
 #[test]
 fn help_texts_carry_no_rustdoc_links() {
-    let out = bin()
-        .arg("--help")
-        .assert()
-        .success()
-        .get_output()
-        .stdout
-        .clone();
-    let top = String::from_utf8(out).unwrap();
+    let help = |command: &str| {
+        let mut cmd = bin();
+        if !command.is_empty() {
+            cmd.arg(command);
+        }
+        let out = cmd
+            .arg("--help")
+            .assert()
+            .success()
+            .get_output()
+            .stdout
+            .clone();
+        String::from_utf8(out).unwrap()
+    };
+    let top = help("");
     // The subcommands, as the top-level help lists them.
     let commands: Vec<String> = top
         .lines()
@@ -484,18 +491,7 @@ fn help_texts_carry_no_rustdoc_links() {
         .collect();
     assert!(commands.len() >= 10, "{commands:?}");
     for c in std::iter::once(String::new()).chain(commands) {
-        let mut cmd = bin();
-        if !c.is_empty() {
-            cmd.arg(&c);
-        }
-        let out = cmd
-            .arg("--help")
-            .assert()
-            .success()
-            .get_output()
-            .stdout
-            .clone();
-        let text = String::from_utf8(out).unwrap();
+        let text = help(&c);
         for bad in ["[`", "`]"] {
             assert!(
                 !text.contains(bad),

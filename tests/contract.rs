@@ -60,22 +60,22 @@ fn visible_samples(cloud: &PointCloud, view: &View) -> u64 {
         .count() as u64
 }
 
-/// Every splat `list` sends (a chunk's range, a sequential prefix, a stream): its centre and
-/// its radius in object units as drawn in `view` (a pixel size converted at its depth).
-fn sent_splats(
-    kind: MethodKind,
-    m: &dyn LodMethod,
-    list: &DrawList,
-    view: &View,
-) -> Vec<(Vec3, f32)> {
-    let pixel = |c: Vec3| view.view_depth(c).max(0.0) / view.proj_scale();
-    let mut out = Vec::new();
-    for item in &list.items {
-        let chunk = |id: &u64| {
-            m.chunk(*id)
-                .unwrap_or_else(|e| panic!("{kind}: chunk {id}: {e:#}"))
-        };
-        let (batch, range, size) = match item {
+/// Each item of `list` with its batch (decoded for chunks), the range of it sent (a chunk's
+/// range, a sequential prefix, a whole stream) and the size it is drawn at.
+type Sent = (
+    std::sync::Arc<methods::SplatBatch>,
+    std::ops::Range<usize>,
+    SplatSize,
+);
+
+fn item_batches(kind: MethodKind, m: &dyn LodMethod, list: &DrawList) -> Vec<Sent> {
+    let chunk = |id: &u64| {
+        m.chunk(*id)
+            .unwrap_or_else(|e| panic!("{kind}: chunk {id}: {e:#}"))
+    };
+    list.items
+        .iter()
+        .map(|item| match item {
             DrawItem::Chunk {
                 id,
                 first,
@@ -92,7 +92,21 @@ fn sent_splats(
             DrawItem::Stream { batch, size } => {
                 (std::sync::Arc::new(batch.clone()), 0..batch.len(), *size)
             }
-        };
+        })
+        .collect()
+}
+
+/// Every splat `list` sends: its centre and its radius in object units as drawn in `view`
+/// (a pixel size converted at its depth).
+fn sent_splats(
+    kind: MethodKind,
+    m: &dyn LodMethod,
+    list: &DrawList,
+    view: &View,
+) -> Vec<(Vec3, f32)> {
+    let pixel = |c: Vec3| view.view_depth(c).max(0.0) / view.proj_scale();
+    let mut out = Vec::new();
+    for (batch, range, size) in item_batches(kind, m, list) {
         for i in range {
             let c = Vec3::from(batch.positions[i]);
             let r = match size {
@@ -195,31 +209,8 @@ fn frame(m: &mut dyn LodMethod, v: &View, t: Target) -> DrawList {
 
 fn check_chunks(kind: MethodKind, m: &dyn LodMethod, cloud: &PointCloud, list: &DrawList) {
     let scene = cloud.attributes();
-    for item in &list.items {
-        let (batch, drawn, size) = match item {
-            DrawItem::Chunk {
-                id,
-                first,
-                points,
-                size,
-            } => (
-                m.chunk(*id)
-                    .unwrap_or_else(|e| panic!("{kind}: chunk {id}: {e:#}")),
-                (*first + *points) as usize,
-                *size,
-            ),
-            DrawItem::Sequential {
-                id, prefix, size, ..
-            } => (
-                m.chunk(*id)
-                    .unwrap_or_else(|e| panic!("{kind}: chunk {id}: {e:#}")),
-                *prefix as usize,
-                *size,
-            ),
-            DrawItem::Stream { batch, size } => {
-                (std::sync::Arc::new(batch.clone()), batch.len(), *size)
-            }
-        };
+    for (batch, range, size) in item_batches(kind, m, list) {
+        let drawn = range.end;
         batch.validate().unwrap();
         assert!(
             batch.len() >= drawn,

@@ -100,7 +100,7 @@ save)
 status)
   for d in "$parts"/part-* "$saved"/parts/part-*; do
     [ -d "$d" ] || continue
-    n=$(find "$d/measures" -name '*.json' 2>/dev/null | wc -l)
+    n=$({ find "$d/measures" -name '*.json' 2>/dev/null || true; } | wc -l)
     done=no; grep -qs '"complete": true' "$d/reproduce-part.json" && done=yes
     echo "${d#"$ROOT"/}: $n measures checkpointed, part done: $done"
   done

@@ -739,8 +739,7 @@ fn a_compute_reference_is_the_full_cloud_drawn_by_the_compute_rasteriser() {
     };
     let c = run(&compute, &gpu, &scenes::NoProgress).unwrap();
     assert_eq!(c.reference_raster, harness::render::Raster::Compute);
-    let png =
-        |run: &str, f: &str| std::fs::read(tmp.path().join(run).join("images").join(f)).unwrap();
+    let png = |run: &str, f: &str| saved_image(tmp.path(), run, f);
     for i in 0..2 {
         let f = format!("frame_{i:04}.png");
         let r = format!("ref_{i:04}.png");
@@ -816,8 +815,7 @@ fn a_reference_kernel_draws_the_full_cloud_with_that_kernel() {
     };
     let f = run(&full, &gpu, &scenes::NoProgress).unwrap();
     assert_eq!(f.reference_kernel, Kernel::Square);
-    let png =
-        |run: &str, f: &str| std::fs::read(tmp.path().join(run).join("images").join(f)).unwrap();
+    let png = |run: &str, f: &str| saved_image(tmp.path(), run, f);
     for i in 0..2 {
         let r = format!("ref_{i:04}.png");
         assert_eq!(
@@ -841,4 +839,9 @@ fn a_reference_kernel_draws_the_full_cloud_with_that_kernel() {
     let o = run(&own, &gpu, &scenes::NoProgress).unwrap();
     assert_eq!(o.reference_kernel, Kernel::Gaussian);
     assert_ne!(png("own", "ref_0000.png"), png("gauss", "ref_0000.png"));
+}
+
+/// The bytes of image `file` that the run `run` under `dir` saved (`--save-images`).
+fn saved_image(dir: &std::path::Path, run: &str, file: &str) -> Vec<u8> {
+    std::fs::read(dir.join(run).join("images").join(file)).unwrap()
 }

@@ -64,7 +64,9 @@ start)
     (cd "$wt" && cargo build --release --bin splatbench)
     cp "$wt/target/release/splatbench" "$WORK/bin/"
   fi
-  strings "$WORK/bin/splatbench" | grep -q "$short" ||
+  # grep -c reads all of strings' output: with `grep -q` and pipefail, strings may die of
+  # SIGPIPE when grep stops early, and the check fails on the right binary.
+  [ "$(strings "$WORK/bin/splatbench" | grep -c "$short")" -gt 0 ] ||
     die "$WORK/bin/splatbench is not built at $short (delete it to rebuild)"
   (cd "$wt" && "$WORK/bin/splatbench" reproduce --profile paper --emit-jobs jobs.txt --out "$OUT")
   if [ -d "$saved/parts" ]; then

@@ -3,13 +3,31 @@
 use std::path::PathBuf;
 
 use clap::Args;
+use clap::builder::{PossibleValue, PossibleValuesParser, TypedValueParser as _};
 use harness::render::{Kernel, Shading};
 use methods::MethodKind;
+
+/// `--method`'s parser: the registry's names, each with its line of `--help`. (`methods`, the
+/// GPU-free core, knows no CLI library; its enums parse with `FromStr`.)
+pub fn method_parser() -> impl clap::builder::TypedValueParser<Value = MethodKind> {
+    let names = MethodKind::ALL
+        .iter()
+        .map(|m| PossibleValue::new(m.name()).help(m.describe()));
+    PossibleValuesParser::new(names).try_map(|s| s.parse::<MethodKind>())
+}
+
+/// `--kernel`'s parser: the shapes' names, each with its line of `--help`.
+pub fn kernel_parser() -> impl clap::builder::TypedValueParser<Value = Kernel> {
+    let names = Kernel::ALL
+        .iter()
+        .map(|k| PossibleValue::new(k.name()).help(k.describe()));
+    PossibleValuesParser::new(names).try_map(|s| s.parse::<Kernel>())
+}
 
 #[derive(Args, Clone)]
 pub struct MethodArgs {
     /// Method.
-    #[arg(long, value_enum)]
+    #[arg(long, value_parser = method_parser())]
     pub method: MethodKind,
     /// Method parameter, `key=value` (repeatable).
     #[arg(long = "param", value_name = "KEY=VALUE")]
@@ -125,7 +143,7 @@ pub struct RenderArgs {
     #[arg(long, default_value_t = 512, allow_negative_numbers = true)]
     pub height: u32,
     /// Splat kernel (a method's `--param kernel=` overrides it).
-    #[arg(long, value_enum, default_value = "square")]
+    #[arg(long, value_parser = kernel_parser(), default_value = "square")]
     pub kernel: Kernel,
     /// GPU chunk-cache budget, MiB.
     #[arg(long, default_value_t = 512, allow_negative_numbers = true)]
@@ -144,7 +162,7 @@ pub struct RenderArgs {
     pub reference_raster: Option<harness::render::Raster>,
     /// Splat kernel of the reference images (default: the run's): compares runs of different
     /// kernels against one image of the full cloud. Square only with the compute rasteriser.
-    #[arg(long, value_enum)]
+    #[arg(long, value_parser = kernel_parser())]
     pub reference_kernel: Option<Kernel>,
 }
 

@@ -20,7 +20,7 @@ pub fn main() -> anyhow::Result<()> {
     }
     println!("kernels:");
     for k in Kernel::ALL {
-        println!("  {}", k.name());
+        println!("  {:<12} {}", k.name(), k.describe());
     }
     Ok(())
 }

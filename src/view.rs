@@ -17,7 +17,7 @@ pub struct ViewArgs {
     /// Method to view.
     #[arg(
         long,
-        value_enum,
+        value_parser = crate::args::method_parser(),
         conflicts_with = "methods",
         required_unless_present = "methods"
     )]
@@ -71,7 +71,8 @@ fn methods_of(a: &ViewArgs) -> anyhow::Result<Vec<(MethodKind, Params)>> {
     list.split(',')
         .map(|name| {
             let name = name.trim();
-            <MethodKind as clap::ValueEnum>::from_str(name, true)
+            name.to_ascii_lowercase()
+                .parse::<MethodKind>()
                 .map(|m| (m, Params::default()))
                 .map_err(|_| {
                     let all: Vec<&str> = MethodKind::ALL.iter().map(|m| m.name()).collect();

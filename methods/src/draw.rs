@@ -247,16 +247,7 @@ impl DrawItem {
 
 /// Splat shape (the renderer's kernel). QSplat's paper offers all four.
 #[derive(
-    Debug,
-    Clone,
-    Copy,
-    PartialEq,
-    Eq,
-    Hash,
-    Default,
-    serde::Serialize,
-    serde::Deserialize,
-    clap::ValueEnum,
+    Debug, Clone, Copy, PartialEq, Eq, Hash, Default, serde::Serialize, serde::Deserialize,
 )]
 #[serde(rename_all = "lowercase")]
 pub enum SplatShape {
@@ -287,6 +278,37 @@ impl SplatShape {
             SplatShape::Ellipse => "ellipse",
             SplatShape::Gaussian => "gaussian",
         }
+    }
+
+    /// One line describing the shape (`--help`, `splatbench list`).
+    pub fn describe(self) -> &'static str {
+        match self {
+            SplatShape::Square => "screen-aligned square (fastest)",
+            SplatShape::Circle => "opaque disk",
+            SplatShape::Ellipse => {
+                "elliptical disk from the splat normal: minor/major = |n̂·v̂|, major/minor ≤ 10"
+            }
+            SplatShape::Gaussian => {
+                "Gaussian blob, two passes: depth offset by z₀, then additive weighted colour, normalised"
+            }
+        }
+    }
+}
+
+impl std::str::FromStr for SplatShape {
+    type Err = crate::error::UnknownName;
+
+    /// The shape of a name (exact, lower case).
+    fn from_str(s: &str) -> Result<Self, Self::Err> {
+        Self::ALL
+            .iter()
+            .copied()
+            .find(|k| k.name() == s)
+            .ok_or_else(|| crate::error::UnknownName {
+                what: "kernel",
+                name: s.to_string(),
+                known: Self::ALL.iter().map(|k| k.name()).collect(),
+            })
     }
 }
 

@@ -57,6 +57,19 @@ pub enum MethodError {
     Scene(#[from] scenes::SceneError),
 }
 
+/// A name that is not one of a list (a method, a kernel): the error of the registry enums'
+/// [`std::str::FromStr`]. It names no flag: the caller knows where the name came from.
+#[derive(Debug, Clone, PartialEq, Eq, thiserror::Error)]
+#[error("unknown {what} '{name}' (known: {})", known.join(", "))]
+pub struct UnknownName {
+    /// What was looked up ("method", "kernel").
+    pub what: &'static str,
+    /// The name given.
+    pub name: String,
+    /// Every name known.
+    pub known: Vec<&'static str>,
+}
+
 impl MethodError {
     /// Shorthand for [`MethodError::Io`].
     pub fn io(path: impl Into<PathBuf>, error: std::io::Error) -> Self {

@@ -42,7 +42,7 @@ pub use draw::{
     Cached, ChunkId, DrawItem, DrawList, Feedback, IntervalTest, OcclusionCandidate, OcclusionPass,
     SplatBatch, SplatShape, SplatSize, Target,
 };
-pub use error::MethodError;
+pub use error::{MethodError, UnknownName};
 pub use method::{BuildStats, LodMethod, Manifest, MethodStats};
 pub use params::Params;
 pub use registry::MethodKind;

@@ -14,7 +14,7 @@ use crate::{
 };
 
 /// Every registered method.
-#[derive(Debug, Clone, Copy, PartialEq, Eq, Hash, clap::ValueEnum, serde::Serialize)]
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Hash, serde::Serialize)]
 #[serde(rename_all = "lowercase")]
 pub enum MethodKind {
     /// No LOD: every sample drawn with its own spacing. Also the full-resolution reference.
@@ -78,19 +78,11 @@ impl MethodKind {
         }
     }
 
-    /// Looks a method up by registry name.
+    /// Looks a method up by registry name (exact, lower case): [`std::str::FromStr`]'s lookup
+    /// as a [`MethodError::Param`].
     pub fn from_name(name: &str) -> Result<Self, MethodError> {
-        Self::ALL
-            .iter()
-            .copied()
-            .find(|k| k.name() == name)
-            .ok_or_else(|| {
-                let known: Vec<_> = Self::ALL.iter().map(|k| k.name()).collect();
-                MethodError::Param(format!(
-                    "unknown method '{name}' (known: {})",
-                    known.join(", ")
-                ))
-            })
+        name.parse()
+            .map_err(|e: crate::error::UnknownName| MethodError::Param(e.to_string()))
     }
 
     /// Checks `params` against the method's parameter struct without building.
@@ -386,6 +378,23 @@ impl std::fmt::Display for MethodKind {
     }
 }
 
+impl std::str::FromStr for MethodKind {
+    type Err = crate::error::UnknownName;
+
+    /// The method of a registry name (exact, lower case).
+    fn from_str(s: &str) -> Result<Self, Self::Err> {
+        Self::ALL
+            .iter()
+            .copied()
+            .find(|k| k.name() == s)
+            .ok_or_else(|| crate::error::UnknownName {
+                what: "method",
+                name: s.to_string(),
+                known: Self::ALL.iter().map(|k| k.name()).collect(),
+            })
+    }
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;
@@ -409,5 +418,27 @@ mod tests {
             kind.check_params(&params)
                 .unwrap_or_else(|e| panic!("{kind}: {pairs:?}: {e}"));
         }
+    }
+
+    /// The names parse back to their variants (methods and kernels: what the CLI's parsers
+    /// rely on), and an unknown name is an error listing every known one and naming no flag.
+    #[test]
+    fn names_parse_back_and_unknown_names_list_the_known() {
+        for kind in MethodKind::ALL {
+            assert_eq!(kind.name().parse::<MethodKind>(), Ok(*kind));
+        }
+        for shape in crate::SplatShape::ALL {
+            assert_eq!(shape.name().parse::<crate::SplatShape>(), Ok(*shape));
+        }
+        let e = "QSplat".parse::<MethodKind>().unwrap_err().to_string();
+        assert_eq!(
+            e,
+            "unknown method 'QSplat' (known: full, qsplat, spt, lpc, mwkd, potree)"
+        );
+        let e = "disc".parse::<crate::SplatShape>().unwrap_err().to_string();
+        assert_eq!(
+            e,
+            "unknown kernel 'disc' (known: square, circle, ellipse, gaussian)"
+        );
     }
 }

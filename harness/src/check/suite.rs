@@ -170,8 +170,10 @@ impl Suite {
         }
         let kernel = match &raw.kernel {
             None => Kernel::Square,
-            Some(k) => <Kernel as clap::ValueEnum>::from_str(k, true)
-                .map_err(|_| err("kernel", format!("unknown kernel '{k}'")))?,
+            Some(k) => k
+                .to_ascii_lowercase()
+                .parse::<Kernel>()
+                .map_err(|e| err("kernel", e.to_string()))?,
         };
         let baseline = file
             .parent()

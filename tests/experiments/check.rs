@@ -140,6 +140,22 @@ fn a_suite_file_with_a_typo_is_refused_naming_file_and_field() {
             "give at least one target",
         ),
         (good.replace("frames = 2", "frames = 0"), "frames"),
+        (
+            format!("{good}[method.mwkd]\nbudgets = [1000]\n"),
+            "method.mwkd: is not one of the suite's methods",
+        ),
+        (
+            format!("{good}[method.lpc]\nbudgets = [0]\n"),
+            "method.lpc.budgets",
+        ),
+        (
+            format!("{good}[method.lpc]\nscenes = []\n"),
+            "method.lpc.scenes: the list is empty",
+        ),
+        (
+            format!("{good}[method.lpc]\nscenez = [\"statue:5000:1\"]\n"),
+            "unknown field `scenez`",
+        ),
     ];
     for (text, needle) in cases {
         std::fs::write(&suite, &text).unwrap();
@@ -156,4 +172,46 @@ fn a_suite_file_with_a_typo_is_refused_naming_file_and_field() {
         );
         assert!(!out.exists(), "nothing is run for a bad suite");
     }
+}
+
+/// `[method.NAME]` replaces the suite's scenes and targets for that method only, and the
+/// counts `check` prints (and `tests/experiments/baselines.rs` expects) follow it.
+#[test]
+fn a_method_table_replaces_the_suites_lists_for_that_method() {
+    let tmp = tempfile::tempdir().unwrap();
+    let file = tmp.path().join("s.toml");
+    std::fs::write(
+        &file,
+        "baseline = \"s.json\"\nwidth = 64\nheight = 64\nframes = 2\npaths = [\"orbit\"]\n\
+         methods = [\"lpc\", \"potree\", \"mwkd\"]\nscenes = [\"statue:5000:1\", \"terrain:5000:1\"]\n\
+         eps = [2.0]\nbudgets = [1000, 2000]\n\
+         [method.potree]\nscenes = [\"statue:50000:1\", \"statue:5000:1\"]\nbudgets = [9000]\neps = []\n",
+    )
+    .unwrap();
+    let suite = harness::check::suite::Suite::load(&file).unwrap();
+    let labels: Vec<(String, Vec<&str>)> = suite
+        .scenes
+        .iter()
+        .map(|(s, users)| {
+            let names = users
+                .iter()
+                .map(|&i| suite.methods[i].kind.name())
+                .collect();
+            (s.label(), names)
+        })
+        .collect();
+    assert_eq!(
+        labels,
+        vec![
+            ("statue:5000:1".to_string(), vec!["lpc", "potree", "mwkd"]),
+            ("terrain:5000:1".to_string(), vec!["lpc", "mwkd"]),
+            ("statue:50000:1".to_string(), vec!["potree"]),
+        ]
+    );
+    let potree = &suite.methods[1];
+    assert_eq!(potree.targets.len(), 1, "potree: budgets only");
+    assert_eq!(potree.targets[0].0, "budget");
+    // lpc and mwkd: 2 scenes × (eps, budget) sweeps of 1 + 2 runs; potree: 2 scenes × 1 run.
+    assert_eq!(suite.sweeps(), 2 * 2 * 2 + 2);
+    assert_eq!(suite.runs(), 2 * 2 * 3 + 2);
 }

@@ -14,6 +14,9 @@
 //! budgets = [4000]
 //! [params]                   # per method, as --param (build and runtime alike)
 //! lpc = ["delay_frames=1"]
+//! [method.potree]            # per method, replacing `scenes`, `eps` or `budgets` for it
+//! scenes = ["statue:200000:1"]
+//! budgets = [40000]
 //! ```
 //!
 //! Output: one build per method and scene under `DIR/builds/`, and one ordinary sweep
@@ -68,6 +71,34 @@ pub struct SuiteFile {
     /// Parameters per method, `key=value`.
     #[serde(default)]
     pub params: BTreeMap<String, Vec<String>>,
+    /// Per method, lists that replace the suite's for that method (a method whose hierarchy
+    /// needs more samples than the others' scenes hold to have more than one level, or whose
+    /// root exceeds their budget).
+    #[serde(default)]
+    pub method: BTreeMap<String, MethodOverride>,
+}
+
+/// `[method.NAME]` of a suite file: what replaces the suite's lists for that method.
+#[derive(Debug, Clone, Default, PartialEq, serde::Serialize, serde::Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct MethodOverride {
+    /// Scenes, instead of the suite's `scenes`.
+    pub scenes: Option<Vec<String>>,
+    /// Pixel tolerances, instead of the suite's `eps`.
+    pub eps: Option<Vec<f32>>,
+    /// Point budgets, instead of the suite's `budgets`.
+    pub budgets: Option<Vec<u64>>,
+}
+
+/// One method of a suite: its parameters and targets.
+#[derive(Debug, Clone)]
+pub struct SuiteMethod {
+    /// The method.
+    pub kind: MethodKind,
+    /// Its parameters (`params.NAME`).
+    pub params: Params,
+    /// Kinds of targets (`eps`, `budget`): each a list swept together.
+    pub targets: Vec<(&'static str, Vec<SweepTarget>)>,
 }
 
 /// A checked suite.
@@ -79,14 +110,13 @@ pub struct Suite {
     pub raw: SuiteFile,
     /// The baseline file (resolved against the suite's folder).
     pub baseline: PathBuf,
-    /// Methods with their parameters.
-    pub methods: Vec<(MethodKind, Params)>,
-    /// Scenes.
-    pub scenes: Vec<SceneSpec>,
+    /// Methods with their parameters and targets.
+    pub methods: Vec<SuiteMethod>,
+    /// Scenes, each with the indices (into `methods`) of the methods run on it, in the
+    /// order first named.
+    pub scenes: Vec<(SceneSpec, Vec<usize>)>,
     /// Paths.
     pub paths: Vec<PathSpec>,
-    /// Kinds of targets: each a list swept together.
-    pub targets: Vec<(&'static str, Vec<SweepTarget>)>,
     /// Kernel.
     pub kernel: Kernel,
 }
@@ -122,52 +152,92 @@ impl Suite {
                 return Err(err(field, "the list is empty".into()));
             }
         }
-        if raw.eps.is_empty() && raw.budgets.is_empty() {
-            return Err(err("eps/budgets", "give at least one target".into()));
-        }
-        for m in raw.params.keys() {
-            if !raw.methods.contains(m) {
-                return Err(err(
-                    &format!("params.{m}"),
-                    "is not one of the suite's methods".into(),
-                ));
+        for (table, keys) in [
+            ("params", raw.params.keys().collect::<Vec<_>>()),
+            ("method", raw.method.keys().collect()),
+        ] {
+            for m in keys {
+                if !raw.methods.contains(m) {
+                    return Err(err(
+                        &format!("{table}.{m}"),
+                        "is not one of the suite's methods".into(),
+                    ));
+                }
             }
         }
         let mut methods = Vec::new();
-        for name in &raw.methods {
+        let mut scenes: Vec<(SceneSpec, Vec<usize>)> = Vec::new();
+        for (i, name) in raw.methods.iter().enumerate() {
             let kind = MethodKind::from_name(name).map_err(|e| err("methods", e.to_string()))?;
             let params = Params::parse(raw.params.get(name).map_or(&[][..], Vec::as_slice))
                 .and_then(|p| kind.check_params(&p).map(|_| p))
                 .map_err(|e| err(&format!("params.{name}"), e.to_string()))?;
-            methods.push((kind, params));
+            let over = raw.method.get(name).cloned().unwrap_or_default();
+            // A list of `[method.NAME]`, or the suite's: with the field to name in errors.
+            let field = |key: &str, own: bool| {
+                if own {
+                    format!("method.{name}.{key}")
+                } else {
+                    key.to_string()
+                }
+            };
+            let (scenes_field, scene_list) = match &over.scenes {
+                Some(l) => (field("scenes", true), l),
+                None => (field("scenes", false), &raw.scenes),
+            };
+            if scene_list.is_empty() {
+                return Err(err(&scenes_field, "the list is empty".into()));
+            }
+            for text in scene_list {
+                let spec = SceneSpec::parse(text, None, 1)
+                    .map_err(|e| err(&scenes_field, e.to_string()))?;
+                match scenes.iter_mut().find(|(s, _)| s.label() == spec.label()) {
+                    Some((_, users)) => users.push(i),
+                    None => scenes.push((spec, vec![i])),
+                }
+            }
+            let (eps_field, eps) = match &over.eps {
+                Some(l) => (field("eps", true), l),
+                None => (field("eps", false), &raw.eps),
+            };
+            let (budgets_field, budgets) = match &over.budgets {
+                Some(l) => (field("budgets", true), l),
+                None => (field("budgets", false), &raw.budgets),
+            };
+            if eps.is_empty() && budgets.is_empty() {
+                return Err(err(
+                    &format!("{eps_field}/{budgets_field}"),
+                    format!("give at least one target for {name}"),
+                ));
+            }
+            let mut targets = Vec::new();
+            if !eps.is_empty() {
+                let t = eps
+                    .iter()
+                    .map(|&e| SweepTarget::tolerance(e).map_err(|e| err(&eps_field, e.to_string())))
+                    .collect::<anyhow::Result<Vec<_>>>()?;
+                targets.push(("eps", t));
+            }
+            if !budgets.is_empty() {
+                let t = budgets
+                    .iter()
+                    .map(|&b| {
+                        SweepTarget::budget(b).map_err(|e| err(&budgets_field, e.to_string()))
+                    })
+                    .collect::<anyhow::Result<Vec<_>>>()?;
+                targets.push(("budget", t));
+            }
+            methods.push(SuiteMethod {
+                kind,
+                params,
+                targets,
+            });
         }
-        let scenes = raw
-            .scenes
-            .iter()
-            .map(|s| SceneSpec::parse(s, None, 1).map_err(|e| err("scenes", e.to_string())))
-            .collect::<anyhow::Result<Vec<_>>>()?;
         let paths = raw
             .paths
             .iter()
             .map(|p| PathSpec::parse(p).map_err(|e| err("paths", e.to_string())))
             .collect::<anyhow::Result<Vec<_>>>()?;
-        let mut targets = Vec::new();
-        if !raw.eps.is_empty() {
-            let t = raw
-                .eps
-                .iter()
-                .map(|&e| SweepTarget::tolerance(e).map_err(|e| err("eps", e.to_string())))
-                .collect::<anyhow::Result<Vec<_>>>()?;
-            targets.push(("eps", t));
-        }
-        if !raw.budgets.is_empty() {
-            let t = raw
-                .budgets
-                .iter()
-                .map(|&b| SweepTarget::budget(b).map_err(|e| err("budgets", e.to_string())))
-                .collect::<anyhow::Result<Vec<_>>>()?;
-            targets.push(("budget", t));
-        }
         let kernel = match &raw.kernel {
             None => Kernel::Square,
             Some(k) => k
@@ -186,14 +256,29 @@ impl Suite {
             methods,
             scenes,
             paths,
-            targets,
             kernel,
         })
     }
 
-    /// Number of sweeps the suite runs.
+    /// Number of sweeps the suite runs: one per method, each of its scenes, path and kind of
+    /// target.
     pub fn sweeps(&self) -> usize {
-        self.methods.len() * self.scenes.len() * self.paths.len() * self.targets.len()
+        self.count(|m| m.targets.len())
+    }
+
+    /// Number of runs the suite makes: one per sweep and target of its kind.
+    pub fn runs(&self) -> usize {
+        self.count(|m| m.targets.iter().map(|(_, t)| t.len()).sum())
+    }
+
+    /// `per(method)` summed over every method's scenes, times the paths.
+    fn count(&self, per: impl Fn(&SuiteMethod) -> usize) -> usize {
+        let pairs: usize = self
+            .scenes
+            .iter()
+            .flat_map(|(_, users)| users.iter().map(|&i| per(&self.methods[i])))
+            .sum();
+        pairs * self.paths.len()
     }
 }
 
@@ -257,8 +342,9 @@ pub fn run(
     record(false)?;
     // Each scene is loaded once for the builds of every method (the runs load it again, as
     // every run does).
-    for scene in &suite.scenes {
+    for (scene, users) in &suite.scenes {
         let label = scene.label();
+        let methods: Vec<_> = users.iter().map(|&i| &suite.methods[i]).collect();
         let build_dir = |method: MethodKind| {
             out.join("builds")
                 .join(format!("{method}-{}", folder_name(&label)))
@@ -267,22 +353,24 @@ pub fn run(
             .load(Some(cache), progress)
             .with_context(|| format!("loading scene '{}'", scene.text))?
             .warn();
-        for (method, params) in &suite.methods {
+        for m in &methods {
+            let (method, params) = (m.kind, &m.params);
             method
-                .build(&cloud, params, &label, &build_dir(*method), progress)
+                .build(&cloud, params, &label, &build_dir(method), progress)
                 .with_context(|| format!("building {method} on {label}"))?;
         }
         drop(cloud);
-        for (method, _) in &suite.methods {
+        for m in &methods {
+            let method = m.kind;
             for path in &suite.paths {
-                for (kind, targets) in &suite.targets {
+                for (kind, targets) in &m.targets {
                     let dir = out.join(format!(
                         "{method}-{}-{}-{kind}",
                         folder_name(&label),
                         folder_name(&path.name())
                     ));
                     let base = RunConfig {
-                        method: *method,
+                        method,
                         params: Params::default(),
                         scene: scene.clone(),
                         path: path.clone(),
@@ -301,7 +389,7 @@ pub fn run(
                         metrics: true,
                         out: dir.clone(),
                         cache: cache.to_path_buf(),
-                        build_dir: Some(build_dir(*method)),
+                        build_dir: Some(build_dir(method)),
                         build_url: None,
                         allow_missing_chunks: false,
                         reference_raster: None,

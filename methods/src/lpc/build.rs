@@ -76,15 +76,17 @@
 
 use std::fs::File;
 use std::io::{BufWriter, Read, Seek, SeekFrom};
-use std::path::Path;
+use std::path::{Path, PathBuf};
 use std::time::Instant;
 
 use glam::Vec3;
 use rayon::prelude::*;
-use scenes::{PointCloud, Progress};
+use scenes::{Aabb, Attributes, PointCloud, Progress};
 
 use super::cloud::{self, Sample};
 use super::index::{self, NONE, Node};
+use super::partition::PNode;
+use super::sizes::SizeCheck;
 use super::{INDEX_FILE, INFO_FILE, Info, LpcParams, Quantise, REPO_FILE, SpacingRule};
 use crate::store::{self, RepoWriter};
 use crate::{BuildStats, MethodError};
@@ -127,6 +129,111 @@ pub fn build_with_budget(
     let t0 = Instant::now();
     let mut temps = Temps(Vec::new());
     let attrs = super::lpc_attributes(cloud.attributes());
+    let Partitioned {
+        nodes,
+        clouds_path,
+        mut probes,
+        mut peak,
+        temp_bytes,
+    } = partition(cloud, params, dir, progress, mem_bytes, attrs, &mut temps)?;
+
+    let n = cloud.len() as u64;
+    let bounds = cloud.bounds();
+    // Positions quantised in the model's box (the paper's) or in each cloud's own.
+    let frame = match params.quantise {
+        Quantise::Model => Some((bounds.min.to_array(), bounds.max.to_array())),
+        Quantise::Cloud => None,
+    };
+    let probe_count = probes.len() as u64;
+    let (r, nn) = input_spacings(cloud, params, &mut probes);
+
+    // Phase 2: repository order, spacing, clouds.
+    let phase2 = Phase2::new(&nodes, &clouds_path, bounds);
+    let (mut out, spacing) = phase2.index_nodes(r);
+    // §4: the clouds' spacings against their samples (`super::sizes`), read from the cloud
+    // file while it exists.
+    let sizes = phase2.cloud_spacing(params.m, &spacing)?;
+    let batch_samples = (mem_bytes / (4 * RECORD_BYTES)).max(params.m as u64) as usize;
+    let encoding = Encoding { attrs, nn, frame };
+    let repo = phase2.write_repository(
+        &mut out,
+        dir,
+        &mut temps,
+        progress,
+        batch_samples,
+        &encoding,
+    )?;
+    peak = peak.max(repo.peak);
+
+    let index_path = dir.join(INDEX_FILE);
+    let index_bytes = index::write(&index_path, &out)?;
+    let levels = out.iter().map(|n| n.level).max().unwrap_or(0) + 1;
+    let info = Info {
+        input_spacing: r,
+        nn_spacing: nn,
+        m: params.m,
+        nodes: out.len() as u64,
+        levels,
+        points: n,
+    };
+    crate::method::write_json(&dir.join(INFO_FILE), &info)?;
+    drop(temps);
+    let extra = Report {
+        params,
+        attrs,
+        r,
+        nn,
+        probe_count,
+        bits: (repo.bits_min, repo.bits_max),
+        temp_bytes,
+        mem_bytes,
+        peak,
+        out: &out,
+        sizes,
+        index_bytes,
+        repo_bytes: repo.bytes,
+    }
+    .extra();
+    let stats = BuildStats {
+        points_in: n,
+        nodes: out.len() as u64,
+        levels,
+        bytes_in: cloud.column_bytes(),
+        bytes_out: index_bytes + repo.bytes,
+        bits_per_sample: 0.0,
+        seconds: t0.elapsed().as_secs_f64(),
+        points_per_s: 0.0,
+        extra,
+    }
+    .finish();
+    Ok(stats)
+}
+
+/// What phase 1 leaves for phase 2.
+struct Partitioned {
+    /// The nodes, in processing order.
+    nodes: Vec<PNode>,
+    /// The temporary cloud file, complete and closed.
+    clouds_path: PathBuf,
+    /// `[nearest, LEAF_K-th nearest]` distances of the measured probes.
+    probes: Vec<[f32; 2]>,
+    /// Peak bytes held so far.
+    peak: u64,
+    /// Temporary-file bytes, the cloud file's included.
+    temp_bytes: u64,
+}
+
+/// Phase 1: partitions `cloud` into nodes and writes their clouds to the temporary cloud
+/// file (registered in `temps`), then closes the progress bar and flushes the file.
+fn partition(
+    cloud: &PointCloud,
+    params: &LpcParams,
+    dir: &Path,
+    progress: &dyn Progress,
+    mem_bytes: u64,
+    attrs: Attributes,
+    temps: &mut Temps,
+) -> Result<Partitioned, MethodError> {
     let clouds_path = dir.join("lpc-clouds.tmp");
     temps.0.push(clouds_path.clone());
     let clouds_file = File::create(&clouds_path).map_err(|e| MethodError::io(&clouds_path, e))?;
@@ -151,13 +258,13 @@ pub fn build_with_budget(
         files: 0,
         progress,
     };
-    p1.run(cloud, &mut temps)?;
+    p1.run(cloud, temps)?;
     progress.finish();
     let Phase1 {
         nodes,
         clouds,
-        mut probes,
-        mut peak,
+        probes,
+        peak,
         mut temp_bytes,
         ..
     } = p1;
@@ -165,16 +272,21 @@ pub fn build_with_budget(
         .into_inner()
         .map_err(|e| MethodError::io(&clouds_path, e.into_error()))?;
     temp_bytes += cloud.len() as u64 * RECORD_BYTES;
+    Ok(Partitioned {
+        nodes,
+        clouds_path,
+        probes,
+        peak,
+        temp_bytes,
+    })
+}
 
+/// The input spacing `r` and the quantisation spacing: given in `params`, else estimated
+/// from the probes (by `params.spacing_rule`), else derived from the bounding box.
+fn input_spacings(cloud: &PointCloud, params: &LpcParams, probes: &mut [[f32; 2]]) -> (f32, f32) {
     let n = cloud.len() as u64;
     let bounds = cloud.bounds();
-    // Positions quantised in the model's box (the paper's) or in each cloud's own.
-    let frame = match params.quantise {
-        Quantise::Model => Some((bounds.min.to_array(), bounds.max.to_array())),
-        Quantise::Cloud => None,
-    };
-    let probe_count = probes.len() as u64;
-    let (r_est, nn_est) = spacing_estimates(&mut probes, params.spacing_rule);
+    let (r_est, nn_est) = spacing_estimates(probes, params.spacing_rule);
     let r_est = match params.spacing_rule {
         SpacingRule::Area => {
             let framed = scenes::framing::inlier_box(cloud).unwrap_or(bounds);
@@ -201,209 +313,292 @@ pub fn build_with_budget(
         None if nn_est.is_finite() && nn_est > 0.0 => nn_est,
         None => r / 4.0,
     };
+    (r, nn)
+}
 
-    // Phase 2: repository order, spacing, clouds.
-    let size = bounds.size().max_element().max(f32::MIN_POSITIVE);
-    let cells = (1u32 << 21) as f32;
-    let code = |c: Vec3| {
-        let q = |v: f32, lo: f32| (((v - lo) / size * cells).max(0.0) as u32).min((1 << 21) - 1);
-        crate::morton::morton96([
-            q(c.x, bounds.min.x),
-            q(c.y, bounds.min.y),
-            q(c.z, bounds.min.z),
-        ])
-    };
-    let mut order: Vec<(u32, u128, u32)> = nodes
-        .iter()
-        .enumerate()
-        .map(|(i, nd)| (nd.level, code(nd.center), i as u32))
-        .collect();
-    order.sort_unstable();
-    let order: Vec<u32> = order.into_iter().map(|(_, _, i)| i).collect();
-    let mut new_id = vec![0u32; nodes.len()];
-    for (new, &old) in order.iter().enumerate() {
-        new_id[old as usize] = new as u32;
+/// How the clouds are encoded: attributes, quantisation spacing and frame.
+struct Encoding {
+    attrs: Attributes,
+    nn: f32,
+    frame: Option<([f32; 3], [f32; 3])>,
+}
+
+/// What [`Phase2::write_repository`] reports.
+struct RepoWritten {
+    /// Bytes of the repository file.
+    bytes: u64,
+    /// Smallest and largest position bits of any cloud (`u8::MAX` and 0 with no cloud).
+    bits_min: u8,
+    bits_max: u8,
+    /// Peak bytes held by a batch (raw, encoded and compressed).
+    peak: u64,
+}
+
+/// Phase 2 over the nodes of phase 1 and their cloud file, in repository order.
+struct Phase2<'a> {
+    nodes: &'a [PNode],
+    clouds_path: &'a Path,
+    /// Phase-1 node ids in repository order.
+    order: Vec<u32>,
+    /// Repository id of each phase-1 node.
+    new_id: Vec<u32>,
+}
+
+impl<'a> Phase2<'a> {
+    /// Repository order: by level, then by the Morton code of the sphere centre quantised
+    /// in `bounds` (ties: processing order).
+    fn new(nodes: &'a [PNode], clouds_path: &'a Path, bounds: Aabb) -> Self {
+        let size = bounds.size().max_element().max(f32::MIN_POSITIVE);
+        let cells = (1u32 << 21) as f32;
+        let code = |c: Vec3| {
+            let q =
+                |v: f32, lo: f32| (((v - lo) / size * cells).max(0.0) as u32).min((1 << 21) - 1);
+            crate::morton::morton96([
+                q(c.x, bounds.min.x),
+                q(c.y, bounds.min.y),
+                q(c.z, bounds.min.z),
+            ])
+        };
+        let mut order: Vec<(u32, u128, u32)> = nodes
+            .iter()
+            .enumerate()
+            .map(|(i, nd)| (nd.level, code(nd.center), i as u32))
+            .collect();
+        order.sort_unstable();
+        let order: Vec<u32> = order.into_iter().map(|(_, _, i)| i).collect();
+        let mut new_id = vec![0u32; nodes.len()];
+        for (new, &old) in order.iter().enumerate() {
+            new_id[old as usize] = new as u32;
+        }
+        Phase2 {
+            nodes,
+            clouds_path,
+            order,
+            new_id,
+        }
     }
-    let parents: Vec<u32> = order
-        .iter()
-        .map(|&o| {
-            let p = nodes[o as usize].parent;
-            if p == NONE { NONE } else { new_id[p as usize] }
-        })
-        .collect();
-    let subtree: Vec<u64> = order.iter().map(|&o| nodes[o as usize].n).collect();
-    let points: Vec<u32> = order.iter().map(|&o| nodes[o as usize].m).collect();
-    let spacing = hierarchical_spacing(r as f64, &parents, &subtree, &points);
-    // Decoded positions may move by up to half a step (< 0.45 r) per axis.
-    let quant_margin = (cloud::STEP_FRACTION * 0.5 * 3f64.sqrt() * 1.001) as f32 * r;
-    let mut out: Vec<Node> = order
-        .iter()
-        .enumerate()
-        .map(|(new, &old)| {
-            let nd = &nodes[old as usize];
-            Node {
-                center: nd.center.to_array(),
-                radius: nd.radius + quant_margin,
-                cone_axis: nd.axis.to_array(),
-                cone_half_angle: nd.half,
-                spacing: spacing[new] as f32,
-                children: nd
-                    .children
-                    .map(|c| if c == NONE { NONE } else { new_id[c as usize] }),
-                cloud: new as u32,
-                points: nd.m,
-                level: nd.level,
-                subtree: nd.n,
-                chunk: Default::default(),
-            }
-        })
-        .collect();
 
-    // §4: the clouds' spacings against their samples (`super::sizes`), read from the cloud
-    // file while it exists.
-    let sizes = {
-        let mut f = File::open(&clouds_path).map_err(|e| MethodError::io(&clouds_path, e))?;
-        super::sizes::cloud_spacing(
-            &nodes,
-            params.m,
-            |old| spacing[new_id[old] as usize],
-            |old| {
-                let nd = &nodes[old];
-                let mut v = vec![Sample::default(); nd.m as usize];
-                f.seek(SeekFrom::Start(nd.cloud_off * RECORD_BYTES))
-                    .and_then(|_| f.read_exact(bytemuck::cast_slice_mut(&mut v)))
-                    .map_err(|e| MethodError::io(&clouds_path, e))?;
-                Ok(v)
-            },
-        )?
-    };
-
-    progress.start("lpc: clouds", out.len() as u64);
-    let repo_path = dir.join(REPO_FILE);
-    let mut repo = RepoWriter::create(&repo_path)?;
-    temps.0.push(scenes::colfile::temp_path(&repo_path));
-    let mut reader = File::open(&clouds_path).map_err(|e| MethodError::io(&clouds_path, e))?;
-    let batch_samples = (mem_bytes / (4 * RECORD_BYTES)).max(params.m as u64) as usize;
-    let mut bits_min = u8::MAX;
-    let mut bits_max = 0u8;
-    let mut i = 0;
-    while i < order.len() {
-        let mut j = i;
-        let mut total = 0usize;
-        while j < order.len()
-            && (j == i || total + nodes[order[j] as usize].m as usize <= batch_samples)
-        {
-            total += nodes[order[j] as usize].m as usize;
-            j += 1;
-        }
-        let mut raw: Vec<Vec<Sample>> = Vec::with_capacity(j - i);
-        for &old in &order[i..j] {
-            let nd = &nodes[old as usize];
-            let mut v = vec![Sample::default(); nd.m as usize];
-            reader
-                .seek(SeekFrom::Start(nd.cloud_off * RECORD_BYTES))
-                .and_then(|_| reader.read_exact(bytemuck::cast_slice_mut(&mut v)))
-                .map_err(|e| MethodError::io(&clouds_path, e))?;
-            raw.push(v);
-        }
-        peak = peak.max(total as u64 * RECORD_BYTES * 3);
-        let enc: Vec<(Vec<u8>, usize, [u8; 3])> = raw
-            .par_iter()
-            .map(|c| {
-                let (bytes, bits) = cloud::encode_in(c, attrs, nn, frame);
-                (store::compress(&bytes), bytes.len(), bits)
+    /// The index nodes in repository order (their chunks still unset) and their spacings
+    /// (eqs. (1)–(2), top-down from the input spacing `r`).
+    fn index_nodes(&self, r: f32) -> (Vec<Node>, Vec<f64>) {
+        let (nodes, order, new_id) = (self.nodes, &self.order, &self.new_id);
+        let parents: Vec<u32> = order
+            .iter()
+            .map(|&o| {
+                let p = nodes[o as usize].parent;
+                if p == NONE { NONE } else { new_id[p as usize] }
             })
             .collect();
-        for (k, (stored, raw_len, bits)) in enc.iter().enumerate() {
-            out[i + k].chunk = repo.append_compressed(stored, *raw_len)?;
-            for &b in bits {
-                bits_min = bits_min.min(b);
-                bits_max = bits_max.max(b);
-            }
-        }
-        progress.inc((j - i) as u64);
-        i = j;
+        let subtree: Vec<u64> = order.iter().map(|&o| nodes[o as usize].n).collect();
+        let points: Vec<u32> = order.iter().map(|&o| nodes[o as usize].m).collect();
+        let spacing = hierarchical_spacing(r as f64, &parents, &subtree, &points);
+        // Decoded positions may move by up to half a step (< 0.45 r) per axis.
+        let quant_margin = (cloud::STEP_FRACTION * 0.5 * 3f64.sqrt() * 1.001) as f32 * r;
+        let out: Vec<Node> = order
+            .iter()
+            .enumerate()
+            .map(|(new, &old)| {
+                let nd = &nodes[old as usize];
+                Node {
+                    center: nd.center.to_array(),
+                    radius: nd.radius + quant_margin,
+                    cone_axis: nd.axis.to_array(),
+                    cone_half_angle: nd.half,
+                    spacing: spacing[new] as f32,
+                    children: nd
+                        .children
+                        .map(|c| if c == NONE { NONE } else { new_id[c as usize] }),
+                    cloud: new as u32,
+                    points: nd.m,
+                    level: nd.level,
+                    subtree: nd.n,
+                    chunk: Default::default(),
+                }
+            })
+            .collect();
+        (out, spacing)
     }
-    drop(reader);
-    let repo_bytes = repo.finish()?;
-    progress.finish();
 
-    let index_path = dir.join(INDEX_FILE);
-    let index_bytes = index::write(&index_path, &out)?;
-    let levels = out.iter().map(|n| n.level).max().unwrap_or(0) + 1;
-    let info = Info {
-        input_spacing: r,
-        nn_spacing: nn,
-        m: params.m,
-        nodes: out.len() as u64,
-        levels,
-        points: n,
-    };
-    crate::method::write_json(&dir.join(INFO_FILE), &info)?;
-    drop(temps);
-    let mut extra = serde_json::Map::new();
-    let mut put = |k: &str, v: serde_json::Value| {
-        extra.insert(k.into(), v);
-    };
-    put("m", params.m.into());
-    put("k", (params.k as f64).into());
-    put(
-        "spacing_rule",
-        serde_json::to_value(params.spacing_rule).unwrap_or_default(),
-    );
-    put("input_spacing", (r as f64).into());
-    put("nn_spacing", (nn as f64).into());
-    put("input_spacing_probes", probe_count.into());
-    put(
-        "quantise",
-        serde_json::to_value(params.quantise).unwrap_or_default(),
-    );
-    put("position_bits_min", bits_min.min(bits_max).into());
-    put("position_bits_max", bits_max.into());
-    put("normal_bits", (if attrs.normals { 16 } else { 0 }).into());
-    put("color_bits", (if attrs.colors { 24 } else { 0 }).into());
-    put("temp_bytes", temp_bytes.into());
-    put("memory_budget_bytes", mem_bytes.into());
-    put("peak_bytes_held", peak.into());
-    put("clouds", (out.len() as u64).into());
-    if let Some(z) = sizes {
-        put("spacing_clouds_measured", z.clouds.into());
-        put("spacing_ratio_median", z.ratio_median.into());
-        put("spacing_ratio_p10", z.ratio_p10.into());
-        put("spacing_ratio_p90", z.ratio_p90.into());
-        put("spacing_cv_median", z.cv_median.into());
+    /// Reads the cloud of phase-1 node `old` from the cloud file `f`.
+    fn read_cloud(&self, f: &mut File, old: usize) -> Result<Vec<Sample>, MethodError> {
+        let nd = &self.nodes[old];
+        let mut v = vec![Sample::default(); nd.m as usize];
+        f.seek(SeekFrom::Start(nd.cloud_off * RECORD_BYTES))
+            .and_then(|_| f.read_exact(bytemuck::cast_slice_mut(&mut v)))
+            .map_err(|e| MethodError::io(self.clouds_path, e))?;
+        Ok(v)
     }
-    // §3: the model keeps exactly the input samples; an inner cloud holds `M`, a leaf at
-    // most `M` (`N_j < M`, or `N_j = M` with nothing left to split).
-    let stored: u64 = out.iter().map(|nd| u64::from(nd.points)).sum();
-    put("samples_stored", stored.into());
-    put(
-        "inner_clouds_not_m",
-        (out.iter()
-            .filter(|nd| !nd.is_leaf() && nd.points != params.m)
-            .count() as u64)
-            .into(),
-    );
-    put(
-        "leaf_clouds_over_m",
-        (out.iter()
-            .filter(|nd| nd.is_leaf() && nd.points > params.m)
-            .count() as u64)
-            .into(),
-    );
-    put("index_bytes", index_bytes.into());
-    put("repo_bytes", repo_bytes.into());
-    let stats = BuildStats {
-        points_in: n,
-        nodes: out.len() as u64,
-        levels,
-        bytes_in: cloud.column_bytes(),
-        bytes_out: index_bytes + repo_bytes,
-        bits_per_sample: 0.0,
-        seconds: t0.elapsed().as_secs_f64(),
-        points_per_s: 0.0,
-        extra,
+
+    /// §4: the clouds' spacings against their samples (`super::sizes`), `spacing` being the
+    /// nodes' spacings in repository order.
+    fn cloud_spacing(&self, m: u32, spacing: &[f64]) -> Result<Option<SizeCheck>, MethodError> {
+        let mut f =
+            File::open(self.clouds_path).map_err(|e| MethodError::io(self.clouds_path, e))?;
+        super::sizes::cloud_spacing(
+            self.nodes,
+            m,
+            |old| spacing[self.new_id[old] as usize],
+            |old| self.read_cloud(&mut f, old),
+        )
     }
-    .finish();
-    Ok(stats)
+
+    /// Writes the repository: reads the clouds back in repository order in batches of up
+    /// to `batch_samples` samples (at least one cloud), encodes and compresses each batch in
+    /// parallel, appends the clouds in order and sets each node's chunk in `out`.
+    fn write_repository(
+        &self,
+        out: &mut [Node],
+        dir: &Path,
+        temps: &mut Temps,
+        progress: &dyn Progress,
+        batch_samples: usize,
+        encoding: &Encoding,
+    ) -> Result<RepoWritten, MethodError> {
+        let (nodes, order) = (self.nodes, &self.order);
+        progress.start("lpc: clouds", out.len() as u64);
+        let repo_path = dir.join(REPO_FILE);
+        let mut repo = RepoWriter::create(&repo_path)?;
+        temps.0.push(scenes::colfile::temp_path(&repo_path));
+        let mut reader =
+            File::open(self.clouds_path).map_err(|e| MethodError::io(self.clouds_path, e))?;
+        let mut bits_min = u8::MAX;
+        let mut bits_max = 0u8;
+        let mut peak = 0u64;
+        let mut i = 0;
+        while i < order.len() {
+            let mut j = i;
+            let mut total = 0usize;
+            while j < order.len()
+                && (j == i || total + nodes[order[j] as usize].m as usize <= batch_samples)
+            {
+                total += nodes[order[j] as usize].m as usize;
+                j += 1;
+            }
+            let mut raw: Vec<Vec<Sample>> = Vec::with_capacity(j - i);
+            for &old in &order[i..j] {
+                raw.push(self.read_cloud(&mut reader, old as usize)?);
+            }
+            peak = peak.max(total as u64 * RECORD_BYTES * 3);
+            let enc: Vec<(Vec<u8>, usize, [u8; 3])> = raw
+                .par_iter()
+                .map(|c| {
+                    let (bytes, bits) =
+                        cloud::encode_in(c, encoding.attrs, encoding.nn, encoding.frame);
+                    (store::compress(&bytes), bytes.len(), bits)
+                })
+                .collect();
+            for (k, (stored, raw_len, bits)) in enc.iter().enumerate() {
+                out[i + k].chunk = repo.append_compressed(stored, *raw_len)?;
+                for &b in bits {
+                    bits_min = bits_min.min(b);
+                    bits_max = bits_max.max(b);
+                }
+            }
+            progress.inc((j - i) as u64);
+            i = j;
+        }
+        drop(reader);
+        let bytes = repo.finish()?;
+        progress.finish();
+        Ok(RepoWritten {
+            bytes,
+            bits_min,
+            bits_max,
+            peak,
+        })
+    }
+}
+
+/// The figures of `build.json`'s method-specific fields, gathered over the build.
+struct Report<'a> {
+    params: &'a LpcParams,
+    attrs: Attributes,
+    /// Input spacing `r` and quantisation spacing.
+    r: f32,
+    nn: f32,
+    probe_count: u64,
+    /// Smallest and largest position bits of any cloud.
+    bits: (u8, u8),
+    temp_bytes: u64,
+    mem_bytes: u64,
+    peak: u64,
+    /// The index nodes, in repository order.
+    out: &'a [Node],
+    sizes: Option<SizeCheck>,
+    index_bytes: u64,
+    repo_bytes: u64,
+}
+
+impl Report<'_> {
+    /// The fields, in the order `build.json` lists them.
+    fn extra(self) -> serde_json::Map<String, serde_json::Value> {
+        let Report {
+            params,
+            attrs,
+            r,
+            nn,
+            probe_count,
+            bits: (bits_min, bits_max),
+            temp_bytes,
+            mem_bytes,
+            peak,
+            out,
+            sizes,
+            index_bytes,
+            repo_bytes,
+        } = self;
+        let mut extra = serde_json::Map::new();
+        let mut put = |k: &str, v: serde_json::Value| {
+            extra.insert(k.into(), v);
+        };
+        put("m", params.m.into());
+        put("k", (params.k as f64).into());
+        put(
+            "spacing_rule",
+            serde_json::to_value(params.spacing_rule).unwrap_or_default(),
+        );
+        put("input_spacing", (r as f64).into());
+        put("nn_spacing", (nn as f64).into());
+        put("input_spacing_probes", probe_count.into());
+        put(
+            "quantise",
+            serde_json::to_value(params.quantise).unwrap_or_default(),
+        );
+        put("position_bits_min", bits_min.min(bits_max).into());
+        put("position_bits_max", bits_max.into());
+        put("normal_bits", (if attrs.normals { 16 } else { 0 }).into());
+        put("color_bits", (if attrs.colors { 24 } else { 0 }).into());
+        put("temp_bytes", temp_bytes.into());
+        put("memory_budget_bytes", mem_bytes.into());
+        put("peak_bytes_held", peak.into());
+        put("clouds", (out.len() as u64).into());
+        if let Some(z) = sizes {
+            put("spacing_clouds_measured", z.clouds.into());
+            put("spacing_ratio_median", z.ratio_median.into());
+            put("spacing_ratio_p10", z.ratio_p10.into());
+            put("spacing_ratio_p90", z.ratio_p90.into());
+            put("spacing_cv_median", z.cv_median.into());
+        }
+        // §3: the model keeps exactly the input samples; an inner cloud holds `M`, a leaf at
+        // most `M` (`N_j < M`, or `N_j = M` with nothing left to split).
+        let stored: u64 = out.iter().map(|nd| u64::from(nd.points)).sum();
+        put("samples_stored", stored.into());
+        put(
+            "inner_clouds_not_m",
+            (out.iter()
+                .filter(|nd| !nd.is_leaf() && nd.points != params.m)
+                .count() as u64)
+                .into(),
+        );
+        put(
+            "leaf_clouds_over_m",
+            (out.iter()
+                .filter(|nd| nd.is_leaf() && nd.points > params.m)
+                .count() as u64)
+                .into(),
+        );
+        put("index_bytes", index_bytes.into());
+        put("repo_bytes", repo_bytes.into());
+        extra
+    }
 }

@@ -2,10 +2,11 @@
 //! [`super::pareto`]), the best and the runner-up with its margin and whether that margin is
 //! larger than run-to-run noise, the method's default marked; then the Pareto front.
 
+use std::collections::BTreeMap;
 use std::fmt::Write as _;
 
 use super::pareto::{self, Ranking};
-use super::{Plan, TuneRow};
+use super::{Plan, Setting, TuneRow};
 
 /// A margin below this share of the best error is called a tie in practice, however
 /// repeatable: reading errors off curves at a common cost is itself only this exact.
@@ -52,162 +53,237 @@ pub fn recommendation(
     adapter: &str,
     commit: &str,
 ) -> anyhow::Result<String> {
-    let settings = plan.grid.settings();
-    let n_t = plan.targets.len();
-    let row = |s: usize, t: usize| rows.iter().find(|r| r.setting == s && r.target == t);
-    let curves: Vec<Vec<Option<(f64, f64)>>> = settings
-        .iter()
-        .map(|s| {
-            (0..n_t)
-                .map(|t| row(s.index, t).and_then(|r| Some((r.cost, r.sweep.flip_mean_median?))))
-                .collect()
-        })
-        .collect();
-    let default = default_setting(plan, rows);
+    let report = Report::new(plan, rows);
     let defaults = plan.kind()?.defaults();
     let mut o = String::new();
-    writeln!(o, "# Tune: {} on {}\n", plan.method, plan.scene)?;
-    writeln!(o, "`{}`\n", plan.command)?;
-    let axes: Vec<String> = plan
-        .grid
-        .axes
-        .iter()
-        .map(|a| {
-            format!(
-                "{} ∈ {{{}}} ({})",
-                a.key,
-                a.values.join(", "),
-                if a.runtime { "runtime" } else { "build" }
-            )
-        })
-        .collect();
-    writeln!(
-        o,
-        "Adapter {adapter}, commit {commit}. Grid: {}{}. Path {}; targets {}. Cost: {}. \
-         Error: the median over the frames of the mean FLIP against the full-resolution \
-         reference. Each run made {} time(s): run-to-run noise is the largest change of a \
-         setting's error at the common cost when a repeat replaces the run.\n",
-        axes.join("; "),
-        if plan.grid.fixed.is_empty() {
-            String::new()
-        } else {
-            format!(
-                "; fixed {}",
-                plan.grid
-                    .fixed
-                    .iter()
-                    .map(|(k, v)| format!("{k}={v}"))
-                    .collect::<Vec<_>>()
-                    .join(" ")
-            )
-        },
-        plan.path,
-        plan.targets
-            .iter()
-            .map(|t| t.label())
-            .collect::<Vec<_>>()
-            .join(", "),
-        plan.cost.describe(),
-        plan.repeats
-    )?;
-    let default_text: Vec<String> = plan
-        .grid
-        .axes
-        .iter()
-        .map(|a| {
-            format!(
-                "{}={}",
-                a.key,
-                defaults.get(&a.key).map_or("(estimated)", String::as_str)
-            )
-        })
-        .collect();
-    match default {
-        Some(s) => writeln!(
-            o,
-            "The method's default ({}; the paper's choice unless its README says otherwise) \
-             is setting `{}`, marked ✓.\n",
-            default_text.join(" "),
-            settings[s].label()
-        )?,
-        None => writeln!(
-            o,
-            "The method's default ({}) is not in the grid.\n",
-            default_text.join(" ")
-        )?,
+    report.write_intro(&mut o, adapter, commit, &defaults)?;
+    for t in 0..plan.targets.len() {
+        report.write_target(&mut o, t)?;
     }
-    for (t, target) in plan.targets.iter().enumerate() {
+    report.write_front(&mut o)?;
+    Ok(o)
+}
+
+/// A setting's error curve: its `(cost, error)` at each target (`None`: not measured).
+type Curve = Vec<Option<(f64, f64)>>;
+
+/// What every section of `recommendation.md` reads: the plan, its rows, the settings'
+/// curves and the default setting.
+struct Report<'a> {
+    plan: &'a Plan,
+    rows: &'a [TuneRow],
+    settings: Vec<Setting>,
+    /// Per setting (in grid order) its curve.
+    curves: Vec<Curve>,
+    /// The setting that is the method's default, if the grid has it.
+    default: Option<usize>,
+}
+
+/// Where one target's settings are compared, and its ranking there.
+struct TargetRanking {
+    /// The target.
+    t: usize,
+    common: pareto::Common,
+    /// "within the budget" or "at the common cost".
+    at: &'static str,
+    ranking: Ranking,
+}
+
+impl<'a> Report<'a> {
+    fn new(plan: &'a Plan, rows: &'a [TuneRow]) -> Self {
+        let settings = plan.grid.settings();
+        let n_t = plan.targets.len();
+        let row = |s: usize, t: usize| rows.iter().find(|r| r.setting == s && r.target == t);
+        let curves = settings
+            .iter()
+            .map(|s| {
+                (0..n_t)
+                    .map(|t| {
+                        row(s.index, t).and_then(|r| Some((r.cost, r.sweep.flip_mean_median?)))
+                    })
+                    .collect()
+            })
+            .collect();
+        Report {
+            plan,
+            rows,
+            settings,
+            curves,
+            default: default_setting(plan, rows),
+        }
+    }
+
+    /// The row of setting `s` at target `t`.
+    fn row(&self, s: usize, t: usize) -> Option<&'a TuneRow> {
+        self.rows.iter().find(|r| r.setting == s && r.target == t)
+    }
+
+    /// The title, the command, the paragraph on grid, path, targets, cost and error, and the
+    /// line on the method's default (`defaults`: the method's default parameters).
+    fn write_intro(
+        &self,
+        o: &mut String,
+        adapter: &str,
+        commit: &str,
+        defaults: &BTreeMap<String, String>,
+    ) -> std::fmt::Result {
+        let plan = self.plan;
+        writeln!(o, "# Tune: {} on {}\n", plan.method, plan.scene)?;
+        writeln!(o, "`{}`\n", plan.command)?;
+        let axes: Vec<String> = plan
+            .grid
+            .axes
+            .iter()
+            .map(|a| {
+                format!(
+                    "{} ∈ {{{}}} ({})",
+                    a.key,
+                    a.values.join(", "),
+                    if a.runtime { "runtime" } else { "build" }
+                )
+            })
+            .collect();
+        writeln!(
+            o,
+            "Adapter {adapter}, commit {commit}. Grid: {}{}. Path {}; targets {}. Cost: {}. \
+             Error: the median over the frames of the mean FLIP against the full-resolution \
+             reference. Each run made {} time(s): run-to-run noise is the largest change of a \
+             setting's error at the common cost when a repeat replaces the run.\n",
+            axes.join("; "),
+            if plan.grid.fixed.is_empty() {
+                String::new()
+            } else {
+                format!(
+                    "; fixed {}",
+                    plan.grid
+                        .fixed
+                        .iter()
+                        .map(|(k, v)| format!("{k}={v}"))
+                        .collect::<Vec<_>>()
+                        .join(" ")
+                )
+            },
+            plan.path,
+            plan.targets
+                .iter()
+                .map(|t| t.label())
+                .collect::<Vec<_>>()
+                .join(", "),
+            plan.cost.describe(),
+            plan.repeats
+        )?;
+        let default_text: Vec<String> = plan
+            .grid
+            .axes
+            .iter()
+            .map(|a| {
+                format!(
+                    "{}={}",
+                    a.key,
+                    defaults.get(&a.key).map_or("(estimated)", String::as_str)
+                )
+            })
+            .collect();
+        match self.default {
+            Some(s) => writeln!(
+                o,
+                "The method's default ({}; the paper's choice unless its README says otherwise) \
+                 is setting `{}`, marked ✓.\n",
+                default_text.join(" "),
+                self.settings[s].label()
+            ),
+            None => writeln!(
+                o,
+                "The method's default ({}) is not in the grid.\n",
+                default_text.join(" ")
+            ),
+        }
+    }
+
+    /// Target `t`'s section: its heading, the recommendation, the ranking table and the
+    /// settings not comparable there.
+    fn write_target(&self, o: &mut String, t: usize) -> std::fmt::Result {
+        let target = &self.plan.targets[t];
         writeln!(o, "## {}\n", target.label())?;
-        let common = match (plan.cost, target.kind.as_str()) {
+        let common = match (self.plan.cost, target.kind.as_str()) {
             (super::Cost::Points, "budget") => pareto::Common::Target(target.value),
             _ => pareto::Common::Median,
         };
         let at = match common {
-            pareto::Common::Target(_) => "within the budget".to_string(),
-            pareto::Common::Median => "at the common cost".to_string(),
+            pareto::Common::Target(_) => "within the budget",
+            pareto::Common::Median => "at the common cost",
         };
-        let Some(Ranking {
-            cost,
-            ranked,
-            unreachable,
-        }) = pareto::rank(&curves, t, common)
-        else {
-            writeln!(o, "No setting has an error measured at this target.\n")?;
-            continue;
+        let Some(ranking) = pareto::rank(&self.curves, t, common) else {
+            return writeln!(o, "No setting has an error measured at this target.\n");
         };
-        // Run-to-run noise of a setting at the common cost: its curve with a repeat in
-        // place of this target's run.
-        let noise = |s: usize| -> Option<f64> {
-            let r = row(s, t)?;
-            if plan.repeats < 2 || r.repeats.is_empty() {
-                return None;
+        let tr = TargetRanking {
+            t,
+            common,
+            at,
+            ranking,
+        };
+        self.write_verdict(o, &tr)?;
+        self.write_ranking_table(o, &tr)?;
+        if !tr.ranking.unreachable.is_empty() {
+            writeln!(
+                o,
+                "\nNot comparable at this cost (no target of theirs within {:.0} % of it): {}.",
+                100.0 * pareto::REACH,
+                tr.ranking
+                    .unreachable
+                    .iter()
+                    .map(|s| self.settings[*s].label())
+                    .collect::<Vec<_>>()
+                    .join(", ")
+            )?;
+        }
+        writeln!(o)
+    }
+
+    /// Run-to-run noise of setting `s` at the common cost of `tr`: the largest change of its
+    /// error there when a repeat takes the place of the target's run. `None` without
+    /// repeats.
+    fn noise(&self, tr: &TargetRanking, s: usize) -> Option<f64> {
+        let (t, cost, curves) = (tr.t, tr.ranking.cost, &self.curves);
+        let r = self.row(s, t)?;
+        if self.plan.repeats < 2 || r.repeats.is_empty() {
+            return None;
+        }
+        let error = |curve: &[Option<(f64, f64)>]| match tr.common {
+            pareto::Common::Target(_) => curve[t].map(|p| p.1),
+            pareto::Common::Median => {
+                let pts: Vec<(f64, f64)> = curve.iter().flatten().copied().collect();
+                pareto::error_at(&pts, cost)
             }
-            let error = |curve: &[Option<(f64, f64)>]| match common {
-                pareto::Common::Target(_) => curve[t].map(|p| p.1),
-                pareto::Common::Median => {
-                    let pts: Vec<(f64, f64)> = curve.iter().flatten().copied().collect();
-                    pareto::error_at(&pts, cost)
-                }
-            };
-            let e0 = error(&curves[s])?;
-            r.repeats
-                .iter()
-                .map(|&(c, f)| {
-                    let mut curve = curves[s].clone();
-                    curve[t] = f.map(|f| (c, f));
-                    error(&curve).map_or(f64::INFINITY, |e| (e - e0).abs())
-                })
-                .reduce(f64::max)
         };
-        match ranked.as_slice() {
-            [] => writeln!(o, "No setting reaches the common cost {}.\n", num(cost))?,
+        let e0 = error(&curves[s])?;
+        r.repeats
+            .iter()
+            .map(|&(c, f)| {
+                let mut curve = curves[s].clone();
+                curve[t] = f.map(|f| (c, f));
+                error(&curve).map_or(f64::INFINITY, |e| (e - e0).abs())
+            })
+            .reduce(f64::max)
+    }
+
+    /// The recommendation at one target: the best setting and, if there is one, the
+    /// runner-up with the margin and whether it is beyond run-to-run noise.
+    fn write_verdict(&self, o: &mut String, tr: &TargetRanking) -> std::fmt::Result {
+        let (settings, at, cost) = (&self.settings, tr.at, tr.ranking.cost);
+        match tr.ranking.ranked.as_slice() {
+            [] => writeln!(o, "No setting reaches the common cost {}.\n", num(cost)),
             [(best, e)] => writeln!(
                 o,
                 "**Recommended: {}**, FLIP {} {at} {} (the only setting that reaches it).\n",
                 settings[*best].label(),
                 num(*e),
                 num(cost)
-            )?,
+            ),
             [(best, e1), (second, e2), ..] => {
                 let margin = e2 - e1;
-                let (n1, n2) = (noise(*best), noise(*second));
-                let verdict = match pareto::beyond_noise(margin, n1.zip(n2)) {
-                    Some(true) if n1 == Some(0.0) && n2 == Some(0.0) => {
-                        "the repeats reproduced both exactly, so the margin is not noise".into()
-                    }
-                    Some(true) => format!(
-                        "larger than run-to-run noise ({} + {})",
-                        num(n1.unwrap_or(0.0)),
-                        num(n2.unwrap_or(0.0))
-                    ),
-                    Some(false) => format!(
-                        "**not** larger than run-to-run noise ({} + {}): the two are tied \
-                         within what a repeat changes",
-                        num(n1.unwrap_or(0.0)),
-                        num(n2.unwrap_or(0.0))
-                    ),
-                    None => "run-to-run noise not measured (--repeats 1)".into(),
-                };
+                let (n1, n2) = (self.noise(tr, *best), self.noise(tr, *second));
+                let verdict = noise_verdict(margin, n1, n2);
                 let share = if *e1 > 0.0 { margin / e1 } else { 0.0 };
                 writeln!(
                     o,
@@ -228,65 +304,86 @@ pub fn recommendation(
                     } else {
                         String::new()
                     }
-                )?;
+                )
             }
         }
+    }
+
+    /// The table of the settings ranked at one target.
+    fn write_ranking_table(&self, o: &mut String, tr: &TargetRanking) -> std::fmt::Result {
+        let (at, cost) = (tr.at, tr.ranking.cost);
         writeln!(
             o,
             "| rank | setting | FLIP {at} {} | measured FLIP | cost | points | holes | noise | default |",
             num(cost)
         )?;
         writeln!(o, "|---|---|---|---|---|---|---|---|---|")?;
-        for (i, (s, e)) in ranked.iter().enumerate() {
-            let Some(r) = row(*s, t) else { continue };
+        for (i, (s, e)) in tr.ranking.ranked.iter().enumerate() {
+            let Some(r) = self.row(*s, tr.t) else {
+                continue;
+            };
             writeln!(
                 o,
                 "| {} | {} | {} | {} | {} | {} | {} | {} | {} |",
                 i + 1,
-                settings[*s].label(),
+                self.settings[*s].label(),
                 num(*e),
                 r.sweep.flip_mean_median.map_or("-".into(), num),
                 num(r.cost),
                 num(r.sweep.points_drawn_median),
                 r.sweep.hole_ratio_median.map_or("-".into(), num),
-                noise(*s).map_or("-".into(), num),
-                if default == Some(*s) { "✓" } else { "" }
+                self.noise(tr, *s).map_or("-".into(), num),
+                if self.default == Some(*s) { "✓" } else { "" }
             )?;
         }
-        if !unreachable.is_empty() {
-            writeln!(
-                o,
-                "\nNot comparable at this cost (no target of theirs within {:.0} % of it): {}.",
-                100.0 * pareto::REACH,
-                unreachable
-                    .iter()
-                    .map(|s| settings[*s].label())
-                    .collect::<Vec<_>>()
-                    .join(", ")
-            )?;
-        }
-        writeln!(o)?;
+        Ok(())
     }
-    writeln!(
-        o,
-        "## Pareto front over (cost, FLIP), every setting and target\n"
-    )?;
-    writeln!(o, "| setting | target | cost | FLIP | points |")?;
-    writeln!(o, "|---|---|---|---|---|")?;
-    let mut front: Vec<&TuneRow> = rows.iter().filter(|r| r.pareto).collect();
-    front.sort_by(|a, b| a.cost.total_cmp(&b.cost));
-    for r in front {
+
+    /// The Pareto front over (cost, FLIP) of every setting and target, by cost.
+    fn write_front(&self, o: &mut String) -> std::fmt::Result {
         writeln!(
             o,
-            "| {} | {} | {} | {} | {} |",
-            r.label,
-            plan.targets[r.target].label(),
-            num(r.cost),
-            r.sweep.flip_mean_median.map_or("-".into(), num),
-            num(r.sweep.points_drawn_median)
+            "## Pareto front over (cost, FLIP), every setting and target\n"
         )?;
+        writeln!(o, "| setting | target | cost | FLIP | points |")?;
+        writeln!(o, "|---|---|---|---|---|")?;
+        let mut front: Vec<&TuneRow> = self.rows.iter().filter(|r| r.pareto).collect();
+        front.sort_by(|a, b| a.cost.total_cmp(&b.cost));
+        for r in front {
+            writeln!(
+                o,
+                "| {} | {} | {} | {} | {} |",
+                r.label,
+                self.plan.targets[r.target].label(),
+                num(r.cost),
+                r.sweep.flip_mean_median.map_or("-".into(), num),
+                num(r.sweep.points_drawn_median)
+            )?;
+        }
+        Ok(())
     }
-    Ok(o)
+}
+
+/// Whether a margin between the best and the runner-up is beyond their run-to-run noises
+/// `n1` and `n2`, in words.
+fn noise_verdict(margin: f64, n1: Option<f64>, n2: Option<f64>) -> String {
+    match pareto::beyond_noise(margin, n1.zip(n2)) {
+        Some(true) if n1 == Some(0.0) && n2 == Some(0.0) => {
+            "the repeats reproduced both exactly, so the margin is not noise".into()
+        }
+        Some(true) => format!(
+            "larger than run-to-run noise ({} + {})",
+            num(n1.unwrap_or(0.0)),
+            num(n2.unwrap_or(0.0))
+        ),
+        Some(false) => format!(
+            "**not** larger than run-to-run noise ({} + {}): the two are tied \
+             within what a repeat changes",
+            num(n1.unwrap_or(0.0)),
+            num(n2.unwrap_or(0.0))
+        ),
+        None => "run-to-run noise not measured (--repeats 1)".into(),
+    }
 }
 
 #[cfg(test)]

@@ -322,6 +322,70 @@ pub const MAX_FRAMES: usize = 1_000_000;
 /// Runs one configuration; returns the summary (also written to `out/summary.json`).
 pub fn run(cfg: &RunConfig, gpu: &Gpu, progress: &dyn Progress) -> anyhow::Result<Summary> {
     let t_run = Instant::now();
+    let target = check_config(cfg)?;
+    std::fs::create_dir_all(&cfg.out)
+        .with_context(|| format!("creating output directory {}", cfg.out.display()))?;
+    let prepared = load_scene(&cfg.scene, cfg.render, &cfg.cache, progress)?;
+    let mut scene_warnings = prepared.warnings.clone();
+    let OpenedMethod {
+        method,
+        build,
+        params,
+        warnings,
+    } = open_build(cfg, &prepared, progress)?;
+    scene_warnings.extend(warnings);
+    check_gpu_budget(cfg.method, method.as_ref(), cfg.render.cache_bytes)?;
+    let renderer = Renderer::new(gpu, prepared.render)?;
+    let summary = initial_summary(cfg, gpu, &prepared, scene_warnings, build, params, target);
+    let PreparedScene {
+        cloud,
+        bounds,
+        hash: scene_hash,
+        label,
+        render,
+        ..
+    } = prepared;
+    let reference = cfg.metrics.then(|| {
+        Reference::new(
+            gpu,
+            &cloud,
+            label.clone(),
+            scene_hash,
+            &cfg.cache,
+            reference_settings(render, cfg.reference_raster, cfg.reference_kernel),
+        )
+    });
+    let summary_path = cfg.out.join("summary.json");
+    write_json(&summary_path, &summary)?;
+    let columns = frame_columns(method.as_ref());
+    let frames = FramesWriter::create(&cfg.out, &columns)?;
+    let images = cfg.out.join("images");
+    if cfg.save_images {
+        std::fs::create_dir_all(&images)
+            .with_context(|| format!("creating {}", images.display()))?;
+    }
+    let mut run = PathRun {
+        cfg,
+        progress,
+        target,
+        bounds,
+        render,
+        label,
+        images,
+        summary,
+        frames,
+        reference,
+        renderer,
+        method,
+    };
+    run.warm_up()?;
+    let (rows, traffic) = run.frames()?;
+    run.finish(&rows, &traffic, &summary_path, t_run)
+}
+
+/// Checks what a run can check before it loads anything: the frame count, the target and
+/// the method's parameters. Returns the validated target.
+fn check_config(cfg: &RunConfig) -> anyhow::Result<Target> {
     anyhow::ensure!(cfg.frames >= 1, "--frames must be at least 1");
     anyhow::ensure!(
         cfg.frames <= MAX_FRAMES,
@@ -330,10 +394,16 @@ pub fn run(cfg: &RunConfig, gpu: &Gpu, progress: &dyn Progress) -> anyhow::Resul
     );
     let target = cfg.target.validate()?;
     cfg.method.check_params(&cfg.params)?;
-    std::fs::create_dir_all(&cfg.out)
-        .with_context(|| format!("creating output directory {}", cfg.out.display()))?;
-    let prepared = load_scene(&cfg.scene, cfg.render, &cfg.cache, progress)?;
-    let mut scene_warnings = prepared.warnings.clone();
+    Ok(target)
+}
+
+/// Builds the method into `out/build`, or opens the build `--build-dir` or `--build-url`
+/// names (not both).
+fn open_build(
+    cfg: &RunConfig,
+    prepared: &PreparedScene,
+    progress: &dyn Progress,
+) -> anyhow::Result<OpenedMethod> {
     anyhow::ensure!(
         cfg.build_dir.is_none() || cfg.build_url.is_none(),
         "--build-dir and --build-url name two builds: give one"
@@ -345,10 +415,20 @@ pub fn run(cfg: &RunConfig, gpu: &Gpu, progress: &dyn Progress) -> anyhow::Resul
         (None, Some(remote)) => BuildSource::Remote(remote, &remote_dir),
         (None, None) => BuildSource::Build(&build_into),
     };
-    let opened = open_method(cfg.method, &cfg.params, &prepared, source, progress)?;
-    scene_warnings.extend(opened.warnings);
-    let (build, params, mut method) = (opened.build, opened.params, opened.method);
-    check_gpu_budget(cfg.method, method.as_ref(), cfg.render.cache_bytes)?;
+    open_method(cfg.method, &cfg.params, prepared, source, progress)
+}
+
+/// The summary as it stands before the first frame (`complete: false`, no medians): the
+/// configuration, the adapter, the scene (with `warnings`), the build and its `params`.
+fn initial_summary(
+    cfg: &RunConfig,
+    gpu: &Gpu,
+    prepared: &PreparedScene,
+    warnings: Vec<String>,
+    build: BuildStats,
+    params: Params,
+    target: Target,
+) -> Summary {
     let PreparedScene {
         cloud,
         bounds,
@@ -358,19 +438,8 @@ pub fn run(cfg: &RunConfig, gpu: &Gpu, progress: &dyn Progress) -> anyhow::Resul
         render,
         ..
     } = prepared;
-    let mut renderer = Renderer::new(gpu, render)?;
-    let reference_render = reference_settings(render, cfg.reference_raster, cfg.reference_kernel);
-    let mut reference = cfg.metrics.then(|| {
-        Reference::new(
-            gpu,
-            &cloud,
-            label.clone(),
-            scene_hash,
-            &cfg.cache,
-            reference_render,
-        )
-    });
-    let mut summary = Summary {
+    let reference_render = reference_settings(*render, cfg.reference_raster, cfg.reference_kernel);
+    Summary {
         complete: false,
         adapter: gpu.adapter.clone(),
         git_commit: GIT_COMMIT.into(),
@@ -395,12 +464,12 @@ pub fn run(cfg: &RunConfig, gpu: &Gpu, progress: &dyn Progress) -> anyhow::Resul
             points: cloud.len() as u64,
             attributes: cloud.attributes().to_string(),
             bounds: cloud.bounds(),
-            framed_bounds: bounds,
-            outside_frame: outside,
+            framed_bounds: *bounds,
+            outside_frame: *outside,
             reference_radii_capped: None,
             origin: cloud.origin().to_array(),
             content_hash: format!("{scene_hash:016x}"),
-            warnings: scene_warnings,
+            warnings,
         },
         build,
         splats_per_s_basis: if gpu.timestamps { "gpu_ms" } else { "wall_ms" },
@@ -411,82 +480,177 @@ pub fn run(cfg: &RunConfig, gpu: &Gpu, progress: &dyn Progress) -> anyhow::Resul
         method_resident_bytes: 0,
         rss_max: None,
         run_seconds: 0.0,
-    };
-    let summary_path = cfg.out.join("summary.json");
-    write_json(&summary_path, &summary)?;
-    let columns = frame_columns(method.as_ref());
-    let mut frames = FramesWriter::create(&cfg.out, &columns)?;
-    let images = cfg.out.join("images");
-    if cfg.save_images {
-        std::fs::create_dir_all(&images)
-            .with_context(|| format!("creating {}", images.display()))?;
+    }
+}
+
+/// A run once its method is open and its outputs created: drives the method along the path
+/// and records each frame.
+struct PathRun<'a> {
+    cfg: &'a RunConfig,
+    progress: &'a dyn Progress,
+    target: Target,
+    /// The bounds the path frames.
+    bounds: Aabb,
+    /// The renderer settings (the scene's shading resolved).
+    render: RenderSettings,
+    /// The scene's label.
+    label: String,
+    /// Where frames and references are saved (`--save-images`).
+    images: PathBuf,
+    summary: Summary,
+    // Dropped in this order, as the locals they were.
+    frames: FramesWriter,
+    reference: Option<Reference<'a>>,
+    renderer: Renderer<'a>,
+    method: Box<dyn LodMethod>,
+}
+
+impl PathRun<'_> {
+    /// Warm-up (shader compilation, first uploads): untimed, not recorded; the cache is
+    /// cleared so frame 0 pays its uploads like any cold start.
+    fn warm_up(&mut self) -> anyhow::Result<()> {
+        let v0 = frame_view(
+            &self.cfg.path,
+            0,
+            self.cfg.frames,
+            &self.bounds,
+            self.render,
+        );
+        let warm = self.method.frame(&v0, self.target, &Feedback::default())?;
+        self.renderer
+            .draw(&v0, &warm, self.method.as_ref(), false)?;
+        self.renderer.clear_cache();
+        Ok(())
     }
 
-    // Warm-up (shader compilation, first uploads): untimed, not recorded; the cache is
-    // cleared so frame 0 pays its uploads like any cold start.
-    let v0 = frame_view(&cfg.path, 0, cfg.frames, &bounds, render);
-    let warm = method.frame(&v0, target, &Feedback::default())?;
-    renderer.draw(&v0, &warm, method.as_ref(), false)?;
-    renderer.clear_cache();
+    /// Draws every frame of the path, writing each to `frames.csv`; returns the rows and the
+    /// method's traffic at the end.
+    fn frames(&mut self) -> anyhow::Result<(Vec<FrameRow>, methods::store::access::Traffic)> {
+        let cfg = self.cfg;
+        let mut rows = Vec::with_capacity(cfg.frames);
+        // Frame 0's traffic includes the warm-up frame's (the root and first requests).
+        let mut traffic = methods::store::access::Traffic::default();
+        let mut last: Option<(FrameStats, View)> = None;
+        let mut path_metrics = PathMetrics::new();
+        let label = &self.label;
+        self.progress
+            .start(&format!("{} on {label}", cfg.method), cfg.frames as u64);
+        for i in 0..cfg.frames {
+            let view = frame_view(&cfg.path, i, cfg.frames, &self.bounds, self.render);
+            let feedback = next_feedback(i as u64, &self.renderer, last.as_ref(), &view);
+            let (row, stats) = self.frame(i, &view, &feedback, &mut path_metrics, &mut traffic)?;
+            rows.push(row);
+            last = Some((stats, view));
+            self.progress.inc(1);
+        }
+        self.progress.finish();
+        Ok((rows, traffic))
+    }
 
-    let mut rows = Vec::with_capacity(cfg.frames);
-    // Frame 0's traffic includes the warm-up frame's (the root and first requests).
-    let mut traffic = methods::store::access::Traffic::default();
-    let mut last: Option<(FrameStats, View)> = None;
-    let mut path_metrics = PathMetrics::new();
-    progress.start(&format!("{} on {label}", cfg.method), cfg.frames as u64);
-    for i in 0..cfg.frames {
-        let view = frame_view(&cfg.path, i, cfg.frames, &bounds, render);
-        let feedback = next_feedback(i as u64, &renderer, last.as_ref(), &view);
+    /// Frame `i`: selects, draws, compares with the reference, records failed chunks and
+    /// the frame's counters (`traffic`: the method's traffic before it, updated), and
+    /// writes its row.
+    fn frame(
+        &mut self,
+        i: usize,
+        view: &View,
+        feedback: &Feedback,
+        path_metrics: &mut PathMetrics,
+        traffic: &mut methods::store::access::Traffic,
+    ) -> anyhow::Result<(FrameRow, FrameStats)> {
+        let cfg = self.cfg;
         let t = Instant::now();
-        let list = method
-            .frame(&view, target, &feedback)
+        let list = self
+            .method
+            .frame(view, self.target, feedback)
             .with_context(|| format!("{} frame {i}", cfg.method))?;
         let cpu_select_ms = t.elapsed().as_secs_f64() * 1e3;
-        let need_image = reference.is_some() || cfg.save_images;
-        let (stats, img) = renderer.draw(&view, &list, method.as_ref(), need_image)?;
+        let need_image = self.reference.is_some() || cfg.save_images;
+        let (stats, img) = self
+            .renderer
+            .draw(view, &list, self.method.as_ref(), need_image)?;
         if let (true, Some(img)) = (cfg.save_images, img.as_ref()) {
-            img.save_png(&images.join(format!("frame_{i:04}.png")))?;
+            img.save_png(&self.images.join(format!("frame_{i:04}.png")))?;
         }
-        let (mut m, mut metrics_ms): (Option<FrameMetrics>, Option<f64>) = (None, None);
-        if let (Some(r), Some(img)) = (reference.as_mut(), img) {
-            let ref_img = r.image(&view, progress)?;
-            if cfg.save_images {
-                ref_img.save_png(&images.join(format!("ref_{i:04}.png")))?;
-            }
-            let t = Instant::now();
-            m = Some(path_metrics.frame(ref_img, img)?);
-            metrics_ms = Some(t.elapsed().as_secs_f64() * 1e3);
+        let (m, metrics_ms) = match img {
+            Some(img) => self.compare(i, view, img, path_metrics)?,
+            None => (None, None),
+        };
+        self.record_failed_chunks(i);
+        let now = self.method.traffic();
+        let counters = frame_counters(
+            self.method.as_ref(),
+            &list,
+            &stats,
+            self.summary.failed_chunks.len(),
+            now.since(traffic),
+        );
+        *traffic = now;
+        let row = self.frame_row(i, &stats, cpu_select_ms, m, metrics_ms);
+        self.frames.push(&row, &counters)?;
+        if let Some(b) = crate::rss::breakdown() {
+            self.summary.rss_max = Some(self.summary.rss_max.map_or(b, |m| m.max(b)));
         }
-        let denom = stats.gpu_ms.unwrap_or(stats.wall_ms);
-        // Splats actually drawn: those that passed the GPU's LOD test, if there was one.
-        let drawn = stats.gpu_passed.unwrap_or(stats.points);
-        for (id, error) in method.failed_chunks() {
-            if !summary.failed_chunks.iter().any(|f| f.id == id) {
+        Ok((row, stats))
+    }
+
+    /// Compares frame `i`'s image with the reference image of its view (saved too with
+    /// `--save-images`); returns the metrics and the milliseconds they took, `None` without
+    /// a reference.
+    fn compare(
+        &mut self,
+        i: usize,
+        view: &View,
+        img: Image,
+        path_metrics: &mut PathMetrics,
+    ) -> anyhow::Result<(Option<FrameMetrics>, Option<f64>)> {
+        let Some(r) = self.reference.as_mut() else {
+            return Ok((None, None));
+        };
+        let ref_img = r.image(view, self.progress)?;
+        if self.cfg.save_images {
+            ref_img.save_png(&self.images.join(format!("ref_{i:04}.png")))?;
+        }
+        let t = Instant::now();
+        let m = path_metrics.frame(ref_img, img)?;
+        Ok((Some(m), Some(t.elapsed().as_secs_f64() * 1e3)))
+    }
+
+    /// Adds the chunks that failed to load in frame `i` (and not before) to the summary,
+    /// reporting each on stderr.
+    fn record_failed_chunks(&mut self, i: usize) {
+        for (id, error) in self.method.failed_chunks() {
+            if !self.summary.failed_chunks.iter().any(|f| f.id == id) {
                 eprintln!(
                     "error: frame {i}: {} chunk {id} failed to load: {error}",
-                    cfg.method
+                    self.cfg.method
                 );
-                summary.failed_chunks.push(FailedChunk {
+                self.summary.failed_chunks.push(FailedChunk {
                     id,
                     frame: i as u64,
                     error,
                 });
             }
         }
-        let now = method.traffic();
-        let counters = frame_counters(
-            method.as_ref(),
-            &list,
-            &stats,
-            summary.failed_chunks.len(),
-            now.since(&traffic),
-        );
-        traffic = now;
-        let row = FrameRow {
+    }
+
+    /// The row of frame `i` in `frames.csv` (before the method's extra columns).
+    fn frame_row(
+        &self,
+        i: usize,
+        stats: &FrameStats,
+        cpu_select_ms: f64,
+        m: Option<FrameMetrics>,
+        metrics_ms: Option<f64>,
+    ) -> FrameRow {
+        let (cfg, target) = (self.cfg, self.target);
+        let denom = stats.gpu_ms.unwrap_or(stats.wall_ms);
+        // Splats actually drawn: those that passed the GPU's LOD test, if there was one.
+        let drawn = stats.gpu_passed.unwrap_or(stats.points);
+        FrameRow {
             frame: i as u64,
             method: cfg.method.name().into(),
-            scene: label.clone(),
+            scene: self.label.clone(),
             path: cfg.path.name(),
             target: match target {
                 Target::Tolerance(_) => "eps".into(),
@@ -514,49 +678,58 @@ pub fn run(cfg: &RunConfig, gpu: &Gpu, progress: &dyn Progress) -> anyhow::Resul
             extra_coverage: m.map(|m| m.image.extra_coverage),
             popping_flip: m.and_then(|m| m.popping_flip),
             metrics_ms,
-        };
-        frames.push(&row, &counters)?;
-        if let Some(b) = crate::rss::breakdown() {
-            summary.rss_max = Some(summary.rss_max.map_or(b, |m| m.max(b)));
         }
-        rows.push(row);
-        last = Some((stats, view));
-        progress.inc(1);
     }
-    progress.finish();
-    summary.scene.reference_radii_capped = reference.as_ref().and_then(Reference::radii_capped);
-    if let Some(n) = summary.scene.reference_radii_capped.filter(|&n| n > 0) {
-        let w = format!(
-            "{}: the reference capped the splat radius of {n} isolated samples (k-NN radius \
-             above {} × its {} quantile)",
-            cfg.scene.text,
-            methods::leaf::OUTLIER_CAP,
-            methods::leaf::OUTLIER_QUANTILE
-        );
-        eprintln!("warning: {w}");
-        summary.scene.warnings.push(w);
+
+    /// Completes the summary after the last frame (the reference's capped radii, medians of
+    /// `rows`, `traffic` totals, memory, duration since `t_run`), writes it to
+    /// `summary_path`, and fails the run when chunks failed to load without
+    /// `--allow-missing-chunks`.
+    fn finish(
+        self,
+        rows: &[FrameRow],
+        traffic: &methods::store::access::Traffic,
+        summary_path: &Path,
+        t_run: Instant,
+    ) -> anyhow::Result<Summary> {
+        let cfg = self.cfg;
+        let mut summary = self.summary;
+        summary.scene.reference_radii_capped =
+            self.reference.as_ref().and_then(Reference::radii_capped);
+        if let Some(n) = summary.scene.reference_radii_capped.filter(|&n| n > 0) {
+            let w = format!(
+                "{}: the reference capped the splat radius of {n} isolated samples (k-NN radius \
+                 above {} × its {} quantile)",
+                cfg.scene.text,
+                methods::leaf::OUTLIER_CAP,
+                methods::leaf::OUTLIER_QUANTILE
+            );
+            eprintln!("warning: {w}");
+            summary.scene.warnings.push(w);
+        }
+        summary.medians = Medians::of(rows);
+        let method = &self.method;
+        if method.loads_chunks() {
+            summary.traffic = Some(TrafficTotals::of(traffic, method.throughput()));
+        }
+        summary.peak_rss_bytes = crate::rss::peak_bytes();
+        summary.method_resident_bytes = method.stats().resident_bytes;
+        summary.run_seconds = t_run.elapsed().as_secs_f64();
+        let failed = summary.failed_chunks.len();
+        summary.complete = failed == 0 || cfg.allow_missing_chunks;
+        write_json(summary_path, &summary)?;
+        if !summary.complete {
+            let first = &summary.failed_chunks[0];
+            anyhow::bail!(
+                "{failed} chunk(s) of {} failed to load (first, in frame {}: {}): the frames drew \
+                 without them, so {} is not a faithful measurement (summary.json says \
+                 \"complete\": false and lists them; --allow-missing-chunks accepts them)",
+                cfg.method,
+                first.frame,
+                first.error,
+                cfg.out.display()
+            );
+        }
+        Ok(summary)
     }
-    summary.medians = Medians::of(&rows);
-    if method.loads_chunks() {
-        summary.traffic = Some(TrafficTotals::of(&traffic, method.throughput()));
-    }
-    summary.peak_rss_bytes = crate::rss::peak_bytes();
-    summary.method_resident_bytes = method.stats().resident_bytes;
-    summary.run_seconds = t_run.elapsed().as_secs_f64();
-    let failed = summary.failed_chunks.len();
-    summary.complete = failed == 0 || cfg.allow_missing_chunks;
-    write_json(&summary_path, &summary)?;
-    if !summary.complete {
-        let first = &summary.failed_chunks[0];
-        anyhow::bail!(
-            "{failed} chunk(s) of {} failed to load (first, in frame {}: {}): the frames drew \
-             without them, so {} is not a faithful measurement (summary.json says \
-             \"complete\": false and lists them; --allow-missing-chunks accepts them)",
-            cfg.method,
-            first.frame,
-            first.error,
-            cfg.out.display()
-        );
-    }
-    Ok(summary)
 }

@@ -146,71 +146,17 @@ pub(super) struct Header {
 // Header parsing
 // ---------------------------------------------------------------------------------------------
 
+/// Parses the header at the start of `input` (of the file at `path`), up to and including
+/// its `end_header` line.
 pub(super) fn parse_header(input: &mut Input, path: &Path) -> Result<Header, SceneError> {
     let mut line_no: u64 = 0;
     let mut encoding = None;
     let mut elements: Vec<Element> = Vec::new();
     loop {
-        if input.position() > MAX_HEADER_BYTES {
-            return Err(ferr(
-                path,
-                format!("no end_header line within the first {MAX_HEADER_BYTES} bytes"),
-            ));
-        }
         line_no += 1;
-        let raw = match input
-            .next_line_range(MAX_HEADER_LINE)
-            .map_err(|e| SceneError::io(path, e))?
-        {
-            LineRead::Line(r) => &input.buf[r],
-            LineRead::Eof if line_no == 1 => {
-                return Err(ferr(
-                    path,
-                    "not a PLY file: the file is empty (no 'ply' magic)",
-                ));
-            }
-            LineRead::Eof => {
-                return Err(ferr(
-                    path,
-                    format!("the header ends at line {line_no} without an end_header line"),
-                ));
-            }
-            LineRead::TooLong if line_no == 1 => {
-                return Err(ferr(path, "not a PLY file: line 1 is not the 'ply' magic"));
-            }
-            LineRead::TooLong => {
-                return Err(ferr(
-                    path,
-                    format!(
-                        "line {line_no}: header line longer than {MAX_HEADER_LINE} bytes \
-                         (missing end_header?)"
-                    ),
-                ));
-            }
-        };
-        let Ok(text) = std::str::from_utf8(raw) else {
-            return Err(if line_no == 1 {
-                ferr(path, "not a PLY file: line 1 is not the 'ply' magic")
-            } else {
-                ferr(
-                    path,
-                    format!(
-                        "line {line_no}: the header contains non-text bytes (missing end_header?)"
-                    ),
-                )
-            });
-        };
-        let text = text.trim_end_matches('\r');
+        let text = next_header_line(input, path, line_no)?;
         if line_no == 1 {
-            if text.trim() != "ply" {
-                return Err(ferr(
-                    path,
-                    format!(
-                        "not a PLY file: line 1 is '{}', expected the 'ply' magic",
-                        excerpt(text)
-                    ),
-                ));
-            }
+            check_magic(path, text)?;
             continue;
         }
         let mut toks = text.split_ascii_whitespace();
@@ -220,60 +166,13 @@ pub(super) fn parse_header(input: &mut Input, path: &Path) -> Result<Header, Sce
         match keyword {
             "comment" | "obj_info" => {}
             "format" => {
-                let name = toks.next().unwrap_or("");
-                let version = toks.next().unwrap_or("");
-                let enc = match name {
-                    "ascii" => Encoding::Ascii,
-                    "binary_little_endian" => Encoding::Binary { big_endian: false },
-                    "binary_big_endian" => Encoding::Binary { big_endian: true },
-                    other => {
-                        return Err(ferr(
-                            path,
-                            format!(
-                                "line {line_no}: unknown format '{}' (expected ascii, \
-                                 binary_little_endian or binary_big_endian)",
-                                excerpt(other)
-                            ),
-                        ));
-                    }
-                };
-                if !(version == "1.0" || version == "1") {
-                    return Err(ferr(
-                        path,
-                        format!(
-                            "line {line_no}: unsupported format version '{}' (expected 1.0)",
-                            excerpt(version)
-                        ),
-                    ));
-                }
+                let enc = parse_format(toks, path, line_no)?;
                 if encoding.is_some() {
                     return Err(ferr(path, format!("line {line_no}: second 'format' line")));
                 }
                 encoding = Some(enc);
             }
-            "element" => {
-                let (Some(name), Some(count)) = (toks.next(), toks.next()) else {
-                    return Err(ferr(
-                        path,
-                        format!("line {line_no}: expected 'element NAME COUNT'"),
-                    ));
-                };
-                let Ok(count) = count.parse::<u64>() else {
-                    return Err(ferr(
-                        path,
-                        format!(
-                            "line {line_no}: element '{name}' has count '{}', expected a \
-                             non-negative integer",
-                            excerpt(count)
-                        ),
-                    ));
-                };
-                elements.push(Element {
-                    name: name.to_owned(),
-                    count,
-                    props: Vec::new(),
-                });
-            }
+            "element" => elements.push(parse_element(toks, path, line_no)?),
             "property" => {
                 let Some(el) = elements.last_mut() else {
                     return Err(ferr(
@@ -281,51 +180,7 @@ pub(super) fn parse_header(input: &mut Input, path: &Path) -> Result<Header, Sce
                         format!("line {line_no}: 'property' before any 'element'"),
                     ));
                 };
-                let toks: Vec<&str> = toks.collect();
-                let bad_type = |t: &str| {
-                    ferr(
-                        path,
-                        format!(
-                            "line {line_no}: unknown property type '{}' (expected char, uchar, \
-                             short, ushort, int, uint, float, double or their int8…float64 names)",
-                            excerpt(t)
-                        ),
-                    )
-                };
-                let prop = match toks.as_slice() {
-                    ["list", ct, it, name] => {
-                        let count = Scalar::parse(ct).ok_or_else(|| bad_type(ct))?;
-                        let item = Scalar::parse(it).ok_or_else(|| bad_type(it))?;
-                        if !count.is_integer() {
-                            return Err(ferr(
-                                path,
-                                format!(
-                                    "line {line_no}: list '{name}' has count type '{ct}', which \
-                                     is not an integer type"
-                                ),
-                            ));
-                        }
-                        Property {
-                            name: (*name).to_owned(),
-                            ty: PropType::List { count, item },
-                        }
-                    }
-                    [ty, name] if *ty != "list" => Property {
-                        name: (*name).to_owned(),
-                        ty: PropType::Scalar(Scalar::parse(ty).ok_or_else(|| bad_type(ty))?),
-                    },
-                    _ => {
-                        return Err(ferr(
-                            path,
-                            format!(
-                                "line {line_no}: expected 'property TYPE NAME' or 'property list \
-                                 COUNT_TYPE ITEM_TYPE NAME', found '{}'",
-                                excerpt(text)
-                            ),
-                        ));
-                    }
-                };
-                el.props.push(prop);
+                el.props.push(parse_property(toks, text, path, line_no)?);
             }
             "end_header" => break,
             other => {
@@ -347,5 +202,194 @@ pub(super) fn parse_header(input: &mut Input, path: &Path) -> Result<Header, Sce
         encoding,
         elements,
         lines: line_no,
+    })
+}
+
+/// Reads header line `line_no` as text (without its line end), within the header's limits
+/// of bytes and line length.
+fn next_header_line<'i>(
+    input: &'i mut Input,
+    path: &Path,
+    line_no: u64,
+) -> Result<&'i str, SceneError> {
+    if input.position() > MAX_HEADER_BYTES {
+        return Err(ferr(
+            path,
+            format!("no end_header line within the first {MAX_HEADER_BYTES} bytes"),
+        ));
+    }
+    let raw = match input
+        .next_line_range(MAX_HEADER_LINE)
+        .map_err(|e| SceneError::io(path, e))?
+    {
+        LineRead::Line(r) => &input.buf[r],
+        LineRead::Eof if line_no == 1 => {
+            return Err(ferr(
+                path,
+                "not a PLY file: the file is empty (no 'ply' magic)",
+            ));
+        }
+        LineRead::Eof => {
+            return Err(ferr(
+                path,
+                format!("the header ends at line {line_no} without an end_header line"),
+            ));
+        }
+        LineRead::TooLong if line_no == 1 => {
+            return Err(ferr(path, "not a PLY file: line 1 is not the 'ply' magic"));
+        }
+        LineRead::TooLong => {
+            return Err(ferr(
+                path,
+                format!(
+                    "line {line_no}: header line longer than {MAX_HEADER_LINE} bytes \
+                     (missing end_header?)"
+                ),
+            ));
+        }
+    };
+    let Ok(text) = std::str::from_utf8(raw) else {
+        return Err(if line_no == 1 {
+            ferr(path, "not a PLY file: line 1 is not the 'ply' magic")
+        } else {
+            ferr(
+                path,
+                format!("line {line_no}: the header contains non-text bytes (missing end_header?)"),
+            )
+        });
+    };
+    Ok(text.trim_end_matches('\r'))
+}
+
+/// Line 1 must be the `ply` magic.
+fn check_magic(path: &Path, text: &str) -> Result<(), SceneError> {
+    if text.trim() != "ply" {
+        return Err(ferr(
+            path,
+            format!(
+                "not a PLY file: line 1 is '{}', expected the 'ply' magic",
+                excerpt(text)
+            ),
+        ));
+    }
+    Ok(())
+}
+
+/// The encoding of a `format NAME VERSION` line (`toks`: the tokens after `format`).
+fn parse_format<'t>(
+    mut toks: impl Iterator<Item = &'t str>,
+    path: &Path,
+    line_no: u64,
+) -> Result<Encoding, SceneError> {
+    let name = toks.next().unwrap_or("");
+    let version = toks.next().unwrap_or("");
+    let enc = match name {
+        "ascii" => Encoding::Ascii,
+        "binary_little_endian" => Encoding::Binary { big_endian: false },
+        "binary_big_endian" => Encoding::Binary { big_endian: true },
+        other => {
+            return Err(ferr(
+                path,
+                format!(
+                    "line {line_no}: unknown format '{}' (expected ascii, \
+                     binary_little_endian or binary_big_endian)",
+                    excerpt(other)
+                ),
+            ));
+        }
+    };
+    if !(version == "1.0" || version == "1") {
+        return Err(ferr(
+            path,
+            format!(
+                "line {line_no}: unsupported format version '{}' (expected 1.0)",
+                excerpt(version)
+            ),
+        ));
+    }
+    Ok(enc)
+}
+
+/// The element of an `element NAME COUNT` line (`toks`: the tokens after `element`), with no
+/// properties yet.
+fn parse_element<'t>(
+    mut toks: impl Iterator<Item = &'t str>,
+    path: &Path,
+    line_no: u64,
+) -> Result<Element, SceneError> {
+    let (Some(name), Some(count)) = (toks.next(), toks.next()) else {
+        return Err(ferr(
+            path,
+            format!("line {line_no}: expected 'element NAME COUNT'"),
+        ));
+    };
+    let Ok(count) = count.parse::<u64>() else {
+        return Err(ferr(
+            path,
+            format!(
+                "line {line_no}: element '{name}' has count '{}', expected a \
+                 non-negative integer",
+                excerpt(count)
+            ),
+        ));
+    };
+    Ok(Element {
+        name: name.to_owned(),
+        count,
+        props: Vec::new(),
+    })
+}
+
+/// The property of a `property TYPE NAME` or `property list COUNT_TYPE ITEM_TYPE NAME` line
+/// (`toks`: the tokens after `property`; `text`: the whole line).
+fn parse_property<'t>(
+    toks: impl Iterator<Item = &'t str>,
+    text: &str,
+    path: &Path,
+    line_no: u64,
+) -> Result<Property, SceneError> {
+    let toks: Vec<&str> = toks.collect();
+    let bad_type = |t: &str| {
+        ferr(
+            path,
+            format!(
+                "line {line_no}: unknown property type '{}' (expected char, uchar, \
+                 short, ushort, int, uint, float, double or their int8…float64 names)",
+                excerpt(t)
+            ),
+        )
+    };
+    Ok(match toks.as_slice() {
+        ["list", ct, it, name] => {
+            let count = Scalar::parse(ct).ok_or_else(|| bad_type(ct))?;
+            let item = Scalar::parse(it).ok_or_else(|| bad_type(it))?;
+            if !count.is_integer() {
+                return Err(ferr(
+                    path,
+                    format!(
+                        "line {line_no}: list '{name}' has count type '{ct}', which \
+                         is not an integer type"
+                    ),
+                ));
+            }
+            Property {
+                name: (*name).to_owned(),
+                ty: PropType::List { count, item },
+            }
+        }
+        [ty, name] if *ty != "list" => Property {
+            name: (*name).to_owned(),
+            ty: PropType::Scalar(Scalar::parse(ty).ok_or_else(|| bad_type(ty))?),
+        },
+        _ => {
+            return Err(ferr(
+                path,
+                format!(
+                    "line {line_no}: expected 'property TYPE NAME' or 'property list \
+                     COUNT_TYPE ITEM_TYPE NAME', found '{}'",
+                    excerpt(text)
+                ),
+            ));
+        }
     })
 }

@@ -136,11 +136,7 @@ fn truncated(path: &Path, have: usize, want: usize) -> SceneError {
 
 /// Parses the header; the error names the line.
 fn parse_header(path: &Path, bytes: &[u8]) -> Result<Header, SceneError> {
-    let mut names: Option<Vec<String>> = None;
-    let mut sizes: Option<Vec<usize>> = None;
-    let mut types: Option<Vec<Kind>> = None;
-    let mut counts: Option<Vec<usize>> = None;
-    let (mut width, mut height, mut points) = (None, None, None);
+    let mut h = HeaderLines::default();
     let mut pos = 0;
     let mut line_no = 0;
     while pos < bytes.len() {
@@ -166,10 +162,10 @@ fn parse_header(path: &Path, bytes: &[u8]) -> Result<Header, SceneError> {
         };
         match key.as_str() {
             "VERSION" => {}
-            "FIELDS" | "COLUMNS" => names = Some(rest.iter().map(|s| s.to_string()).collect()),
-            "SIZE" => sizes = Some(rest.iter().map(|w| uint(w)).collect::<Result<_, _>>()?),
+            "FIELDS" | "COLUMNS" => h.names = Some(rest.iter().map(|s| s.to_string()).collect()),
+            "SIZE" => h.sizes = Some(rest.iter().map(|w| uint(w)).collect::<Result<_, _>>()?),
             "TYPE" => {
-                types = Some(
+                h.types = Some(
                     rest.iter()
                         .map(|w| match *w {
                             "I" | "i" => Ok(Kind::I),
@@ -180,16 +176,16 @@ fn parse_header(path: &Path, bytes: &[u8]) -> Result<Header, SceneError> {
                         .collect::<Result<_, _>>()?,
                 )
             }
-            "COUNT" => counts = Some(rest.iter().map(|w| uint(w)).collect::<Result<_, _>>()?),
+            "COUNT" => h.counts = Some(rest.iter().map(|w| uint(w)).collect::<Result<_, _>>()?),
             "WIDTH" | "HEIGHT" | "POINTS" => {
                 let [w] = rest[..] else {
                     return Err(herr("expected one integer".into()));
                 };
                 let v = uint(w)?;
                 match key.as_str() {
-                    "WIDTH" => width = Some(v),
-                    "HEIGHT" => height = Some(v),
-                    _ => points = Some(v),
+                    "WIDTH" => h.width = Some(v),
+                    "HEIGHT" => h.height = Some(v),
+                    _ => h.points = Some(v),
                 }
             }
             "VIEWPOINT" => {
@@ -213,77 +209,7 @@ fn parse_header(path: &Path, bytes: &[u8]) -> Result<Header, SceneError> {
                         )));
                     }
                 };
-                let names = names.ok_or_else(|| ferr(path, "the header has no FIELDS line"))?;
-                let sizes = sizes.ok_or_else(|| ferr(path, "the header has no SIZE line"))?;
-                let types = types.ok_or_else(|| ferr(path, "the header has no TYPE line"))?;
-                let counts = counts.unwrap_or_else(|| vec![1; names.len()]);
-                for (what, len) in [
-                    ("SIZE", sizes.len()),
-                    ("TYPE", types.len()),
-                    ("COUNT", counts.len()),
-                ] {
-                    if len != names.len() {
-                        return Err(ferr(
-                            path,
-                            format!(
-                                "{what} has {len} entries but FIELDS names {} fields",
-                                names.len()
-                            ),
-                        ));
-                    }
-                }
-                let mut fields = Vec::with_capacity(names.len());
-                let mut offset = 0usize;
-                for (((name, size), kind), count) in
-                    names.into_iter().zip(sizes).zip(types).zip(counts)
-                {
-                    let valid = match kind {
-                        Kind::F => matches!(size, 4 | 8),
-                        Kind::I | Kind::U => matches!(size, 1 | 2 | 4 | 8),
-                    };
-                    if !valid {
-                        return Err(ferr(
-                            path,
-                            format!(
-                                "field '{name}': TYPE {kind:?} with SIZE {size} is not a PCD type"
-                            ),
-                        ));
-                    }
-                    if count == 0 || count > 1 << 16 {
-                        return Err(ferr(
-                            path,
-                            format!("field '{name}': COUNT {count} is not in 1..=65536"),
-                        ));
-                    }
-                    let f = Field {
-                        name,
-                        kind,
-                        size,
-                        count,
-                        offset,
-                    };
-                    offset += f.bytes();
-                    fields.push(f);
-                }
-                let width = width.ok_or_else(|| ferr(path, "the header has no WIDTH line"))?;
-                let height = height.unwrap_or(1);
-                let grid = width.checked_mul(height);
-                let points = points.or(grid).unwrap_or(0);
-                if grid != Some(points) {
-                    return Err(ferr(
-                        path,
-                        format!("POINTS {points} is not WIDTH {width} × HEIGHT {height}"),
-                    ));
-                }
-                if points == 0 {
-                    return Err(ferr(path, "the file holds no points (POINTS 0)"));
-                }
-                return Ok(Header {
-                    fields,
-                    points,
-                    data,
-                    body: pos,
-                });
+                return h.finish(path, data, pos);
             }
             other => return Err(herr(format!("unknown keyword '{other}'"))),
         }
@@ -292,6 +218,113 @@ fn parse_header(path: &Path, bytes: &[u8]) -> Result<Header, SceneError> {
         path,
         "the header has no DATA line (not a PCD file, or truncated)",
     ))
+}
+
+/// The header lines read before the DATA line, each `None` until its line is read.
+#[derive(Default)]
+struct HeaderLines {
+    names: Option<Vec<String>>,
+    sizes: Option<Vec<usize>>,
+    types: Option<Vec<Kind>>,
+    counts: Option<Vec<usize>>,
+    width: Option<usize>,
+    height: Option<usize>,
+    points: Option<usize>,
+}
+
+impl HeaderLines {
+    /// The header once the DATA line (`data`, the payload at byte `body`) is read: the
+    /// fields (see [`fields`]), and a point count that is WIDTH × HEIGHT and not 0.
+    fn finish(self, path: &Path, data: Data, body: usize) -> Result<Header, SceneError> {
+        let names = self
+            .names
+            .ok_or_else(|| ferr(path, "the header has no FIELDS line"))?;
+        let sizes = self
+            .sizes
+            .ok_or_else(|| ferr(path, "the header has no SIZE line"))?;
+        let types = self
+            .types
+            .ok_or_else(|| ferr(path, "the header has no TYPE line"))?;
+        let counts = self.counts.unwrap_or_else(|| vec![1; names.len()]);
+        let fields = fields(path, names, sizes, types, counts)?;
+        let width = self
+            .width
+            .ok_or_else(|| ferr(path, "the header has no WIDTH line"))?;
+        let height = self.height.unwrap_or(1);
+        let grid = width.checked_mul(height);
+        let points = self.points.or(grid).unwrap_or(0);
+        if grid != Some(points) {
+            return Err(ferr(
+                path,
+                format!("POINTS {points} is not WIDTH {width} × HEIGHT {height}"),
+            ));
+        }
+        if points == 0 {
+            return Err(ferr(path, "the file holds no points (POINTS 0)"));
+        }
+        Ok(Header {
+            fields,
+            points,
+            data,
+            body,
+        })
+    }
+}
+
+/// The fields of the FIELDS, SIZE, TYPE and COUNT lines, with their offsets in a packed
+/// record: one entry per field in each line, each of a PCD type and of COUNT 1..=65536.
+fn fields(
+    path: &Path,
+    names: Vec<String>,
+    sizes: Vec<usize>,
+    types: Vec<Kind>,
+    counts: Vec<usize>,
+) -> Result<Vec<Field>, SceneError> {
+    for (what, len) in [
+        ("SIZE", sizes.len()),
+        ("TYPE", types.len()),
+        ("COUNT", counts.len()),
+    ] {
+        if len != names.len() {
+            return Err(ferr(
+                path,
+                format!(
+                    "{what} has {len} entries but FIELDS names {} fields",
+                    names.len()
+                ),
+            ));
+        }
+    }
+    let mut fields = Vec::with_capacity(names.len());
+    let mut offset = 0usize;
+    for (((name, size), kind), count) in names.into_iter().zip(sizes).zip(types).zip(counts) {
+        let valid = match kind {
+            Kind::F => matches!(size, 4 | 8),
+            Kind::I | Kind::U => matches!(size, 1 | 2 | 4 | 8),
+        };
+        if !valid {
+            return Err(ferr(
+                path,
+                format!("field '{name}': TYPE {kind:?} with SIZE {size} is not a PCD type"),
+            ));
+        }
+        if count == 0 || count > 1 << 16 {
+            return Err(ferr(
+                path,
+                format!("field '{name}': COUNT {count} is not in 1..=65536"),
+            ));
+        }
+        let f = Field {
+            name,
+            kind,
+            size,
+            count,
+            offset,
+        };
+        offset += f.bytes();
+        fields.push(f);
+    }
+    Ok(fields)
 }
 
 /// Which fields feed which column.

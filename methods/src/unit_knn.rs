@@ -285,124 +285,250 @@ pub fn unit_radii(
         progress.start(&format!("{method}: leaf radii {i}/3, {what}"), total as u64);
     };
     let k = LEAF_K.clamp(1, total.saturating_sub(1).max(1));
+    let passes = Passes {
+        units,
+        load,
+        dir,
+        progress,
+        k,
+        list_bytes: 4 + 4 * k,
+    };
     let boxes = BoxTree::new(units);
     let stride = quantile_stride(total);
-    let list_bytes = 4 + 4 * k;
 
-    // Pass 1: own lists, queries to other units. This thread loads units and searches them
-    // (in parallel); a second thread writes each searched unit's spill records, which is
-    // serial, while the next unit is searched. At most two units are held: the one written
-    // and the one searched, which waits to be handed over (`overlapped_with`, nothing
-    // waiting between them).
     phase(1, "own");
-    let pass1 = Pass1 {
-        queries: Writers::new(dir, "knn-query", QUERY_BYTES, units.len()),
-        raw: Vec::with_capacity(units.len()),
-        own: Vec::with_capacity(units.len()),
-        strided: Vec::new(),
-    };
-    let pass1 = overlapped_with(
-        pass1,
-        1,
-        0,
-        |state, searched: Vec<Searched>| {
-            for unit in searched {
-                state.write(unit, k, stride, &boxes, dir)?;
-            }
-            Ok(())
-        },
-        |feed| {
-            for (u, unit) in units.iter().enumerate() {
-                let (idx, pos) = load(u)?;
-                if idx.len() as u64 != unit.n {
-                    return Err(MethodError::Bug(format!(
-                        "leaf radii: unit {u} loaded {} samples, {} expected",
-                        idx.len(),
-                        unit.n
-                    )));
-                }
-                let lists = KnnIndex::new(&pos).self_lists(k);
-                feed.push(Searched { u, idx, pos, lists })?;
-                progress.inc(unit.n);
-            }
-            Ok(())
-        },
-    )?;
     let Pass1 {
         queries,
         raw,
         own,
         strided,
-    } = pass1;
+    } = passes.own_lists(&boxes, stride)?;
     let queries = queries.finish()?;
 
-    // Pass 2: answers.
     phase(2, "others");
-    let mut answers = Writers::new(dir, "knn-answer", list_bytes, units.len());
-    let mut rec = Vec::with_capacity(list_bytes);
-    for (v, q) in queries.into_iter().enumerate() {
-        if let Some(q) = q {
-            // Only unit `v`'s points within the largest query reach of the queries' box
-            // can answer (see the module docs): the index holds those.
-            let (mut lo, mut hi) = (DVec3::INFINITY, DVec3::NEG_INFINITY);
-            let mut reach2 = 0.0f32;
-            q.read(|b| {
-                for r in b.chunks_exact(QUERY_BYTES) {
-                    let p = Vec3::new(f32_at(r, 8), f32_at(r, 12), f32_at(r, 16)).as_dvec3();
-                    (lo, hi) = (lo.min(p), hi.max(p));
-                    reach2 = reach2.max(f32_at(r, 20));
-                }
-                Ok(())
-            })?;
-            let reach = (reach2 as f64).sqrt() * (1.0 + 1e-5);
-            let (lo, hi) = (lo - reach, hi + reach);
-            let (_, mut pos) = load(v)?;
-            pos.retain(|p| {
-                let p = Vec3::from(*p).as_dvec3();
-                p.cmpge(lo).all() && p.cmple(hi).all()
-            });
-            let index = KnnIndex::new(&pos);
-            drop(pos);
-            let mut homes: Vec<(u32, u32)> = Vec::new();
-            let mut qpos: Vec<[f32; 3]> = Vec::new();
-            q.read(|b| {
-                homes.clear();
-                qpos.clear();
-                for r in b.chunks_exact(QUERY_BYTES) {
-                    let home = u32_at(r, 0);
-                    if home as usize >= units.len() || home as usize == v {
-                        return Err(MethodError::corrupt(
-                            &q.path,
-                            format!("temporary file: query from unit {home}"),
-                        ));
-                    }
-                    homes.push((home, u32_at(r, 4)));
-                    qpos.push([f32_at(r, 8), f32_at(r, 12), f32_at(r, 16)]);
-                }
-                let lists = index.query_lists(&qpos, k);
-                for (&(home, i), l) in homes.iter().zip(lists.chunks_exact(k)) {
-                    rec.clear();
-                    rec.extend_from_slice(&i.to_le_bytes());
-                    l.iter()
-                        .for_each(|d| rec.extend_from_slice(&d.to_le_bytes()));
-                    answers.get(home as usize)?.push(&rec)?;
-                }
-                Ok(())
-            })?;
-            q.remove();
-        }
-        progress.inc(units[v].n);
-    }
-    let answers = answers.finish()?;
+    let answers = passes.answer_queries(queries)?;
 
-    // Pass 3: merge; the smallest positive distance and the strided sample.
     phase(3, "merge");
-    let mut files = Vec::with_capacity(units.len());
-    let mut smallest = f32::INFINITY;
-    let mut sample: Vec<f32> = Vec::with_capacity(strided.len());
-    let mut next_strided = 0usize;
-    for (u, ((raw, own), answers)) in raw.into_iter().zip(own).zip(answers).enumerate() {
-        let mut r: Vec<f32> = Vec::with_capacity(units[u].n as usize);
+    let Merged {
+        files,
+        smallest,
+        mut sample,
+    } = passes.merge(raw, own, answers, &strided)?;
+    let fallback = fallback_spacing(smallest, || bounds, total);
+    for d in &mut sample {
+        if is_degenerate(*d) {
+            *d = fallback;
+        }
+    }
+    let cap = if total >= 2 && !sample.is_empty() {
+        isolation_cap(sample)
+    } else {
+        f32::INFINITY
+    };
+    progress.finish();
+    Ok(UnitRadii {
+        files,
+        fallback,
+        cap,
+    })
+}
+
+/// What the three passes of [`unit_radii`] share.
+struct Passes<'a> {
+    units: &'a [UnitBox],
+    load: LoadPositions<'a>,
+    dir: &'a SpillDir,
+    progress: &'a dyn Progress,
+    /// Neighbours per list.
+    k: usize,
+    /// Bytes of an own-list or answer record: position in the unit, `k` squared distances.
+    list_bytes: usize,
+}
+
+/// What pass 3 of [`unit_radii`] gives: each unit's radii file, the smallest positive
+/// radius and the strided sample of the radii (before the fallback).
+struct Merged {
+    files: Vec<Spill>,
+    smallest: f32,
+    sample: Vec<f32>,
+}
+
+impl<'a> Passes<'a> {
+    /// Pass 1: own lists, queries to other units. This thread loads units and searches them
+    /// (in parallel); a second thread writes each searched unit's spill records, which is
+    /// serial, while the next unit is searched. At most two units are held: the one written
+    /// and the one searched, which waits to be handed over (`overlapped_with`, nothing
+    /// waiting between them).
+    fn own_lists(&self, boxes: &BoxTree, stride: usize) -> Result<Pass1<'a>, MethodError> {
+        let (units, load, dir, progress, k) =
+            (self.units, self.load, self.dir, self.progress, self.k);
+        let pass1 = Pass1 {
+            queries: Writers::new(dir, "knn-query", QUERY_BYTES, units.len()),
+            raw: Vec::with_capacity(units.len()),
+            own: Vec::with_capacity(units.len()),
+            strided: Vec::new(),
+        };
+        overlapped_with(
+            pass1,
+            1,
+            0,
+            |state, searched: Vec<Searched>| {
+                for unit in searched {
+                    state.write(unit, k, stride, boxes, dir)?;
+                }
+                Ok(())
+            },
+            |feed| {
+                for (u, unit) in units.iter().enumerate() {
+                    let (idx, pos) = load(u)?;
+                    if idx.len() as u64 != unit.n {
+                        return Err(MethodError::Bug(format!(
+                            "leaf radii: unit {u} loaded {} samples, {} expected",
+                            idx.len(),
+                            unit.n
+                        )));
+                    }
+                    let lists = KnnIndex::new(&pos).self_lists(k);
+                    feed.push(Searched { u, idx, pos, lists })?;
+                    progress.inc(unit.n);
+                }
+                Ok(())
+            },
+        )
+    }
+
+    /// Pass 2: answers. Each unit answers the queries sent to it (removing their file);
+    /// returns the answers to each unit.
+    fn answer_queries(
+        &self,
+        queries: Vec<Option<Spill>>,
+    ) -> Result<Vec<Option<Spill>>, MethodError> {
+        let units = self.units;
+        let mut answers = Writers::new(self.dir, "knn-answer", self.list_bytes, units.len());
+        let mut rec = Vec::with_capacity(self.list_bytes);
+        for (v, q) in queries.into_iter().enumerate() {
+            if let Some(q) = q {
+                self.answer_unit(v, &q, &mut answers, &mut rec)?;
+                q.remove();
+            }
+            self.progress.inc(units[v].n);
+        }
+        answers.finish()
+    }
+
+    /// Unit `v` answers the queries `q` sent to it: their `k` nearest among its samples,
+    /// written to `answers` of each query's home unit (`rec`: a record buffer).
+    fn answer_unit(
+        &self,
+        v: usize,
+        q: &Spill,
+        answers: &mut Writers<'_>,
+        rec: &mut Vec<u8>,
+    ) -> Result<(), MethodError> {
+        let (units, k) = (self.units, self.k);
+        // Only unit `v`'s points within the largest query reach of the queries' box
+        // can answer (see the module docs): the index holds those.
+        let (mut lo, mut hi) = (DVec3::INFINITY, DVec3::NEG_INFINITY);
+        let mut reach2 = 0.0f32;
+        q.read(|b| {
+            for r in b.chunks_exact(QUERY_BYTES) {
+                let p = Vec3::new(f32_at(r, 8), f32_at(r, 12), f32_at(r, 16)).as_dvec3();
+                (lo, hi) = (lo.min(p), hi.max(p));
+                reach2 = reach2.max(f32_at(r, 20));
+            }
+            Ok(())
+        })?;
+        let reach = (reach2 as f64).sqrt() * (1.0 + 1e-5);
+        let (lo, hi) = (lo - reach, hi + reach);
+        let (_, mut pos) = (self.load)(v)?;
+        pos.retain(|p| {
+            let p = Vec3::from(*p).as_dvec3();
+            p.cmpge(lo).all() && p.cmple(hi).all()
+        });
+        let index = KnnIndex::new(&pos);
+        drop(pos);
+        let mut homes: Vec<(u32, u32)> = Vec::new();
+        let mut qpos: Vec<[f32; 3]> = Vec::new();
+        q.read(|b| {
+            homes.clear();
+            qpos.clear();
+            for r in b.chunks_exact(QUERY_BYTES) {
+                let home = u32_at(r, 0);
+                if home as usize >= units.len() || home as usize == v {
+                    return Err(MethodError::corrupt(
+                        &q.path,
+                        format!("temporary file: query from unit {home}"),
+                    ));
+                }
+                homes.push((home, u32_at(r, 4)));
+                qpos.push([f32_at(r, 8), f32_at(r, 12), f32_at(r, 16)]);
+            }
+            let lists = index.query_lists(&qpos, k);
+            for (&(home, i), l) in homes.iter().zip(lists.chunks_exact(k)) {
+                rec.clear();
+                rec.extend_from_slice(&i.to_le_bytes());
+                l.iter()
+                    .for_each(|d| rec.extend_from_slice(&d.to_le_bytes()));
+                answers.get(home as usize)?.push(rec)?;
+            }
+            Ok(())
+        })
+    }
+
+    /// Pass 3: merge; the smallest positive distance and the strided sample. Writes each
+    /// unit's radii file and removes the files of passes 1 and 2.
+    fn merge(
+        &self,
+        raw: Vec<Spill>,
+        own: Vec<Spill>,
+        answers: Vec<Option<Spill>>,
+        strided: &[(u32, u32)],
+    ) -> Result<Merged, MethodError> {
+        let units = self.units;
+        let mut files = Vec::with_capacity(units.len());
+        let mut smallest = f32::INFINITY;
+        let mut sample: Vec<f32> = Vec::with_capacity(strided.len());
+        let mut next_strided = 0usize;
+        for (u, ((raw, own), answers)) in raw.into_iter().zip(own).zip(answers).enumerate() {
+            let r = self.merge_unit(u, &raw, &own, answers)?;
+            smallest = r
+                .iter()
+                .copied()
+                .filter(|&d| !is_degenerate(d))
+                .fold(smallest, f32::min);
+            while let Some(&(su, si)) = strided.get(next_strided)
+                && su as usize == u
+            {
+                sample.push(r[si as usize]);
+                next_strided += 1;
+            }
+            let mut w = self.dir.writer("knn-radii", 4)?;
+            for d in &r {
+                w.push(&d.to_le_bytes())?;
+            }
+            files.push(w.finish()?);
+            raw.remove();
+            own.remove();
+            self.progress.inc(units[u].n);
+        }
+        Ok(Merged {
+            files,
+            smallest,
+            sample,
+        })
+    }
+
+    /// Unit `u`'s radii: its raw radii, with those of the samples that sent queries taken
+    /// from their own lists merged with the `answers` (whose file is removed).
+    fn merge_unit(
+        &self,
+        u: usize,
+        raw: &Spill,
+        own: &Spill,
+        answers: Option<Spill>,
+    ) -> Result<Vec<f32>, MethodError> {
+        let (k, list_bytes) = (self.k, self.list_bytes);
+        let mut r: Vec<f32> = Vec::with_capacity(self.units[u].n as usize);
         raw.read(|b| {
             r.extend(f32s(b));
             Ok(())
@@ -443,41 +569,6 @@ pub fn unit_radii(
         for (&i, l) in locals.iter().zip(lists.chunks_exact(k)) {
             r[i as usize] = l[k - 1].sqrt();
         }
-        smallest = r
-            .iter()
-            .copied()
-            .filter(|&d| !is_degenerate(d))
-            .fold(smallest, f32::min);
-        while let Some(&(su, si)) = strided.get(next_strided)
-            && su as usize == u
-        {
-            sample.push(r[si as usize]);
-            next_strided += 1;
-        }
-        let mut w = dir.writer("knn-radii", 4)?;
-        for d in &r {
-            w.push(&d.to_le_bytes())?;
-        }
-        files.push(w.finish()?);
-        raw.remove();
-        own.remove();
-        progress.inc(units[u].n);
+        Ok(r)
     }
-    let fallback = fallback_spacing(smallest, || bounds, total);
-    for d in &mut sample {
-        if is_degenerate(*d) {
-            *d = fallback;
-        }
-    }
-    let cap = if total >= 2 && !sample.is_empty() {
-        isolation_cap(sample)
-    } else {
-        f32::INFINITY
-    };
-    progress.finish();
-    Ok(UnitRadii {
-        files,
-        fallback,
-        cap,
-    })
 }

@@ -459,23 +459,58 @@ impl PairCtx<'_> {
 pub fn representatives(input: &Splats, target: usize, cfg: &RepConfig) -> Selection {
     let m = input.len();
     let target = target.max(1);
-    let theta0 = cfg.theta_deg.to_radians().max(f32::MIN_POSITIVE);
     if m <= target {
-        let mut reps = Splats::empty(input.normals.is_some(), input.colors.is_some());
-        for i in 0..m {
-            reps.push_from(input, i);
-        }
-        return Selection {
-            reps,
-            members: (0..m as u32).collect(),
-            grid_used: cfg.grid,
-            theta_used_deg: cfg.theta_deg,
-        };
+        return every_splat(input, cfg);
     }
     let has_n = input.normals.is_some();
     let has_c = input.colors.is_some();
 
     // 1. Grid (lowered until it has at most `target` occupied cells).
+    let (k, lists, cell_diag) = cell_lists(input, cfg.grid, target);
+    let mut merger = Merger {
+        clusters: (0..m).map(|i| Some(Cluster::new(input, i))).collect(),
+        members: Members::singletons(m),
+        lists,
+        count: m,
+    };
+    if cfg.clustering == Clustering::Grid {
+        merger.merge_cells();
+    }
+
+    // 2.–3. Merge until exactly `target` clusters remain.
+    let theta = merger.merge_to(target, cfg, has_n, has_c, cell_diag);
+
+    // 4. One representative per cluster, in cell order.
+    let (reps, members) = merger.representatives(input, has_n, has_c);
+    Selection {
+        reps,
+        members,
+        grid_used: k,
+        theta_used_deg: theta.to_degrees(),
+    }
+}
+
+/// The selection of an input of at most `target` splats: every splat, its own
+/// representative.
+fn every_splat(input: &Splats, cfg: &RepConfig) -> Selection {
+    let m = input.len();
+    let mut reps = Splats::empty(input.normals.is_some(), input.colors.is_some());
+    for i in 0..m {
+        reps.push_from(input, i);
+    }
+    Selection {
+        reps,
+        members: (0..m as u32).collect(),
+        grid_used: cfg.grid,
+        theta_used_deg: cfg.theta_deg,
+    }
+}
+
+/// Step 1: the grid's `K` (lowered from `grid` until at most `target` cells are occupied),
+/// the occupied cells' lists of splats (cells in key order, splats in Morton order within
+/// a cell), and a cell's diagonal (1 for a degenerate grid).
+fn cell_lists(input: &Splats, grid: u32, target: usize) -> (u32, Vec<Vec<usize>>, f32) {
+    let m = input.len();
     let bounds = input
         .positions
         .iter()
@@ -488,7 +523,7 @@ pub fn representatives(input: &Splats, target: usize, cfg: &RepConfig) -> Select
     } else {
         (Vec3::ZERO, Vec3::ZERO)
     };
-    let (k, keys) = choose_grid(&input.positions, lo, size, cfg.grid.max(1), target);
+    let (k, keys) = choose_grid(&input.positions, lo, size, grid.max(1), target);
     let cell_diag = {
         let d = (size / k as f32).length();
         if d > 0.0 && d.is_finite() { d } else { 1.0 }
@@ -496,9 +531,6 @@ pub fn representatives(input: &Splats, target: usize, cfg: &RepConfig) -> Select
     let morton = morton_codes(&input.positions, lo, size);
     let mut order: Vec<u32> = (0..m as u32).collect();
     order.sort_unstable_by_key(|&i| (keys[i as usize], morton[i as usize], i));
-
-    let mut clusters: Vec<Option<Cluster>> = (0..m).map(|i| Some(Cluster::new(input, i))).collect();
-    let mut member_lists = Members::singletons(m);
     let mut lists: Vec<Vec<usize>> = Vec::new();
     let mut prev = None;
     for &i in &order {
@@ -511,157 +543,198 @@ pub fn representatives(input: &Splats, target: usize, cfg: &RepConfig) -> Select
             l.push(i as usize);
         }
     }
+    (k, lists, cell_diag)
+}
 
-    // Fig. 2's grid sampling: every cell's clusters merged into one, so each occupied cell
-    // (at most `target` of them) gives one representative; the queue below is then empty.
-    let mut count = m;
-    if cfg.clustering == Clustering::Grid {
-        for list in &mut lists {
+/// Queue priority of a cell's list of clusters (`queue`: the order): its length, or its
+/// clusters' largest normal deviation from their mean (ties: the length).
+fn priority(queue: QueueOrder, list: &[usize], clusters: &[Option<Cluster>]) -> u64 {
+    match queue {
+        QueueOrder::Length => list.len() as u64,
+        QueueOrder::Deviation => {
+            let mean = list
+                .iter()
+                .filter_map(|&c| clusters[c].as_ref())
+                .fold(DVec3::ZERO, |a, c| a + c.sum_n)
+                .normalize_or_zero()
+                .as_vec3();
+            let dev = list
+                .iter()
+                .filter_map(|&c| clusters[c].as_ref())
+                .map(|c| angle(c.normal, mean))
+                .fold(0.0f32, f32::max);
+            // Non-negative floats order like their bits; the length breaks ties.
+            (u64::from(dev.to_bits()) << 32) | list.len() as u64
+        }
+    }
+}
+
+/// The clustering in progress: every input splat's cluster (`None` once absorbed into
+/// another), their member lists, and per occupied cell the list of its clusters.
+struct Merger {
+    clusters: Vec<Option<Cluster>>,
+    members: Members,
+    lists: Vec<Vec<usize>>,
+    /// Clusters left.
+    count: usize,
+}
+
+impl Merger {
+    /// Fig. 2's grid sampling: every cell's clusters merged into one, so each occupied cell
+    /// (at most `target` of them) gives one representative; the queue is then empty.
+    fn merge_cells(&mut self) {
+        for list in &mut self.lists {
             let head = list[0];
             for &c in &list[1..] {
-                if let Some(cb) = clusters[c].take()
-                    && let Some(ca) = clusters[head].as_mut()
+                if let Some(cb) = self.clusters[c].take()
+                    && let Some(ca) = self.clusters[head].as_mut()
                 {
-                    ca.absorb(cb, &mut member_lists);
+                    ca.absorb(cb, &mut self.members);
                 }
             }
             list.truncate(1);
         }
-        count = lists.len();
+        self.count = self.lists.len();
     }
 
-    // 2. Queue of lists with ≥ 2 clusters.
-    let priority = |list: &[usize], clusters: &[Option<Cluster>]| -> u64 {
-        match cfg.queue {
-            QueueOrder::Length => list.len() as u64,
-            QueueOrder::Deviation => {
-                let mean = list
-                    .iter()
-                    .filter_map(|&c| clusters[c].as_ref())
-                    .fold(DVec3::ZERO, |a, c| a + c.sum_n)
-                    .normalize_or_zero()
-                    .as_vec3();
-                let dev = list
-                    .iter()
-                    .filter_map(|&c| clusters[c].as_ref())
-                    .map(|c| angle(c.normal, mean))
-                    .fold(0.0f32, f32::max);
-                // Non-negative floats order like their bits; the length breaks ties.
-                (u64::from(dev.to_bits()) << 32) | list.len() as u64
-            }
-        }
-    };
-    let mut heap: BinaryHeap<(u64, Reverse<usize>)> = lists
-        .iter()
-        .enumerate()
-        .filter(|(_, l)| l.len() >= 2)
-        .map(|(id, l)| (priority(l, &clusters), Reverse(id)))
-        .collect();
+    /// Steps 2–3: a queue of the cells with ≥ 2 clusters, merged until exactly `target`
+    /// clusters remain, the thresholds relaxed whenever every cell left is blocked.
+    /// Returns the final normal threshold (radians).
+    fn merge_to(
+        &mut self,
+        target: usize,
+        cfg: &RepConfig,
+        has_n: bool,
+        has_c: bool,
+        cell_diag: f32,
+    ) -> f32 {
+        let theta0 = cfg.theta_deg.to_radians().max(f32::MIN_POSITIVE);
+        // 2. Queue of lists with ≥ 2 clusters.
+        let mut heap: BinaryHeap<(u64, Reverse<usize>)> = self
+            .lists
+            .iter()
+            .enumerate()
+            .filter(|(_, l)| l.len() >= 2)
+            .map(|(id, l)| (priority(cfg.queue, l, &self.clusters), Reverse(id)))
+            .collect();
 
-    // 3. Merge until exactly `target` clusters remain.
-    let mut theta = theta0;
-    let mut col_t = cfg.color_threshold;
-    let mut blocked: Vec<usize> = Vec::new();
-    let relax = if cfg.relax > 1.0 { cfg.relax } else { 2.0 };
-    while count > target {
-        let Some((_, Reverse(id))) = heap.pop() else {
-            if blocked.is_empty() {
-                // Unreachable: ≤ target cells and > target clusters means some list has ≥ 2.
-                break;
+        // 3. Merge until exactly `target` clusters remain.
+        let mut theta = theta0;
+        let mut col_t = cfg.color_threshold;
+        let mut blocked: Vec<usize> = Vec::new();
+        let relax = if cfg.relax > 1.0 { cfg.relax } else { 2.0 };
+        while self.count > target {
+            let Some((_, Reverse(id))) = heap.pop() else {
+                if blocked.is_empty() {
+                    // Unreachable: ≤ target cells and > target clusters means some list has ≥ 2.
+                    break;
+                }
+                theta = if theta * relax >= std::f32::consts::PI {
+                    f32::INFINITY
+                } else {
+                    theta * relax
+                };
+                col_t = if col_t * relax >= 255.0 {
+                    f32::INFINITY
+                } else {
+                    col_t * relax
+                };
+                for id in blocked.drain(..) {
+                    heap.push((
+                        priority(cfg.queue, &self.lists[id], &self.clusters),
+                        Reverse(id),
+                    ));
+                }
+                continue;
+            };
+            let want = self.count - target;
+            let merges = {
+                let ctx = PairCtx {
+                    clusters: &self.clusters,
+                    has_n,
+                    has_c,
+                    theta,
+                    col_t,
+                    theta0,
+                    col0: cfg.color_threshold,
+                    cell_diag,
+                };
+                ctx.plan_merges(&self.lists[id], want)
+            };
+            if merges.is_empty() {
+                blocked.push(id);
+                continue;
             }
-            theta = if theta * relax >= std::f32::consts::PI {
-                f32::INFINITY
-            } else {
-                theta * relax
-            };
-            col_t = if col_t * relax >= 255.0 {
-                f32::INFINITY
-            } else {
-                col_t * relax
-            };
-            for id in blocked.drain(..) {
-                heap.push((priority(&lists[id], &clusters), Reverse(id)));
+            self.apply(id, &merges);
+            if self.lists[id].len() >= 2 {
+                heap.push((
+                    priority(cfg.queue, &self.lists[id], &self.clusters),
+                    Reverse(id),
+                ));
             }
-            continue;
-        };
-        let want = count - target;
-        let merges = {
-            let ctx = PairCtx {
-                clusters: &clusters,
-                has_n,
-                has_c,
-                theta,
-                col_t,
-                theta0,
-                col0: cfg.color_threshold,
-                cell_diag,
-            };
-            ctx.plan_merges(&lists[id], want)
-        };
-        if merges.is_empty() {
-            blocked.push(id);
-            continue;
         }
-        let mut dead = vec![false; lists[id].len()];
-        for &(a, b) in &merges {
-            let (ia, ib) = (lists[id][a], lists[id][b]);
-            if let Some(cb) = clusters[ib].take()
-                && let Some(ca) = clusters[ia].as_mut()
+        theta
+    }
+
+    /// Merges the pairs `merges` (positions in cell `id`'s list) into their first cluster
+    /// and drops the second ones from the list.
+    fn apply(&mut self, id: usize, merges: &[(usize, usize)]) {
+        let list = &mut self.lists[id];
+        let mut dead = vec![false; list.len()];
+        for &(a, b) in merges {
+            let (ia, ib) = (list[a], list[b]);
+            if let Some(cb) = self.clusters[ib].take()
+                && let Some(ca) = self.clusters[ia].as_mut()
             {
-                ca.absorb(cb, &mut member_lists);
+                ca.absorb(cb, &mut self.members);
             }
             dead[b] = true;
-            count -= 1;
+            self.count -= 1;
         }
         let mut k = 0;
-        lists[id].retain(|_| {
+        list.retain(|_| {
             k += 1;
             !dead[k - 1]
         });
-        if lists[id].len() >= 2 {
-            heap.push((priority(&lists[id], &clusters), Reverse(id)));
-        }
     }
 
-    // 4. One representative per cluster, in cell order.
-    let mut reps = Splats::empty(has_n, has_c);
-    let mut members = vec![0u32; m];
-    for list in &lists {
-        for &c in list {
-            let Some(cl) = clusters[c].as_ref() else {
-                continue;
-            };
-            let k = reps.len() as u32;
-            let mut r = 0.0f32;
-            for mi in member_lists.of(cl) {
-                members[mi] = k;
-                r = r.max(input.positions[mi].distance(cl.center) + input.radii[mi]);
-            }
-            reps.positions.push(cl.center);
-            if let Some(n) = &mut reps.normals {
-                let nn = if cl.normal == Vec3::ZERO {
-                    input
-                        .normals
-                        .as_ref()
-                        .map_or(Vec3::ZERO, |v| v[cl.head as usize])
-                } else {
-                    cl.normal
+    /// Step 4: one representative per cluster, in cell order, covering its members; and
+    /// for every input splat the index of its representative.
+    fn representatives(&self, input: &Splats, has_n: bool, has_c: bool) -> (Splats, Vec<u32>) {
+        let mut reps = Splats::empty(has_n, has_c);
+        let mut members = vec![0u32; input.len()];
+        for list in &self.lists {
+            for &c in list {
+                let Some(cl) = self.clusters[c].as_ref() else {
+                    continue;
                 };
-                n.push(nn);
+                let k = reps.len() as u32;
+                let mut r = 0.0f32;
+                for mi in self.members.of(cl) {
+                    members[mi] = k;
+                    r = r.max(input.positions[mi].distance(cl.center) + input.radii[mi]);
+                }
+                reps.positions.push(cl.center);
+                if let Some(n) = &mut reps.normals {
+                    let nn = if cl.normal == Vec3::ZERO {
+                        input
+                            .normals
+                            .as_ref()
+                            .map_or(Vec3::ZERO, |v| v[cl.head as usize])
+                    } else {
+                        cl.normal
+                    };
+                    n.push(nn);
+                }
+                if let Some(col) = &mut reps.colors {
+                    col.push(cl.color);
+                }
+                // A relative margin of a few ulps keeps the cover exact after f32 rounding.
+                reps.radii.push(r * (1.0 + 4.0 * f32::EPSILON));
+                reps.weights.push(cl.weight);
             }
-            if let Some(col) = &mut reps.colors {
-                col.push(cl.color);
-            }
-            // A relative margin of a few ulps keeps the cover exact after f32 rounding.
-            reps.radii.push(r * (1.0 + 4.0 * f32::EPSILON));
-            reps.weights.push(cl.weight);
         }
-    }
-    Selection {
-        reps,
-        members,
-        grid_used: k,
-        theta_used_deg: theta.to_degrees(),
+        (reps, members)
     }
 }
 

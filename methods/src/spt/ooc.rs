@@ -39,7 +39,7 @@ use crate::MethodError;
 use crate::overlap::overlapped;
 use crate::spill::samples::{self, EMPTY_BOX, SampleLayout, f32_at, grow, pos_of, u32_at};
 use crate::spill::{Budget, Spill, SpillDir};
-use crate::unit_knn::{UnitBox, unit_radii};
+use crate::unit_knn::{UnitBox, UnitRadii, unit_radii};
 
 /// Working bytes per sample of a unit built in memory: samples (≤ 35 with the index),
 /// Morton keys (16), and per node (≈ 1.33–1.5 per sample) the node (52), its `lod` entry
@@ -559,16 +559,7 @@ pub(crate) fn list_in_units(
     let radii = if layout.radii {
         None
     } else {
-        let boxes: Vec<UnitBox> = units
-            .iter()
-            .map(|u| UnitBox {
-                n: u.n,
-                bbox: u.bbox,
-            })
-            .collect();
-        let load = |u: usize| samples::positions(&units[u].spill, layout);
-        let r = unit_radii(&boxes, &load, n, cloud.bounds(), &dir, "spt", progress)?;
-        Some(r)
+        Some(leaf_radii(cloud, &units, layout, &dir, progress)?)
     };
     let capped = std::cell::Cell::new(0u64);
     let load = |u: usize| {
@@ -622,22 +613,7 @@ pub(crate) fn list_in_units(
         extent.add(nd);
     }
     drop(radii);
-    // The kept nodes' own run, in memory.
-    let by_id: HashMap<u64, usize> = kept.iter().enumerate().map(|(i, k)| (k.0, i)).collect();
-    let mut top: Vec<(u128, ListNode)> = Vec::with_capacity(kept.len());
-    for (id, nd) in &kept {
-        let parent = (nd.parent != NO_PARENT).then(|| &kept[by_id[&(nd.parent as u64)]].1);
-        let lod = lod_entry(nd, parent);
-        if !lod.iter().all(|v| v.is_finite()) {
-            return Err(non_finite(*id, &lod, nd));
-        }
-        let cluster = cluster_of(p, layout.normals, nd.n);
-        top.push((
-            list_key(cluster, &lod, *id as u32),
-            ListNode::of(nd, lod, cluster),
-        ));
-    }
-    top.sort_unstable_by_key(|t| t.0);
+    let top = kept_run(&kept, p, layout.normals)?;
     // Step 4: merge.
     let w = ListWriter::create(
         budget.dir,
@@ -653,12 +629,83 @@ pub(crate) fn list_in_units(
         normals: layout.normals,
         colors: layout.colors,
     };
+    let w = merge_runs(w, &runs, top, rr, progress)?;
+    let index = w.finish(levels)?;
+    progress.finish();
+    Ok(Listed {
+        index,
+        inner,
+        radii_capped: capped.get(),
+        tree_seconds,
+        units: runs.len() as u64,
+    })
+}
+
+/// The leaf radii of the units' samples (for a cloud without radii), computed unit by unit.
+fn leaf_radii(
+    cloud: &PointCloud,
+    units: &[Unit],
+    layout: SampleLayout,
+    dir: &SpillDir,
+    progress: &dyn Progress,
+) -> Result<UnitRadii, MethodError> {
+    let boxes: Vec<UnitBox> = units
+        .iter()
+        .map(|u| UnitBox {
+            n: u.n,
+            bbox: u.bbox,
+        })
+        .collect();
+    let load = |u: usize| samples::positions(&units[u].spill, layout);
+    unit_radii(
+        &boxes,
+        &load,
+        cloud.len(),
+        cloud.bounds(),
+        dir,
+        "spt",
+        progress,
+    )
+}
+
+/// The kept nodes' own run, in memory: their list entries by list key.
+fn kept_run(
+    kept: &[(u64, Node)],
+    p: &SptParams,
+    normals: bool,
+) -> Result<Vec<(u128, ListNode)>, MethodError> {
+    let by_id: HashMap<u64, usize> = kept.iter().enumerate().map(|(i, k)| (k.0, i)).collect();
+    let mut top: Vec<(u128, ListNode)> = Vec::with_capacity(kept.len());
+    for (id, nd) in kept {
+        let parent = (nd.parent != NO_PARENT).then(|| &kept[by_id[&(nd.parent as u64)]].1);
+        let lod = lod_entry(nd, parent);
+        if !lod.iter().all(|v| v.is_finite()) {
+            return Err(non_finite(*id, &lod, nd));
+        }
+        let cluster = cluster_of(p, normals, nd.n);
+        top.push((
+            list_key(cluster, &lod, *id as u32),
+            ListNode::of(nd, lod, cluster),
+        ));
+    }
+    top.sort_unstable_by_key(|t| t.0);
+    Ok(top)
+}
+
+/// Step 4: merges the units' `runs` (records `rr`) and the kept nodes' run `top` by list
+/// key into `w`: the merge on this thread, the list's encoding and writing on a second one.
+fn merge_runs(
+    w: ListWriter,
+    runs: &[Spill],
+    top: Vec<(u128, ListNode)>,
+    rr: RunRecord,
+    progress: &dyn Progress,
+) -> Result<ListWriter, MethodError> {
     let mut readers = runs
         .iter()
         .map(Spill::reader)
         .collect::<Result<Vec<_>, _>>()?;
-    // The merge on this thread, the list's encoding and writing on a second one.
-    let w = overlapped(
+    overlapped(
         w,
         WRITE_BATCH,
         |w, nodes: Vec<ListNode>| {
@@ -706,16 +753,7 @@ pub(crate) fn list_in_units(
             }
             Ok(())
         },
-    )?;
-    let index = w.finish(levels)?;
-    progress.finish();
-    Ok(Listed {
-        index,
-        inner,
-        radii_capped: capped.get(),
-        tree_seconds,
-        units: runs.len() as u64,
-    })
+    )
 }
 
 #[cfg(test)]

@@ -49,7 +49,7 @@ use crate::MethodError;
 pub use crate::spill::Budget;
 use crate::spill::samples::{self, SampleColumns, SampleLayout as Layout, f32_at};
 use crate::spill::{Spill, SpillDir, split};
-use crate::unit_knn::{UnitBox, unit_radii};
+use crate::unit_knn::{UnitBox, UnitRadii, unit_radii};
 
 /// Working bytes per sample of a unit built in memory: the samples (≤ 31), the permutation
 /// and binary tree (13), and per node (≈ 1.33 per sample) the combined forest's ranges
@@ -100,23 +100,7 @@ pub fn build_file(
     build::check_size(n)?;
     let cap = unit_capacity(mem_bytes);
     if n as u64 <= cap {
-        progress.start("qsplat: leaf radii", n as u64);
-        let radii = crate::leaf::leaf_radii(cloud);
-        progress.finish();
-        progress.start("qsplat: hierarchy", n as u64);
-        let built = build::build_in_memory(cloud, &radii, opt, false)?;
-        progress.finish();
-        let t = &built.tree;
-        let file = format::write(path, t)?;
-        return Ok(TreeStats {
-            nodes: t.nodes(),
-            leaves: t.leaves(),
-            levels: t.levels.len() as u32,
-            file,
-            units: 1,
-            radii_capped: radii.capped,
-            quant: built.quant,
-        });
+        return build_file_in_memory(cloud, opt, path, progress);
     }
     let spill = SpillDir::create(dir, "qsplat-spill")?;
     let layout = Layout::of(cloud);
@@ -129,17 +113,7 @@ pub fn build_file(
     let radii = if layout.radii {
         None
     } else {
-        let boxes: Vec<UnitBox> = top
-            .units
-            .iter()
-            .map(|u| UnitBox {
-                n: u.n,
-                bbox: u.bbox,
-            })
-            .collect();
-        let load = |u: usize| top.units[u].positions(layout);
-        let r = unit_radii(&boxes, &load, n, bounds, &spill, "qsplat", progress)?;
-        Some(r)
+        Some(top.leaf_radii(layout, n, bounds, &spill, progress)?)
     };
     progress.start("qsplat: unit splits", n as u64);
     for u in &mut top.units {
@@ -160,35 +134,19 @@ pub fn build_file(
     }
     top.decide(opt.combine);
     let combined = top.combined();
-    let mut capped = 0;
-    // Unit `u` loaded, partitioned and laid out as its forest, with its true properties
-    // (steps 3 and 4 each rebuild it); `capped` counts its capped radii.
-    let unit_forest = |u: usize, capped: &mut u64| -> Result<_, MethodError> {
-        let r = match &radii {
-            Some(r) => {
-                let (r, c) = r.load(u)?;
-                *capped += c;
-                Some(r)
-            }
-            None => None,
-        };
-        let unit = &top.units[u];
-        let s = unit.load(layout, r)?;
-        let saved = unit
-            .partition
-            .as_ref()
-            .ok_or_else(|| MethodError::Bug(format!("qsplat: unit {u} was never partitioned")))?;
-        let p = Partitioned::load(saved, unit.n as usize, unit.split as u32, unit.cost)?;
-        let forest = p.forest(combined.unit_roots[u]);
-        let truth = forest.truths(&p.perm, s.view());
-        Ok((forest, truth))
+    let forests = UnitForests {
+        top: &top,
+        combined: &combined,
+        radii: radii.as_ref(),
+        layout,
     };
 
     progress.start("qsplat: unit truths", n as u64);
+    let mut capped = 0;
     let mut roots: Vec<Vec<TrueNode>> = Vec::with_capacity(top.units.len());
     for (i, u) in top.units.iter().enumerate() {
         // The radii's cap count is taken once, here.
-        let (_, truth) = unit_forest(i, &mut capped)?;
+        let (_, truth) = forests.forest(i, &mut capped)?;
         roots.push(truth.into_iter().next().unwrap_or_default());
         progress.inc(u.n);
     }
@@ -197,51 +155,29 @@ pub fn build_file(
     let quantised = combined.quantise(&roots, attrs, opt.fit, &top)?;
 
     progress.start("qsplat: unit nodes", n as u64);
-    let nb = format::node_bytes(layout.colors);
-    let mut nodes = quantised.nodes.len() as u64;
-    let mut quant = quantised.stats;
-    let mut segments: Vec<Segment> = quantised
-        .nodes
-        .iter()
-        .map(|&(lo, level, node)| Segment {
-            lo,
-            first_level: level,
-            part: Part::Top(node),
-        })
-        .collect();
-    for (i, u) in top.units.iter().enumerate() {
-        let (forest, truth) = unit_forest(i, &mut 0)?;
-        let first_level = combined.unit_level[i];
-        let (pd, pm) = quantised.unit_parent[i];
-        let q = forest.quantise(
-            &truth,
-            Parent::Node(pd, pm),
-            attrs,
-            opt.fit,
-            first_level,
-            false,
-        )?;
-        nodes += q.levels.iter().map(|l| l.len() as u64).sum::<u64>();
-        quant.merge(&q.stats);
-        let mut files = Vec::with_capacity(q.levels.len());
-        let mut rec = Vec::with_capacity(nb);
-        for level in &q.levels {
-            let mut w = spill.writer("nodes", nb)?;
-            for node in level {
-                rec.clear();
-                format::encode_node(node, layout.colors, &mut rec);
-                w.push(&rec)?;
-            }
-            files.push(w.finish()?);
-        }
-        segments.push(Segment {
-            lo: u.lo,
-            first_level,
-            part: Part::Unit(files),
-        });
-        progress.inc(u.n);
+    let mut stored = StoredNodes {
+        nodes: quantised.nodes.len() as u64,
+        quant: quantised.stats,
+        segments: quantised
+            .nodes
+            .iter()
+            .map(|&(lo, level, node)| Segment {
+                lo,
+                first_level: level,
+                part: Part::Top(node),
+            })
+            .collect(),
+    };
+    for i in 0..top.units.len() {
+        forests.write_nodes(i, quantised.unit_parent[i], opt.fit, &spill, &mut stored)?;
+        progress.inc(top.units[i].n);
     }
     progress.finish();
+    let StoredNodes {
+        mut segments,
+        nodes,
+        quant,
+    } = stored;
     segments.sort_by_key(|s| (s.lo, s.first_level));
     let levels = Assembled {
         segments,
@@ -259,6 +195,116 @@ pub fn build_file(
         radii_capped: capped,
         quant,
     })
+}
+
+/// [`build_file`] of a cloud that fits the budget: built in memory, written in one go.
+fn build_file_in_memory(
+    cloud: &PointCloud,
+    opt: BuildOptions,
+    path: &Path,
+    progress: &dyn Progress,
+) -> Result<TreeStats, MethodError> {
+    let n = cloud.len();
+    progress.start("qsplat: leaf radii", n as u64);
+    let radii = crate::leaf::leaf_radii(cloud);
+    progress.finish();
+    progress.start("qsplat: hierarchy", n as u64);
+    let built = build::build_in_memory(cloud, &radii, opt, false)?;
+    progress.finish();
+    let t = &built.tree;
+    let file = format::write(path, t)?;
+    Ok(TreeStats {
+        nodes: t.nodes(),
+        leaves: t.leaves(),
+        levels: t.levels.len() as u32,
+        file,
+        units: 1,
+        radii_capped: radii.capped,
+        quant: built.quant,
+    })
+}
+
+/// The stored nodes so far: their count, quantisation figures, and the segments of the
+/// levels that hold them.
+struct StoredNodes {
+    nodes: u64,
+    quant: QuantStats,
+    segments: Vec<Segment>,
+}
+
+/// What steps 3 and 4 rebuild each unit's forest from.
+struct UnitForests<'a> {
+    top: &'a Top,
+    combined: &'a Combined,
+    /// The units' leaf radii, when the scene has none of its own.
+    radii: Option<&'a UnitRadii>,
+    layout: Layout,
+}
+
+impl UnitForests<'_> {
+    /// Unit `u` loaded, partitioned and laid out as its forest, with its true properties
+    /// (steps 3 and 4 each rebuild it); `capped` counts its capped radii.
+    fn forest(
+        &self,
+        u: usize,
+        capped: &mut u64,
+    ) -> Result<(build::Forest, Vec<Vec<TrueNode>>), MethodError> {
+        let r = match self.radii {
+            Some(r) => {
+                let (r, c) = r.load(u)?;
+                *capped += c;
+                Some(r)
+            }
+            None => None,
+        };
+        let unit = &self.top.units[u];
+        let s = unit.load(self.layout, r)?;
+        let saved = unit
+            .partition
+            .as_ref()
+            .ok_or_else(|| MethodError::Bug(format!("qsplat: unit {u} was never partitioned")))?;
+        let p = Partitioned::load(saved, unit.n as usize, unit.split as u32, unit.cost)?;
+        let forest = p.forest(self.combined.unit_roots[u]);
+        let truth = forest.truths(&p.perm, s.view());
+        Ok((forest, truth))
+    }
+
+    /// Step 4 for unit `i`: its forest quantised from its roots' parent (decoded sphere and
+    /// margin), its stored nodes written per level to spill files, added to `out`.
+    fn write_nodes(
+        &self,
+        i: usize,
+        (pd, pm): ((Vec3, f32), f64),
+        fit: super::quant::Fit,
+        spill: &SpillDir,
+        out: &mut StoredNodes,
+    ) -> Result<(), MethodError> {
+        let colors = self.layout.colors;
+        let attrs = (self.layout.normals, colors);
+        let nb = format::node_bytes(colors);
+        let (forest, truth) = self.forest(i, &mut 0)?;
+        let first_level = self.combined.unit_level[i];
+        let q = forest.quantise(&truth, Parent::Node(pd, pm), attrs, fit, first_level, false)?;
+        out.nodes += q.levels.iter().map(|l| l.len() as u64).sum::<u64>();
+        out.quant.merge(&q.stats);
+        let mut files = Vec::with_capacity(q.levels.len());
+        let mut rec = Vec::with_capacity(nb);
+        for level in &q.levels {
+            let mut w = spill.writer("nodes", nb)?;
+            for node in level {
+                rec.clear();
+                format::encode_node(node, colors, &mut rec);
+                w.push(&rec)?;
+            }
+            files.push(w.finish()?);
+        }
+        out.segments.push(Segment {
+            lo: self.top.units[i].lo,
+            first_level,
+            part: Part::Unit(files),
+        });
+        Ok(())
+    }
 }
 
 /// A range of samples at most the capacity, built in memory.
@@ -446,6 +492,28 @@ fn halves_by(
 }
 
 impl Top {
+    /// The units' leaf radii (for a cloud without radii; `n` samples in `bounds`),
+    /// computed unit by unit.
+    fn leaf_radii(
+        &self,
+        layout: Layout,
+        n: usize,
+        bounds: Aabb,
+        spill: &SpillDir,
+        progress: &dyn Progress,
+    ) -> Result<UnitRadii, MethodError> {
+        let boxes: Vec<UnitBox> = self
+            .units
+            .iter()
+            .map(|u| UnitBox {
+                n: u.n,
+                bbox: u.bbox,
+            })
+            .collect();
+        let load = |u: usize| self.units[u].positions(layout);
+        unit_radii(&boxes, &load, n, bounds, spill, "qsplat", progress)
+    }
+
     fn child_cost(&self, c: Child) -> (u64, u64) {
         match c {
             Child::Top(t) => self.nodes[t].cost,

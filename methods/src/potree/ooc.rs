@@ -106,6 +106,72 @@ pub fn build(
     let code_of = |i: usize| quant.morton(quant.of_local(origin, pos[i]));
     // 1. Count.
     progress.start("potree: count", n as u64);
+    let prefix = count_cells(n, &code_of);
+    progress.finish();
+    // 2. Plan.
+    let cap = unit_capacity(budget.mem_bytes).max(u64::from(p.max_leaf));
+    let units = plan(&prefix, cap);
+    let (unit_of, bases) = unit_cells(&units, &prefix);
+    drop(prefix);
+    // 3. Route.
+    let spill = SpillDir::create(budget.dir, "potree-units")?;
+    progress.start("potree: route", n as u64);
+    let routed = route(cloud, &code_of, &unit_of, units.len(), &spill)?;
+    drop(unit_of);
+    progress.finish();
+    if let Some(hook) = budget.hook {
+        hook(&routed.iter().collect::<Vec<_>>());
+    }
+    // 4. Units.
+    progress.start("potree: units", n as u64);
+    let builder = UnitBuilder {
+        cloud,
+        quant,
+        p,
+        spill: &spill,
+        spacing: quant.size / 128.0,
+        root_box: (quant.min, quant.min + DVec3::splat(quant.size)),
+        bpp: meta
+            .layout(&budget.dir.join(crate::potree::format::METADATA_FILE))?
+            .bytes_per_point,
+    };
+    let mut built = BuiltUnits {
+        descs: Vec::new(),
+        encoded: Vec::with_capacity(units.len()),
+        roots: Vec::with_capacity(units.len()),
+        loose: Vec::new(),
+        largest: 0,
+    };
+    for (k, (u, routed)) in units.iter().zip(routed).enumerate() {
+        builder.unit(k, u, routed, bases[k], &mut built)?;
+        progress.inc(u.count);
+    }
+    progress.finish();
+    let BuiltUnits {
+        mut descs,
+        encoded,
+        roots,
+        loose,
+        largest,
+    } = built;
+    // 5. Top: the nodes above the units, sampling from the units' roots.
+    let loose = builder.top(roots, loose, &mut descs);
+    // 6. Files.
+    let mut readers = encoded
+        .iter()
+        .map(Spill::reader)
+        .collect::<Result<Vec<_>, _>>()?;
+    let written = write::write_files(cloud, meta, &mut descs, &loose, &mut readers, budget.dir)?;
+    Ok(Built {
+        written,
+        units: units.len() as u64,
+        largest_unit: largest,
+    })
+}
+
+/// Step 1: the prefix sums of the points per cell of the counting grid (`8^GRID_LEVEL + 1`
+/// entries), point `i` of `n` having Morton code `code_of(i)`.
+fn count_cells(n: usize, code_of: &(impl Fn(usize) -> u64 + Sync)) -> Vec<u64> {
     let cells = 1usize << (3 * GRID_LEVEL);
     let counts = (0..n)
         .into_par_iter()
@@ -128,11 +194,12 @@ pub fn build(
     for c in &counts {
         prefix.push(prefix.last().copied().unwrap_or(0) + u64::from(*c));
     }
-    drop(counts);
-    progress.finish();
-    // 2. Plan.
-    let cap = unit_capacity(budget.mem_bytes).max(u64::from(p.max_leaf));
-    let units = plan(&prefix, cap);
+    prefix
+}
+
+/// The unit of each grid cell (`u32::MAX`: none), and each unit's first global rank.
+fn unit_cells(units: &[Unit], prefix: &[u64]) -> (Vec<u32>, Vec<u32>) {
+    let cells = 1usize << (3 * GRID_LEVEL);
     let mut unit_of = vec![u32::MAX; cells];
     let mut bases = Vec::with_capacity(units.len());
     for (k, u) in units.iter().enumerate() {
@@ -141,15 +208,23 @@ pub fn build(
         unit_of[lo..hi].fill(k as u32);
         bases.push(prefix[lo] as u32);
     }
-    drop(prefix);
-    // 3. Route.
-    let spill = SpillDir::create(budget.dir, "potree-units")?;
-    progress.start("potree: route", n as u64);
-    let mut writers = (0..units.len())
+    (unit_of, bases)
+}
+
+/// Step 3: one pass over the cloud appends each point's (code, index) to its unit's spill
+/// file (`unit_of`: the unit of each grid cell; `units` of them).
+fn route(
+    cloud: &PointCloud,
+    code_of: &impl Fn(usize) -> u64,
+    unit_of: &[u32],
+    units: usize,
+    spill: &SpillDir,
+) -> Result<Vec<Spill>, MethodError> {
+    let mut writers = (0..units)
         .map(|_| spill.writer_with_block("route", 12, SPILL_BLOCK))
         .collect::<Result<Vec<_>, _>>()?;
     let mut rec = [0u8; 12];
-    for i in 0..n {
+    for i in 0..cloud.len() {
         let code = code_of(i);
         rec[..8].copy_from_slice(&code.to_le_bytes());
         rec[8..].copy_from_slice(&(i as u32).to_le_bytes());
@@ -158,28 +233,53 @@ pub fn build(
             cloud.release_pages(i.saturating_sub(1 << 16)..i);
         }
     }
-    let routed: Vec<Spill> = writers
+    writers
         .into_iter()
         .map(|w| w.finish())
-        .collect::<Result<_, _>>()?;
-    drop(unit_of);
-    progress.finish();
-    if let Some(hook) = budget.hook {
-        hook(&routed.iter().collect::<Vec<_>>());
-    }
-    // 4. Units.
-    progress.start("potree: units", n as u64);
-    let spacing = quant.size / 128.0;
-    let root_box = (quant.min, quant.min + DVec3::splat(quant.size));
-    let bpp = meta
-        .layout(&budget.dir.join(crate::potree::format::METADATA_FILE))?
-        .bytes_per_point;
-    let mut descs: Vec<Desc> = Vec::new();
-    let mut encoded: Vec<Spill> = Vec::with_capacity(units.len());
-    let mut roots: Vec<Node> = Vec::with_capacity(units.len());
-    let mut loose = Vec::new();
-    let mut largest = 0;
-    for (k, (u, routed)) in units.iter().zip(routed).enumerate() {
+        .collect::<Result<_, _>>()
+}
+
+/// What step 4 has made of the units so far.
+struct BuiltUnits {
+    /// Every node below a unit's root.
+    descs: Vec<Desc>,
+    /// Per unit, the spill file of those nodes' points.
+    encoded: Vec<Spill>,
+    /// Per unit, its root (with its points).
+    roots: Vec<Node>,
+    /// The units' roots' points: (rank, integer position, input index).
+    loose: Vec<(u32, [i32; 3], u32)>,
+    /// Points of the largest unit.
+    largest: u64,
+}
+
+/// What steps 4 and 5 build the nodes with.
+struct UnitBuilder<'a> {
+    cloud: &'a PointCloud,
+    quant: Quant,
+    p: &'a PotreeParams,
+    spill: &'a SpillDir,
+    /// The root's sampling spacing.
+    spacing: f64,
+    /// The root's box.
+    root_box: (DVec3, DVec3),
+    /// Bytes per point in the files.
+    bpp: usize,
+}
+
+impl UnitBuilder<'_> {
+    /// Step 4 for unit `k` (`u`, its points routed to `routed`, which is removed; `base`:
+    /// its first global rank): sort, split, sample as in core; every node but the root is
+    /// encoded into a spill file, breadth first; the root, with its points, joins the top.
+    fn unit(
+        &self,
+        k: usize,
+        u: &Unit,
+        routed: Spill,
+        base: u32,
+        out: &mut BuiltUnits,
+    ) -> Result<(), MethodError> {
+        let (cloud, p, bpp) = (self.cloud, self.p, self.bpp);
         let mut keyed = Vec::with_capacity(u.count as usize);
         routed.read(|block| {
             for r in block.chunks_exact(12) {
@@ -190,11 +290,11 @@ pub fn build(
             Ok(())
         })?;
         routed.remove();
-        largest = largest.max(keyed.len() as u64);
-        let sorted = Sorted::new(cloud, quant, bases[k], keyed);
-        let at = Node::at(u.level, u.path, root_box);
+        out.largest = out.largest.max(keyed.len() as u64);
+        let sorted = Sorted::new(cloud, self.quant, base, keyed);
+        let at = Node::at(u.level, u.path, self.root_box);
         let mut root = octree::split(&sorted, 0..sorted.len(), at, p.max_leaf as usize);
-        octree::sample(&mut root, &sorted, spacing, p);
+        octree::sample(&mut root, &sorted, self.spacing, p);
         // Every node below the root, breadth first, encoded into the unit's file.
         root.outer_mask = root.child_mask();
         let mut below = Vec::new();
@@ -202,7 +302,7 @@ pub fn build(
             write::describe(*c, &mut below);
         }
         below.sort_unstable_by_key(|d| (d.level, d.path));
-        let mut w = spill.writer_with_block("unit", bpp, SPILL_BLOCK)?;
+        let mut w = self.spill.writer_with_block("unit", bpp, SPILL_BLOCK)?;
         let mut buf = vec![0u8; bpp];
         for d in below {
             if let Src::Ids(ids) = &d.src {
@@ -217,43 +317,41 @@ pub fn build(
                     w.push(&buf)?;
                 }
             }
-            descs.push(Desc {
+            out.descs.push(Desc {
                 src: Src::Unit(k),
                 ..d
             });
         }
-        encoded.push(w.finish()?);
+        out.encoded.push(w.finish()?);
         for &id in &root.points {
             let j = (id - sorted.base) as usize;
-            loose.push((id, sorted.q[j], sorted.order[j]));
+            out.loose.push((id, sorted.q[j], sorted.order[j]));
         }
-        roots.push(root);
-        progress.inc(u.count);
+        out.roots.push(root);
+        Ok(())
     }
-    progress.finish();
-    // 5. Top: the nodes above the units, sampling from the units' roots.
-    loose.sort_unstable_by_key(|l| l.0);
-    let loose = Loose {
-        points: loose,
-        quant,
-    };
-    let mut top = Node::at(0, 0, root_box);
-    for r in roots {
-        insert(&mut top, r, root_box);
+
+    /// Step 5: the nodes above the units, sampled from the units' `roots` (whose points are
+    /// `loose`), described into `descs`; returns the points by rank.
+    fn top(
+        &self,
+        roots: Vec<Node>,
+        mut loose: Vec<(u32, [i32; 3], u32)>,
+        descs: &mut Vec<Desc>,
+    ) -> Loose {
+        loose.sort_unstable_by_key(|l| l.0);
+        let loose = Loose {
+            points: loose,
+            quant: self.quant,
+        };
+        let mut top = Node::at(0, 0, self.root_box);
+        for r in roots {
+            insert(&mut top, r, self.root_box);
+        }
+        octree::sample(&mut top, &loose, self.spacing, self.p);
+        write::describe(top, descs);
+        loose
     }
-    octree::sample(&mut top, &loose, spacing, p);
-    write::describe(top, &mut descs);
-    // 6. Files.
-    let mut readers = encoded
-        .iter()
-        .map(Spill::reader)
-        .collect::<Result<Vec<_>, _>>()?;
-    let written = write::write_files(cloud, meta, &mut descs, &loose, &mut readers, budget.dir)?;
-    Ok(Built {
-        written,
-        units: units.len() as u64,
-        largest_unit: largest,
-    })
 }
 
 /// Puts unit root `r` into the top tree under `top`, creating the nodes on the way.

@@ -11,9 +11,13 @@ use scenes::generators::Generator;
 use scenes::paths::PathSpec;
 
 use super::raw::{RawMeasure, RawScene, RawSpec};
-use super::spec::{Figure, Measure, MeasureKind, Profile, RowElsewhere, Spec, SpecError};
+use super::spec::{Figure, Measure, MeasureKind, Profile, Row, RowElsewhere, Spec, SpecError};
 use crate::render::{Kernel, Raster};
 use crate::sweep::SweepTarget;
+
+/// The measures a profile leaves out (a measure's own `profiles`), by id, with the profiles
+/// they run in.
+type Elsewhere<'r> = BTreeMap<&'r str, &'r [Profile]>;
 
 pub(super) struct Checker<'a> {
     pub(super) file: &'a Path,
@@ -32,6 +36,52 @@ impl Checker<'_> {
     }
 
     pub(super) fn spec(&self, raw: &RawSpec) -> Result<Spec, SpecError> {
+        self.check_header(raw)?;
+        let mut scenes = BTreeMap::new();
+        for (name, s) in &raw.scenes {
+            scenes.insert(name.clone(), self.scene(name, s)?);
+        }
+        let reference = self.reference(raw)?;
+        let spec_profiles = match &raw.profiles {
+            None => Profile::ALL.to_vec(),
+            Some(p) if p.is_empty() => {
+                return Err(self.err("profiles", "lists no profile (omit it for all)"));
+            }
+            Some(p) => p.clone(),
+        };
+        let (measures, elsewhere) = self.measures(raw, &scenes, reference, &spec_profiles)?;
+        let (rows, rows_elsewhere) = self.rows(raw, &measures, &elsewhere)?;
+        let figures = self.figures(raw, &measures, &elsewhere)?;
+        let spec = Spec {
+            file: self.file.to_path_buf(),
+            id: raw.id.clone(),
+            paper: raw.paper.clone(),
+            title: raw.title.clone(),
+            source: raw.source.clone(),
+            notes: raw.notes.clone(),
+            profiles: spec_profiles,
+            scenes,
+            measures,
+            rows,
+            rows_elsewhere,
+            figures,
+        };
+        let used = spec.measure_uses();
+        if let Some(m) = spec
+            .measures
+            .iter()
+            .find(|m| !used.contains_key(m.id.as_str()))
+        {
+            return Err(self.err(
+                format!("measure '{}'", m.id),
+                "no row, reason or figure uses it (remove it, or add a row)",
+            ));
+        }
+        Ok(spec)
+    }
+
+    /// The spec's `id` is its file's name; `paper`, `title` and `source` are not empty.
+    fn check_header(&self, raw: &RawSpec) -> Result<(), SpecError> {
         let stem = self
             .file
             .file_stem()
@@ -55,11 +105,12 @@ impl Checker<'_> {
                 return Err(self.err(field, "must not be empty"));
             }
         }
-        let mut scenes = BTreeMap::new();
-        for (name, s) in &raw.scenes {
-            scenes.insert(name.clone(), self.scene(name, s)?);
-        }
-        let reference = match &raw.reference {
+        Ok(())
+    }
+
+    /// The rasteriser of the spec's references (`reference`; `None`: the run's, quads).
+    fn reference(&self, raw: &RawSpec) -> Result<Option<Raster>, SpecError> {
+        Ok(match &raw.reference {
             None => None,
             Some(v) => {
                 let name = self.text("reference", v)?;
@@ -74,19 +125,24 @@ impl Checker<'_> {
                     }
                 }
             }
-        };
-        let spec_profiles = match &raw.profiles {
-            None => Profile::ALL.to_vec(),
-            Some(p) if p.is_empty() => {
-                return Err(self.err("profiles", "lists no profile (omit it for all)"));
-            }
-            Some(p) => p.clone(),
-        };
+        })
+    }
+
+    /// The measures this profile runs (each with the spec's `reference` rasteriser when it
+    /// renders), and those it leaves out (a measure's own `profiles`, a subset of
+    /// `spec_profiles`) with the profiles they run in. Ids are unique.
+    fn measures<'r>(
+        &self,
+        raw: &'r RawSpec,
+        scenes: &BTreeMap<String, SceneSpec>,
+        reference: Option<Raster>,
+        spec_profiles: &[Profile],
+    ) -> Result<(Vec<Measure>, Elsewhere<'r>), SpecError> {
         let mut measures: Vec<Measure> = Vec::new();
         // Measures this profile leaves out (a measure's own `profiles`), with where they run.
-        let mut elsewhere: BTreeMap<&str, &[Profile]> = BTreeMap::new();
+        let mut elsewhere: Elsewhere<'r> = BTreeMap::new();
         for m in &raw.measures {
-            let mut checked = self.measure(m, &scenes)?;
+            let mut checked = self.measure(m, scenes)?;
             if matches!(checked.kind, MeasureKind::Run | MeasureKind::Sweep) {
                 checked.reference_raster = reference;
                 if let (Some(Raster::Compute), Some(k)) = (reference, checked.reference_kernel)
@@ -127,6 +183,17 @@ impl Checker<'_> {
                 }
             }
         }
+        Ok((measures, elsewhere))
+    }
+
+    /// The rows this profile checks, and those it leaves out with the measures they read
+    /// (`elsewhere`); at least one of the spec's rows, and at least one here.
+    fn rows(
+        &self,
+        raw: &RawSpec,
+        measures: &[Measure],
+        elsewhere: &Elsewhere<'_>,
+    ) -> Result<(Vec<Row>, Vec<RowElsewhere>), SpecError> {
         if raw.rows.is_empty() {
             return Err(self.err("row", "a spec needs at least one [[row]]"));
         }
@@ -135,12 +202,12 @@ impl Checker<'_> {
         for (i, r) in raw.rows.iter().enumerate() {
             // A row that reads a measure this profile leaves out is left out with it (it is
             // checked in the profiles that run the measure).
-            match self.row_profiles(i, r, &elsewhere)? {
+            match self.row_profiles(i, r, elsewhere)? {
                 Some(p) => rows_elsewhere.push(RowElsewhere {
                     what: r.what.clone(),
                     profiles: p,
                 }),
-                None => rows.push(self.row(i, r, &measures)?),
+                None => rows.push(self.row(i, r, measures)?),
             }
         }
         if rows.is_empty() {
@@ -152,6 +219,17 @@ impl Checker<'_> {
                 ),
             ));
         }
+        Ok((rows, rows_elsewhere))
+    }
+
+    /// The figures, each of the sweep measures this profile runs (a figure all of whose
+    /// sweeps run elsewhere is left out).
+    fn figures(
+        &self,
+        raw: &RawSpec,
+        measures: &[Measure],
+        elsewhere: &Elsewhere<'_>,
+    ) -> Result<Vec<Figure>, SpecError> {
         let mut figures = Vec::new();
         for f in &raw.figures {
             let field = format!("figure '{}'", f.name);
@@ -190,32 +268,7 @@ impl Checker<'_> {
                 sweeps,
             });
         }
-        let spec = Spec {
-            file: self.file.to_path_buf(),
-            id: raw.id.clone(),
-            paper: raw.paper.clone(),
-            title: raw.title.clone(),
-            source: raw.source.clone(),
-            notes: raw.notes.clone(),
-            profiles: spec_profiles,
-            scenes,
-            measures,
-            rows,
-            rows_elsewhere,
-            figures,
-        };
-        let used = spec.measure_uses();
-        if let Some(m) = spec
-            .measures
-            .iter()
-            .find(|m| !used.contains_key(m.id.as_str()))
-        {
-            return Err(self.err(
-                format!("measure '{}'", m.id),
-                "no row, reason or figure uses it (remove it, or add a row)",
-            ));
-        }
-        Ok(spec)
+        Ok(figures)
     }
 
     /// A value that may differ by profile: `v` itself, or its entry for the profile when it
@@ -362,17 +415,118 @@ impl Checker<'_> {
         let method = MethodKind::from_name(&m.method)
             .map_err(|e| self.err(field("method"), param_message(&e)))?;
         let is_render = matches!(m.kind, MeasureKind::Run | MeasureKind::Sweep);
-        let deny = |name: &str, given: bool| {
-            if given {
-                Err(self.err(
-                    field(name),
-                    format!("does not apply to a {:?} measure", m.kind).to_lowercase(),
-                ))
-            } else {
-                Ok(())
+        let (build_params, runtime_params) = self.measure_params(m, method, &field)?;
+        let scene = self.measure_scene(m, scenes, &field)?;
+        // Plans.
+        let points = match (&m.points, m.kind) {
+            (Some(v), MeasureKind::Plan) => Some(self.count(&field("points"), v)?),
+            (None, MeasureKind::Plan) => {
+                return Err(self.err(field("points"), "a plan needs `points`"));
             }
+            (Some(_), _) => return Err(self.err(field("points"), "belongs to plan measures")),
+            (None, _) => None,
         };
-        // Parameters: TOML values as `--param` text, split into build and runtime keys.
+        if m.kind == MeasureKind::Plan && method != MethodKind::Mwkd {
+            return Err(self.err(field("method"), "only mwkd can plan a tree without data"));
+        }
+        if !is_render {
+            for (name, given) in [
+                ("path", m.path.is_some()),
+                ("frames", m.frames.is_some()),
+                ("skip", m.skip.is_some()),
+                ("eps", m.eps.is_some()),
+                ("budget", m.budget.is_some()),
+                ("width", m.width.is_some()),
+                ("height", m.height.is_some()),
+                ("kernel", m.kernel.is_some()),
+                ("gpu_cache_mb", m.gpu_cache_mb.is_some()),
+                ("metrics", m.metrics.is_some()),
+                ("isolate", m.isolate.is_some()),
+            ] {
+                self.deny(m, &field, name, given)?;
+            }
+        }
+        // Rendering.
+        let (path, path_text) = if is_render {
+            let (spec, resolved) = self.measure_path(m, &field)?;
+            (Some(spec), Some(resolved))
+        } else {
+            (None, None)
+        };
+        if m.isolate == Some(true) && m.kind != MeasureKind::Run {
+            return Err(self.err(field("isolate"), "only a run measure can be isolated"));
+        }
+        let (frames, skip) = self.frames_and_skip(m, is_render, &field)?;
+        let targets = if is_render {
+            self.targets(m, &field)?
+        } else {
+            Vec::new()
+        };
+        let kernel = match &m.kernel {
+            None => Kernel::Square,
+            Some(k) => self.kernel_named(&field, "kernel", k)?,
+        };
+        self.deny(
+            m,
+            &field,
+            "reference_kernel",
+            m.reference_kernel.is_some() && !is_render,
+        )?;
+        let reference_kernel = m
+            .reference_kernel
+            .as_deref()
+            .map(|k| self.kernel_named(&field, "reference_kernel", k))
+            .transpose()?;
+        Ok(Measure {
+            id: m.id.clone(),
+            kind: m.kind,
+            method,
+            scene,
+            build_params,
+            runtime_params,
+            path,
+            path_text,
+            frames,
+            skip,
+            targets,
+            width: self.image_size(&field, "width", &m.width)?,
+            height: self.image_size(&field, "height", &m.height)?,
+            kernel,
+            gpu_cache_mb: m.gpu_cache_mb.unwrap_or(512),
+            metrics: m.metrics.unwrap_or(true),
+            isolate: m.isolate.unwrap_or(false),
+            points,
+            reference_raster: None,
+            reference_kernel,
+        })
+    }
+
+    /// An error when field `name` of measure `m` is `given` but does not apply to its kind.
+    fn deny(
+        &self,
+        m: &RawMeasure,
+        field: &dyn Fn(&str) -> String,
+        name: &str,
+        given: bool,
+    ) -> Result<(), SpecError> {
+        if given {
+            Err(self.err(
+                field(name),
+                format!("does not apply to a {:?} measure", m.kind).to_lowercase(),
+            ))
+        } else {
+            Ok(())
+        }
+    }
+
+    /// A measure's parameters: TOML values as `--param` text, checked for `method`, split
+    /// into build and runtime keys (a build measure takes no runtime key).
+    fn measure_params(
+        &self,
+        m: &RawMeasure,
+        method: MethodKind,
+        field: &dyn Fn(&str) -> String,
+    ) -> Result<(Params, Params), SpecError> {
         let mut pairs = Vec::new();
         for (k, v) in &m.params {
             let (v, _) = self.for_profile(&field(&format!("params.{k}")), v)?;
@@ -417,8 +571,17 @@ impl Checker<'_> {
                 ),
             ));
         }
-        // Scene.
-        let scene = match (&m.scene, m.kind) {
+        Ok((build_params, runtime_params))
+    }
+
+    /// A measure's scene: one of `scenes`, required except for a plan (which has none).
+    fn measure_scene(
+        &self,
+        m: &RawMeasure,
+        scenes: &BTreeMap<String, SceneSpec>,
+        field: &dyn Fn(&str) -> String,
+    ) -> Result<Option<String>, SpecError> {
+        Ok(match (&m.scene, m.kind) {
             (None, MeasureKind::Plan) => None,
             (Some(_), MeasureKind::Plan) => {
                 return Err(self.err(field("scene"), "a plan has no data: give `points`"));
@@ -439,66 +602,49 @@ impl Checker<'_> {
                 ));
             }
             (Some(s), _) => Some(s.clone()),
-        };
-        // Plans.
-        let points = match (&m.points, m.kind) {
-            (Some(v), MeasureKind::Plan) => Some(self.count(&field("points"), v)?),
-            (None, MeasureKind::Plan) => {
-                return Err(self.err(field("points"), "a plan needs `points`"));
-            }
-            (Some(_), _) => return Err(self.err(field("points"), "belongs to plan measures")),
-            (None, _) => None,
-        };
-        if m.kind == MeasureKind::Plan && method != MethodKind::Mwkd {
-            return Err(self.err(field("method"), "only mwkd can plan a tree without data"));
-        }
-        if !is_render {
-            for (name, given) in [
-                ("path", m.path.is_some()),
-                ("frames", m.frames.is_some()),
-                ("skip", m.skip.is_some()),
-                ("eps", m.eps.is_some()),
-                ("budget", m.budget.is_some()),
-                ("width", m.width.is_some()),
-                ("height", m.height.is_some()),
-                ("kernel", m.kernel.is_some()),
-                ("gpu_cache_mb", m.gpu_cache_mb.is_some()),
-                ("metrics", m.metrics.is_some()),
-                ("isolate", m.isolate.is_some()),
-            ] {
-                deny(name, given)?;
-            }
-        }
-        // Rendering.
-        let (path, path_text) = if is_render {
-            let text = m.path.as_deref().unwrap_or("orbit");
-            let (spec, resolved) = if PathSpec::builtin(text).is_some() {
+        })
+    }
+
+    /// A rendering measure's camera path (`orbit` unless given): a built-in one, or a file
+    /// relative to the spec's root; with its text as resolved.
+    fn measure_path(
+        &self,
+        m: &RawMeasure,
+        field: &dyn Fn(&str) -> String,
+    ) -> Result<(PathSpec, String), SpecError> {
+        let text = m.path.as_deref().unwrap_or("orbit");
+        let (spec, resolved) =
+            if PathSpec::builtin(text).is_some() {
                 (PathSpec::parse(text), text.to_string())
             } else {
                 let p = self.root.join(text);
                 if !p.is_file() {
                     return Err(self.err(
-                        field("path"),
-                        format!(
-                            "'{text}' is neither a built-in path ({}) nor a file ({} does not exist)",
-                            PathSpec::BUILTIN.iter().map(|b| b.0).collect::<Vec<_>>().join(", "),
-                            p.display()
-                        ),
-                    ));
+                    field("path"),
+                    format!(
+                        "'{text}' is neither a built-in path ({}) nor a file ({} does not exist)",
+                        PathSpec::BUILTIN.iter().map(|b| b.0).collect::<Vec<_>>().join(", "),
+                        p.display()
+                    ),
+                ));
                 }
                 let resolved = p.to_string_lossy().into_owned();
                 (PathSpec::parse(&resolved), resolved)
             };
-            (
-                Some(spec.map_err(|e| self.err(field("path"), e.to_string()))?),
-                Some(resolved),
-            )
-        } else {
-            (None, None)
-        };
-        if m.isolate == Some(true) && m.kind != MeasureKind::Run {
-            return Err(self.err(field("isolate"), "only a run measure can be isolated"));
-        }
+        Ok((
+            spec.map_err(|e| self.err(field("path"), e.to_string()))?,
+            resolved,
+        ))
+    }
+
+    /// A measure's frame count and frames skipped: a rendering measure needs at least one
+    /// frame, and one left after the skipped ones.
+    fn frames_and_skip(
+        &self,
+        m: &RawMeasure,
+        is_render: bool,
+        field: &dyn Fn(&str) -> String,
+    ) -> Result<(usize, usize), SpecError> {
         let frames = match &m.frames {
             Some(v) => self.count(&field("frames"), v)? as usize,
             None if is_render => return Err(self.err(field("frames"), "is required")),
@@ -517,72 +663,47 @@ impl Checker<'_> {
                 format!("{skip} leaves none of the {frames} frames"),
             ));
         }
-        let targets = if is_render {
-            self.targets(m, &field)?
-        } else {
-            Vec::new()
-        };
-        let size = |name: &str, v: &Option<toml::Value>| -> Result<u32, SpecError> {
-            match v {
-                None => Ok(512),
-                Some(v) => {
-                    let n = self.count(&field(name), v)?;
-                    if (1..=16_384).contains(&n) {
-                        Ok(n as u32)
-                    } else {
-                        Err(self.err(field(name), format!("{n} px is outside 1…16384")))
-                    }
+        Ok((frames, skip))
+    }
+
+    /// An image side (field `name`): 512 unless given, else 1…16384 pixels.
+    fn image_size(
+        &self,
+        field: &dyn Fn(&str) -> String,
+        name: &str,
+        v: &Option<toml::Value>,
+    ) -> Result<u32, SpecError> {
+        match v {
+            None => Ok(512),
+            Some(v) => {
+                let n = self.count(&field(name), v)?;
+                if (1..=16_384).contains(&n) {
+                    Ok(n as u32)
+                } else {
+                    Err(self.err(field(name), format!("{n} px is outside 1…16384")))
                 }
             }
-        };
-        let kernel_named = |name: &str, k: &str| {
-            Kernel::ALL
-                .iter()
-                .copied()
-                .find(|x| x.name() == k)
-                .ok_or_else(|| {
-                    let known: Vec<_> = Kernel::ALL.iter().map(|x| x.name()).collect();
-                    self.err(
-                        field(name),
-                        format!("unknown kernel '{k}' (known: {})", known.join(", ")),
-                    )
-                })
-        };
-        let kernel = match &m.kernel {
-            None => Kernel::Square,
-            Some(k) => kernel_named("kernel", k)?,
-        };
-        deny(
-            "reference_kernel",
-            m.reference_kernel.is_some() && !is_render,
-        )?;
-        let reference_kernel = m
-            .reference_kernel
-            .as_deref()
-            .map(|k| kernel_named("reference_kernel", k))
-            .transpose()?;
-        Ok(Measure {
-            id: m.id.clone(),
-            kind: m.kind,
-            method,
-            scene,
-            build_params,
-            runtime_params,
-            path,
-            path_text,
-            frames,
-            skip,
-            targets,
-            width: size("width", &m.width)?,
-            height: size("height", &m.height)?,
-            kernel,
-            gpu_cache_mb: m.gpu_cache_mb.unwrap_or(512),
-            metrics: m.metrics.unwrap_or(true),
-            isolate: m.isolate.unwrap_or(false),
-            points,
-            reference_raster: None,
-            reference_kernel,
-        })
+        }
+    }
+
+    /// The splat kernel named `k` (field `name`).
+    fn kernel_named(
+        &self,
+        field: &dyn Fn(&str) -> String,
+        name: &str,
+        k: &str,
+    ) -> Result<Kernel, SpecError> {
+        Kernel::ALL
+            .iter()
+            .copied()
+            .find(|x| x.name() == k)
+            .ok_or_else(|| {
+                let known: Vec<_> = Kernel::ALL.iter().map(|x| x.name()).collect();
+                self.err(
+                    field(name),
+                    format!("unknown kernel '{k}' (known: {})", known.join(", ")),
+                )
+            })
     }
 
     fn targets(

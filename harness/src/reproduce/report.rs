@@ -62,6 +62,22 @@ fn cell(s: &str) -> String {
 /// The report's markdown.
 pub fn markdown(meta: &Meta, tables: &[TableResult], figures: &str) -> String {
     let mut o = String::new();
+    header(&mut o, meta);
+    summary(&mut o, tables);
+    for t in tables {
+        table_section(&mut o, meta, t, figures);
+    }
+    let _ = write!(
+        o,
+        "\n{}",
+        super::inputs::markdown(&meta.spec_hashes, meta.baseline_hash.as_deref())
+    );
+    o
+}
+
+/// The title, the command, and the commit, date, adapter, machine and time of the
+/// reproduction.
+fn header(o: &mut String, meta: &Meta) {
     let _ = writeln!(o, "# Reproduction report — profile `{}`\n", meta.profile);
     let _ = writeln!(
         o,
@@ -100,6 +116,10 @@ pub fn markdown(meta: &Meta, tables: &[TableResult], figures: &str) -> String {
              error) do not depend on the adapter.\n"
         );
     }
+}
+
+/// The table of tables: each one's verdict, its rows' verdicts counted, and its time.
+fn summary(o: &mut String, tables: &[TableResult]) {
     let _ = writeln!(
         o,
         "A table's time includes the builds it was the first to need (later tables reuse them).\n"
@@ -134,127 +154,129 @@ pub fn markdown(meta: &Meta, tables: &[TableResult], figures: &str) -> String {
             t.seconds
         );
     }
-    for t in tables {
-        let _ = writeln!(
-            o,
-            "\n<a id=\"{}\"></a>\n## {} — {}\n",
-            t.id,
-            cell(&t.paper),
-            t.title
-        );
-        let _ = writeln!(
-            o,
-            "Source: {}. Spec `{}`. Verdict: **{}**. Took {:.1} s. Regenerate: `splatbench \
-             reproduce --profile {} --only {}`.\n",
-            t.source.trim_end_matches('.'),
-            t.file,
-            t.verdict.word(),
-            t.seconds,
-            meta.profile,
-            t.id
-        );
-        if let Verdict::Failed(e) = &t.verdict {
-            let _ = writeln!(o, "**Failed:** {}\n", cell(e));
-        }
-        let _ = writeln!(o, "| what | paper | ours | ours / paper | rule | verdict |");
-        let _ = writeln!(o, "|---|---|---|---|---|---|");
-        for r in &t.rows {
-            let _ = writeln!(
-                o,
-                "| {} | {} | {} | {} | {} | {} |",
-                cell(&r.what),
-                cell(&r.paper),
-                cell(&r.ours_text),
-                r.ratio.map_or("—".into(), |x| format!("{x:.2}")),
-                cell(&r.rule),
-                match &r.verdict {
-                    Verdict::Failed(e) => format!("failed: {}", cell(e)),
-                    v => v.word().to_string(),
-                }
-            );
-        }
-        bullets(
-            &mut o,
-            "Where it differs",
-            t.rows
-                .iter()
-                .filter_map(|r| Some((format!("*{}*", r.what), r.reason.as_ref()?))),
-        );
-        bullets(
-            &mut o,
-            "Bands",
-            t.rows.iter().filter_map(|r| {
-                Some((
-                    format!("*{}* ({})", r.what, r.rule),
-                    r.band_reason.as_ref()?,
-                ))
-            }),
-        );
-        if !t.rows_elsewhere.is_empty() {
-            let _ = writeln!(
-                o,
-                "\nRows this profile leaves out (measured in the profiles named): {}.",
-                t.rows_elsewhere
-                    .iter()
-                    .map(|r| {
-                        let p: Vec<String> = r.profiles.iter().map(|p| p.to_string()).collect();
-                        format!("*{}* ({})", cell(&r.what), p.join(", "))
-                    })
-                    .collect::<Vec<_>>()
-                    .join("; ")
-            );
-        }
-        if let Some(n) = &t.notes {
-            let _ = writeln!(o, "\n{}", n.trim());
-        }
-        for (id, label, lines) in &t.sweeps {
-            let _ = writeln!(o, "\nSweep `{id}` ({}):\n", cell(label));
-            let _ = writeln!(
-                o,
-                "| target | points (median) | FLIP (median) | holes (median / max) | PSNR dB |"
-            );
-            let _ = writeln!(o, "|---|---|---|---|---|");
-            let f = |v: Option<f64>, fmt: Format| v.map_or("—".into(), |v| format_value(v, fmt));
-            for l in lines {
-                let _ = writeln!(
-                    o,
-                    "| {} | {} | {} | {} / {} | {} |",
-                    l.target,
-                    f(l.points, Format::Int),
-                    l.flip.map_or("—".into(), |v| format!("{v:.4}")),
-                    f(l.holes, Format::Percent),
-                    f(l.holes_max, Format::Percent),
-                    l.psnr.map_or("—".into(), |v| format!("{v:.1}")),
-                );
-            }
-        }
-        for (title, png, svg) in &t.figures {
-            let _ = writeln!(
-                o,
-                "\n![{}]({figures}/{png})\n\n{} ([SVG]({figures}/{svg}))",
-                cell(title),
-                title
-            );
-        }
-        let _ = writeln!(o, "\n<details><summary>Measures</summary>\n");
-        for m in &t.measures {
-            let _ = writeln!(
-                o,
-                "- `{}`: {} — {} ({:.1} s)",
-                m.id,
-                m.what,
-                cell(&m.status),
-                m.seconds
-            );
-        }
-        let _ = writeln!(o, "\n</details>");
-    }
-    let _ = write!(
+}
+
+/// One table's section: its rows and their reasons, the rows left out, its notes, sweeps,
+/// figures (linked under `figures`) and measures.
+fn table_section(o: &mut String, meta: &Meta, t: &TableResult, figures: &str) {
+    let _ = writeln!(
         o,
-        "\n{}",
-        super::inputs::markdown(&meta.spec_hashes, meta.baseline_hash.as_deref())
+        "\n<a id=\"{}\"></a>\n## {} — {}\n",
+        t.id,
+        cell(&t.paper),
+        t.title
     );
-    o
+    let _ = writeln!(
+        o,
+        "Source: {}. Spec `{}`. Verdict: **{}**. Took {:.1} s. Regenerate: `splatbench \
+         reproduce --profile {} --only {}`.\n",
+        t.source.trim_end_matches('.'),
+        t.file,
+        t.verdict.word(),
+        t.seconds,
+        meta.profile,
+        t.id
+    );
+    if let Verdict::Failed(e) = &t.verdict {
+        let _ = writeln!(o, "**Failed:** {}\n", cell(e));
+    }
+    let _ = writeln!(o, "| what | paper | ours | ours / paper | rule | verdict |");
+    let _ = writeln!(o, "|---|---|---|---|---|---|");
+    for r in &t.rows {
+        let _ = writeln!(
+            o,
+            "| {} | {} | {} | {} | {} | {} |",
+            cell(&r.what),
+            cell(&r.paper),
+            cell(&r.ours_text),
+            r.ratio.map_or("—".into(), |x| format!("{x:.2}")),
+            cell(&r.rule),
+            match &r.verdict {
+                Verdict::Failed(e) => format!("failed: {}", cell(e)),
+                v => v.word().to_string(),
+            }
+        );
+    }
+    bullets(
+        o,
+        "Where it differs",
+        t.rows
+            .iter()
+            .filter_map(|r| Some((format!("*{}*", r.what), r.reason.as_ref()?))),
+    );
+    bullets(
+        o,
+        "Bands",
+        t.rows.iter().filter_map(|r| {
+            Some((
+                format!("*{}* ({})", r.what, r.rule),
+                r.band_reason.as_ref()?,
+            ))
+        }),
+    );
+    if !t.rows_elsewhere.is_empty() {
+        let _ = writeln!(
+            o,
+            "\nRows this profile leaves out (measured in the profiles named): {}.",
+            t.rows_elsewhere
+                .iter()
+                .map(|r| {
+                    let p: Vec<String> = r.profiles.iter().map(|p| p.to_string()).collect();
+                    format!("*{}* ({})", cell(&r.what), p.join(", "))
+                })
+                .collect::<Vec<_>>()
+                .join("; ")
+        );
+    }
+    if let Some(n) = &t.notes {
+        let _ = writeln!(o, "\n{}", n.trim());
+    }
+    sweeps(o, t);
+    for (title, png, svg) in &t.figures {
+        let _ = writeln!(
+            o,
+            "\n![{}]({figures}/{png})\n\n{} ([SVG]({figures}/{svg}))",
+            cell(title),
+            title
+        );
+    }
+    let _ = writeln!(o, "\n<details><summary>Measures</summary>\n");
+    for m in &t.measures {
+        let _ = writeln!(
+            o,
+            "- `{}`: {} — {} ({:.1} s)",
+            m.id,
+            m.what,
+            cell(&m.status),
+            m.seconds
+        );
+    }
+    let _ = writeln!(o, "\n</details>");
+}
+
+/// A table per sweep of the table: per target, the medians of points, FLIP, holes and PSNR.
+fn sweeps(o: &mut String, t: &TableResult) {
+    for (id, label, lines) in &t.sweeps {
+        let _ = writeln!(o, "\nSweep `{id}` ({}):\n", cell(label));
+        let _ = writeln!(
+            o,
+            "| target | points (median) | FLIP (median) | holes (median / max) | PSNR dB |"
+        );
+        let _ = writeln!(o, "|---|---|---|---|---|");
+        let f = |v: Option<f64>, fmt: Format| v.map_or("—".into(), |v| format_value(v, fmt));
+        for l in lines {
+            let _ = writeln!(
+                o,
+                "| {} | {} | {} | {} / {} | {} |",
+                l.target,
+                f(l.points, Format::Int),
+                l.flip.map_or("—".into(), |v| format!("{v:.4}")),
+                f(l.holes, Format::Percent),
+                f(l.holes_max, Format::Percent),
+                l.psnr.map_or("—".into(), |v| format!("{v:.1}")),
+            );
+        }
+    }
 }
 
 /// A titled list `- label: text` of the rows that have a text (nothing when none has).

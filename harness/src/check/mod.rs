@@ -427,6 +427,9 @@ fn identity(key: &str, old: &RunRecord, new: &RunRecord) -> Result<(), Unusable>
     Ok(())
 }
 
+/// Compares run `key` of this run (`new`) with the baseline's (`old`) within `tol`: the run's
+/// facts, its build figures, its frames' columns, and its times; a row that is not the same
+/// goes into `report`.
 fn compare_run(
     key: &str,
     old: &RunRecord,
@@ -441,7 +444,27 @@ fn compare_run(
     } else {
         &tol.other_adapter
     };
-    let row = |figure: String, at: String, old_v: String, new_v: String, allowed: String, v| Row {
+    let mut run = RunCompare {
+        key,
+        old,
+        new,
+        opts,
+        report,
+    };
+    run.facts();
+    run.build_figures();
+    run.frames(same_adapter, tolerance);
+    run.new_columns();
+    run.times();
+}
+
+/// The rows of run `key` (method and scene as the baseline's `old` names them): a row from
+/// figure, where, old and new value, what is allowed and the verdict.
+fn rows_of<'a>(
+    key: &'a str,
+    old: &'a RunRecord,
+) -> impl Fn(String, String, String, String, String, Verdict) -> Row + 'a {
+    move |figure: String, at: String, old_v: String, new_v: String, allowed: String, v| Row {
         figure,
         run: key.to_string(),
         method: old.method_label(),
@@ -452,16 +475,32 @@ fn compare_run(
         allowed,
         verdict: v,
         ratio: None,
-    };
-    let push = |r: Row, report: &mut Report| {
-        report.compared += 1;
+    }
+}
+
+/// One run's comparison in progress.
+struct RunCompare<'a> {
+    key: &'a str,
+    old: &'a RunRecord,
+    new: &'a RunRecord,
+    opts: Options,
+    report: &'a mut Report,
+}
+
+impl RunCompare<'_> {
+    /// Counts a compared figure; keeps its row unless it is the same.
+    fn push(&mut self, r: Row) {
+        self.report.compared += 1;
         if r.verdict != Verdict::Same {
-            report.rows.push(r);
+            self.report.rows.push(r);
         }
-    };
-    // Run-level facts.
-    push(
-        row(
+    }
+
+    /// Run-level facts: complete, the scene's points and content hash.
+    fn facts(&mut self) {
+        let (old, new) = (self.old, self.new);
+        let row = rows_of(self.key, old);
+        self.push(row(
             "complete".into(),
             old.target.clone(),
             old.complete.to_string(),
@@ -472,136 +511,151 @@ fn compare_run(
             } else {
                 Verdict::Fails
             },
-        ),
-        report,
-    );
-    for (figure, a, b) in [
-        (
-            "scene.points",
-            old.scene_points.to_string(),
-            new.scene_points.to_string(),
-        ),
-        (
-            "scene.content_hash",
-            old.content_hash.clone(),
-            new.content_hash.clone(),
-        ),
-    ] {
-        let v = if a == b {
-            Verdict::Same
-        } else {
-            Verdict::Fails
-        };
-        push(
-            row(figure.into(), old.target.clone(), a, b, "exact".into(), v),
-            report,
-        );
-    }
-    // Build figures.
-    let keys: BTreeSet<&String> = old.build.keys().chain(new.build.keys()).collect();
-    for k in keys {
-        let (a, b) = (old.build.get(k).copied(), new.build.get(k).copied());
-        let at = format!("{} · build", old.target);
-        let fig = format!("build.{k}");
-        match build_class(k) {
-            Class::Timing => {
-                if let (Some(a), Some(b)) = (a, b) {
-                    push(timing_row(&row, fig, at, a, b, opts, is_rate(k)), report);
-                }
-            }
-            Class::Machine => {}
-            _ => push(exact_row(&row, fig, at, a, b), report),
+        ));
+        for (figure, a, b) in [
+            (
+                "scene.points",
+                old.scene_points.to_string(),
+                new.scene_points.to_string(),
+            ),
+            (
+                "scene.content_hash",
+                old.content_hash.clone(),
+                new.content_hash.clone(),
+            ),
+        ] {
+            let v = if a == b {
+                Verdict::Same
+            } else {
+                Verdict::Fails
+            };
+            self.push(row(
+                figure.into(),
+                old.target.clone(),
+                a,
+                b,
+                "exact".into(),
+                v,
+            ));
         }
     }
-    // Frames, aligned by frame number.
-    let traits = RunTraits::of(&new.method, &new.params, &new.column_names());
-    let (old_frames, new_frames) = (old.frame_numbers(), new.frame_numbers());
-    let new_index: BTreeMap<u64, usize> = new_frames
-        .iter()
-        .enumerate()
-        .map(|(i, f)| (*f, i))
-        .collect();
-    for (i, f) in old_frames.iter().enumerate() {
-        let at = format!("{} · frame {f}", old.target);
-        let Some(&j) = new_index.get(f) else {
-            push(
-                row(
+
+    /// Build figures: timings as ratios, machine figures not at all, the others exactly.
+    fn build_figures(&mut self) {
+        let (old, new, opts) = (self.old, self.new, self.opts);
+        let row = rows_of(self.key, old);
+        let keys: BTreeSet<&String> = old.build.keys().chain(new.build.keys()).collect();
+        for k in keys {
+            let (a, b) = (old.build.get(k).copied(), new.build.get(k).copied());
+            let at = format!("{} · build", old.target);
+            let fig = format!("build.{k}");
+            match build_class(k) {
+                Class::Timing => {
+                    if let (Some(a), Some(b)) = (a, b) {
+                        self.push(timing_row(&row, fig, at, a, b, opts, is_rate(k)));
+                    }
+                }
+                Class::Machine => {}
+                _ => self.push(exact_row(&row, fig, at, a, b)),
+            }
+        }
+    }
+
+    /// Frames, aligned by frame number: each baseline column's value by its class (exact,
+    /// the adapter's, an image metric within `tolerance`; timings and machine figures not
+    /// here).
+    fn frames(&mut self, same_adapter: bool, tolerance: &ImageTolerance) {
+        let (old, new) = (self.old, self.new);
+        let row = rows_of(self.key, old);
+        let traits = RunTraits::of(&new.method, &new.params, &new.column_names());
+        let (old_frames, new_frames) = (old.frame_numbers(), new.frame_numbers());
+        let new_index: BTreeMap<u64, usize> = new_frames
+            .iter()
+            .enumerate()
+            .map(|(i, f)| (*f, i))
+            .collect();
+        for (i, f) in old_frames.iter().enumerate() {
+            let at = format!("{} · frame {f}", old.target);
+            let Some(&j) = new_index.get(f) else {
+                self.push(row(
                     "frame".into(),
                     at,
                     "present".into(),
                     "absent".into(),
                     "present".into(),
                     Verdict::Missing,
-                ),
-                report,
-            );
-            continue;
-        };
-        for (c, values) in &old.columns {
-            if c == "frame" {
+                ));
                 continue;
-            }
-            let a = values.get(i).copied().flatten();
-            let Some(new_values) = new.columns.get(c) else {
-                push(
-                    row(
+            };
+            for (c, values) in &old.columns {
+                if c == "frame" {
+                    continue;
+                }
+                let a = values.get(i).copied().flatten();
+                let Some(new_values) = new.columns.get(c) else {
+                    self.push(row(
                         c.clone(),
                         at.clone(),
                         show(a),
                         "no column".into(),
                         "present".into(),
                         Verdict::Missing,
+                    ));
+                    continue;
+                };
+                let b = new_values.get(j).copied().flatten();
+                let class = column_class(c, traits);
+                let r = match class {
+                    Class::Exact => exact_row(&row, c.clone(), at.clone(), a, b),
+                    Class::Adapter if same_adapter => exact_row(&row, c.clone(), at.clone(), a, b),
+                    Class::Adapter => row(
+                        c.clone(),
+                        at.clone(),
+                        show(a),
+                        show(b),
+                        "same adapter only".into(),
+                        if a == b {
+                            Verdict::Same
+                        } else {
+                            Verdict::OtherAdapter
+                        },
                     ),
-                    report,
-                );
-                continue;
-            };
-            let b = new_values.get(j).copied().flatten();
-            let class = column_class(c, traits);
-            let r = match class {
-                Class::Exact => exact_row(&row, c.clone(), at.clone(), a, b),
-                Class::Adapter if same_adapter => exact_row(&row, c.clone(), at.clone(), a, b),
-                Class::Adapter => row(
-                    c.clone(),
-                    at.clone(),
-                    show(a),
-                    show(b),
-                    "same adapter only".into(),
-                    if a == b {
-                        Verdict::Same
-                    } else {
-                        Verdict::OtherAdapter
-                    },
-                ),
-                Class::Image => image_row(&row, c, at.clone(), a, b, tolerance.of(c)),
-                Class::Timing | Class::Machine => continue,
-            };
-            push(r, report);
+                    Class::Image => image_row(&row, c, at.clone(), a, b, tolerance.of(c)),
+                    Class::Timing | Class::Machine => continue,
+                };
+                self.push(r);
+            }
         }
     }
-    for c in new.columns.keys().filter(|c| !old.columns.contains_key(*c)) {
-        push(
-            row(
+
+    /// Columns this run has and the baseline has not.
+    fn new_columns(&mut self) {
+        let (old, new) = (self.old, self.new);
+        let row = rows_of(self.key, old);
+        for c in new.columns.keys().filter(|c| !old.columns.contains_key(*c)) {
+            self.push(row(
                 c.clone(),
                 old.target.clone(),
                 "no column".into(),
                 "present".into(),
                 "-".into(),
                 Verdict::New,
-            ),
-            report,
-        );
+            ));
+        }
     }
-    // Times: the medians over the frames, as ratios.
-    for c in ["gpu_ms", "wall_ms", "cpu_select_ms"] {
-        let med = |r: &RunRecord| {
-            r.columns
-                .get(c)
-                .and_then(|v| crate::results::median(v.iter().flatten().copied()))
-        };
-        if let (Some(a), Some(b)) = (med(old), med(new)) {
-            push(
-                timing_row(
+
+    /// Times: the medians over the frames, as ratios; then the process's timings.
+    fn times(&mut self) {
+        let (old, new, opts) = (self.old, self.new, self.opts);
+        let row = rows_of(self.key, old);
+        for c in ["gpu_ms", "wall_ms", "cpu_select_ms"] {
+            let med = |r: &RunRecord| {
+                r.columns
+                    .get(c)
+                    .and_then(|v| crate::results::median(v.iter().flatten().copied()))
+            };
+            if let (Some(a), Some(b)) = (med(old), med(new)) {
+                self.push(timing_row(
                     &row,
                     format!("{c} (median)"),
                     old.target.clone(),
@@ -609,17 +663,21 @@ fn compare_run(
                     b,
                     opts,
                     false,
-                ),
-                report,
-            );
+                ));
+            }
         }
-    }
-    for (k, a) in &old.process {
-        if let (Class::Timing, Some(b)) = (process_class(k), new.process.get(k)) {
-            push(
-                timing_row(&row, k.clone(), old.target.clone(), *a, *b, opts, false),
-                report,
-            );
+        for (k, a) in &old.process {
+            if let (Class::Timing, Some(b)) = (process_class(k), new.process.get(k)) {
+                self.push(timing_row(
+                    &row,
+                    k.clone(),
+                    old.target.clone(),
+                    *a,
+                    *b,
+                    opts,
+                    false,
+                ));
+            }
         }
     }
 }

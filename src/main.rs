@@ -38,6 +38,11 @@ use clap::{Parser, Subcommand};
 struct Cli {
     #[command(subcommand)]
     command: Command,
+    /// Run even when a frame's images are estimated to need more memory than is available
+    /// (the estimate and its measurement: `harness::memory`; `SPLATBENCH_MEMORY_LIMIT_MB`
+    /// caps what a run counts on).
+    #[arg(long, global = true)]
+    skip_memory_check: bool,
 }
 
 #[derive(Subcommand)]
@@ -96,6 +101,7 @@ enum Command {
 
 fn main() -> std::process::ExitCode {
     let cli = Cli::parse();
+    harness::memory::skip_check(cli.skip_memory_check);
     quiet_headless_vulkan(&cli.command);
     // `check` has three outcomes (holds, regression, unusable input): its own exit status.
     // Returning the status (rather than `process::exit`) lets every destructor run first:

@@ -79,6 +79,7 @@ pub fn main(args: &RunArgs) -> anyhow::Result<()> {
     // Flags first: a bad value is reported without waiting for an adapter.
     let cfg = run_config(args)?;
     check_scene_file(&cfg.scene)?;
+    harness::memory::check_frame(&cfg.render, cfg.metrics)?;
     let gpu = open_gpu()?;
     let s = harness::runner::run(&cfg, &gpu, &harness::progress::Bar::new())?;
     let plots = harness::plot::plot_run(&cfg.out)?;

@@ -530,3 +530,64 @@ fn a_missing_scene_file_fails_before_the_adapter_line() {
         assert!(!out.exists(), "{command}: nothing written");
     }
 }
+
+/// A frame whose images are estimated to exceed the memory available is refused before the
+/// adapter is opened, naming the size flags, the estimate and the limit; a frame that fits
+/// is not; `--skip-memory-check` runs anyway. The limit is injected with
+/// `SPLATBENCH_MEMORY_LIMIT_MB` (64×64 with metrics: 180 B × 4,096 px = 0.74 MB).
+#[test]
+fn a_frame_too_large_for_memory_is_refused_with_the_estimate() {
+    let tmp = tempfile::tempdir().unwrap();
+    let out = tmp.path().join("o");
+    let run = |limit_mb: &str, extra: &[&str]| {
+        let mut cmd = bin();
+        cmd.env("SPLATBENCH_MEMORY_LIMIT_MB", limit_mb).args([
+            "run",
+            "--method",
+            "full",
+            "--scene",
+            "statue:500:1",
+            "--frames",
+            "1",
+            "--width",
+            "64",
+            "--height",
+            "64",
+            "--out",
+        ]);
+        cmd.arg(&out).args(extra);
+        cmd.output().unwrap()
+    };
+    let refused = run("0", &[]);
+    let err = String::from_utf8_lossy(&refused.stderr);
+    assert_eq!(refused.status.code(), Some(1), "{err}");
+    assert!(
+        err.contains("--width 64 --height 64: the frame's images need an estimated 0.7 MB")
+            && err.contains("more than the 0.0 MB available (SPLATBENCH_MEMORY_LIMIT_MB)")
+            && err.contains("--skip-memory-check"),
+        "{err}"
+    );
+    assert!(
+        !err.contains("adapter:"),
+        "refused before the adapter: {err}"
+    );
+    assert!(!out.exists(), "nothing written");
+    let bad = run("lots", &[]);
+    let err = String::from_utf8_lossy(&bad.stderr);
+    assert!(
+        err.contains("SPLATBENCH_MEMORY_LIMIT_MB=lots: not a whole number of MiB"),
+        "{err}"
+    );
+    if !have_gpu("a_frame_too_large_for_memory_is_refused_with_the_estimate") {
+        return;
+    }
+    for (limit, extra) in [("1", &[][..]), ("0", &["--skip-memory-check"][..])] {
+        let ok = run(limit, extra);
+        assert!(
+            ok.status.success(),
+            "limit {limit} MiB {extra:?}: {}",
+            String::from_utf8_lossy(&ok.stderr)
+        );
+        std::fs::remove_dir_all(&out).unwrap();
+    }
+}

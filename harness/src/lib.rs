@@ -8,6 +8,7 @@ pub mod cache;
 pub mod check;
 pub mod gpu;
 pub mod image;
+pub mod memory;
 pub mod metrics;
 pub mod plot;
 pub mod progress;

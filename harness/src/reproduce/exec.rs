@@ -396,6 +396,7 @@ impl<'a> Context<'a> {
         let t = m.targets.first().context("no target")?;
         let mut cmd = std::process::Command::new(exe);
         cmd.arg("run")
+            .args(crate::memory::check_skipped().then_some("--skip-memory-check"))
             .args(["--method", m.method.name(), "--scene", &scene.text])
             .args(["--seed", &scene_seed(scene).to_string()])
             .args(["--path", m.path_text.as_deref().unwrap_or("orbit")])

@@ -383,8 +383,9 @@ pub fn run(cfg: &RunConfig, gpu: &Gpu, progress: &dyn Progress) -> anyhow::Resul
     run.finish(&rows, &traffic, &summary_path, t_run)
 }
 
-/// Checks what a run can check before it loads anything: the frame count, the target and
-/// the method's parameters. Returns the validated target.
+/// Checks what a run can check before it loads anything: the frame count, the target, the
+/// method's parameters and whether the frame's images fit in memory ([`crate::memory`]).
+/// Returns the validated target.
 fn check_config(cfg: &RunConfig) -> anyhow::Result<Target> {
     anyhow::ensure!(cfg.frames >= 1, "--frames must be at least 1");
     anyhow::ensure!(
@@ -394,6 +395,7 @@ fn check_config(cfg: &RunConfig) -> anyhow::Result<Target> {
     );
     let target = cfg.target.validate()?;
     cfg.method.check_params(&cfg.params)?;
+    crate::memory::check_frame(&cfg.render, cfg.metrics)?;
     Ok(target)
 }
 

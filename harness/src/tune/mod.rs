@@ -188,6 +188,7 @@ impl Record {
 fn child(exe: &Path, args: &[String]) -> anyhow::Result<()> {
     let out = Command::new(exe)
         .args(args)
+        .args(crate::memory::check_skipped().then_some("--skip-memory-check"))
         .stdin(std::process::Stdio::null())
         .output()
         .with_context(|| format!("starting {}", exe.display()))?;

@@ -132,6 +132,8 @@ impl<'g> Session<'g> {
         );
         anyhow::ensure!(cfg.play_frames >= 2, "--play-frames must be at least 2");
         let render = scene.render;
+        // The viewer draws a reference and FLIP for its HUD: the frame's images with metrics.
+        crate::memory::check_frame(&render, true)?;
         let mut slots = Vec::new();
         for (kind, params) in &cfg.methods {
             kind.check_params(params)?;

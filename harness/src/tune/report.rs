@@ -6,7 +6,7 @@ use std::collections::BTreeMap;
 use std::fmt::Write as _;
 
 use super::pareto::{self, Ranking};
-use super::{Plan, Setting, TuneRow};
+use super::{Cost, Plan, Setting, TuneRow};
 
 /// A margin below this share of the best error is called a tie in practice, however
 /// repeatable: reading errors off curves at a common cost is itself only this exact.
@@ -147,7 +147,7 @@ impl<'a> Report<'a> {
             o,
             "Adapter {adapter}, commit {commit}. Grid: {}{}. Path {}; targets {}. Cost: {}. \
              Error: the median over the frames of the mean FLIP against the full-resolution \
-             reference. Each run made {} time(s): run-to-run noise is the largest change of a \
+             reference. Each run was made {}: run-to-run noise is the largest change of a \
              setting's error at the common cost when a repeat replaces the run.\n",
             axes.join("; "),
             if plan.grid.fixed.is_empty() {
@@ -170,7 +170,10 @@ impl<'a> Report<'a> {
                 .collect::<Vec<_>>()
                 .join(", "),
             plan.cost.describe(),
-            plan.repeats
+            match plan.repeats {
+                1 => "once".to_string(),
+                n => format!("{n} times"),
+            }
         )?;
         let default_text: Vec<String> = plan
             .grid
@@ -283,7 +286,7 @@ impl<'a> Report<'a> {
             [(best, e1), (second, e2), ..] => {
                 let margin = e2 - e1;
                 let (n1, n2) = (self.noise(tr, *best), self.noise(tr, *second));
-                let verdict = noise_verdict(margin, n1, n2);
+                let verdict = noise_verdict(margin, n1, n2, self.plan.cost);
                 let share = if *e1 > 0.0 { margin / e1 } else { 0.0 };
                 writeln!(
                     o,
@@ -332,7 +335,7 @@ impl<'a> Report<'a> {
                 num(r.cost),
                 num(r.sweep.points_drawn_median),
                 r.sweep.hole_ratio_median.map_or("-".into(), num),
-                self.noise(tr, *s).map_or("-".into(), num),
+                noise_cell(self.noise(tr, *s)),
                 if self.default == Some(*s) { "✓" } else { "" }
             )?;
         }
@@ -365,8 +368,24 @@ impl<'a> Report<'a> {
 }
 
 /// Whether a margin between the best and the runner-up is beyond their run-to-run noises
-/// `n1` and `n2`, in words.
-fn noise_verdict(margin: f64, n1: Option<f64>, n2: Option<f64>) -> String {
+/// `n1` and `n2`, in words. An infinite noise is a repeat whose cost moved the setting's
+/// curve off the common cost, so that no error could be read there: not a measured noise.
+/// Where the cost is time, whose own run-to-run change is what made the comparison
+/// uncertain, the words suggest `--cost points`.
+fn noise_verdict(margin: f64, n1: Option<f64>, n2: Option<f64>, cost: Cost) -> String {
+    let hint = match cost {
+        Cost::Time => {
+            "; a time cost changes between runs (a shared CPU most of all): `--cost points` \
+             compares at a cost that repeats exactly"
+        }
+        Cost::Points => "",
+    };
+    if n1.is_some_and(f64::is_infinite) || n2.is_some_and(f64::is_infinite) {
+        return format!(
+            "run-to-run noise not measurable: a repeat's cost moved a curve off the common \
+             cost{hint}"
+        );
+    }
     match pareto::beyond_noise(margin, n1.zip(n2)) {
         Some(true) if n1 == Some(0.0) && n2 == Some(0.0) => {
             "the repeats reproduced both exactly, so the margin is not noise".into()
@@ -378,7 +397,7 @@ fn noise_verdict(margin: f64, n1: Option<f64>, n2: Option<f64>) -> String {
         ),
         Some(false) => format!(
             "**not** larger than run-to-run noise ({} + {}): the two are tied \
-             within what a repeat changes",
+             within what a repeat changes{hint}",
             num(n1.unwrap_or(0.0)),
             num(n2.unwrap_or(0.0))
         ),
@@ -386,11 +405,21 @@ fn noise_verdict(margin: f64, n1: Option<f64>, n2: Option<f64>) -> String {
     }
 }
 
+/// A noise for the ranking table: an infinite one (a repeat's cost off the common cost) is
+/// no number.
+fn noise_cell(noise: Option<f64>) -> String {
+    match noise {
+        None => "-".into(),
+        Some(n) if n.is_infinite() => "off the common cost".into(),
+        Some(n) => num(n),
+    }
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;
     use crate::plot::SweepRow;
-    use crate::tune::{Cost, Grid, TargetRecord};
+    use crate::tune::{Grid, TargetRecord};
 
     fn plan(repeats: usize) -> Plan {
         let grids = vec!["m=1024,2048,4096".to_string()];
@@ -525,6 +554,24 @@ mod tests {
         );
         let text = recommendation(&plan(1), &rows(0.0), "x", "abc").unwrap();
         assert!(text.contains("noise not measured (--repeats 1)"), "{text}");
+        assert!(text.contains("Each run was made once:"), "{text}");
+        // A time cost whose repeat of m=1024 ran 5× slower: its curve no longer reaches the
+        // common cost, so its noise is no number (the CSV's flip_noise, at the target, is 0),
+        // and the words point at the noise-free cost.
+        let mut slow = rows(0.0);
+        slow[0].repeats = vec![(5000.0, Some(0.30))];
+        let text = recommendation(&timed, &slow, "x", "abc").unwrap();
+        assert!(text.contains("Each run was made 2 times:"), "{text}");
+        assert!(
+            text.contains(
+                "run-to-run noise not measurable: a repeat's cost moved a curve off the common \
+                 cost; a time cost changes between runs (a shared CPU most of all): `--cost \
+                 points` compares at a cost that repeats exactly"
+            ),
+            "{text}"
+        );
+        assert!(text.contains("| off the common cost |"), "{text}");
+        assert!(!text.contains("inf"), "{text}");
     }
 
     #[test]

@@ -78,7 +78,12 @@ fn lpc_and_mwkd_survive_their_server_killed_mid_stream_and_restarted() {
             .unwrap()
             .to_string();
         let copies = tmp.path().join("remote");
-        let repo = MethodKind::fetch_remote(&url, &copies, Duration::from_secs(2)).unwrap();
+        let repo = MethodKind::fetch_remote(
+            &url,
+            &copies,
+            &harness::remote::opener(Duration::from_secs(2)),
+        )
+        .unwrap();
         let mut m = MethodKind::open_remote(&copies, &repo, &Params::default()).unwrap();
         // MWKD's tree, to tell an ancestor: `parent[node]`.
         let parent: Vec<u32> = if kind == MethodKind::Mwkd {

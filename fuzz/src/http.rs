@@ -1,4 +1,4 @@
-//! Target `http`: the HTTP client of remote builds (`methods::store::http::RemoteFile`, on
+//! Target `http`: the HTTP client of remote builds (`harness::remote::HttpFile`, on
 //! `ureq`) decoding a mutated range answer, then the chunk behind it. Each input is the whole
 //! byte stream a server sends back — status line, headers, body — for one chunk of an LPC
 //! build; a one-shot loopback server writes it to the client's connection and closes it.
@@ -10,8 +10,8 @@ use std::io::{Read, Write};
 use std::net::TcpListener;
 use std::time::Duration;
 
+use harness::remote::HttpFile;
 use methods::store::ChunkRef;
-use methods::store::http::RemoteFile;
 
 use crate::corpus::Seed;
 
@@ -80,7 +80,7 @@ pub fn run(reply: &[u8], r: &ChunkRef) -> Result<(), String> {
         let _ = s.write_all(&reply);
         let _ = s.shutdown(std::net::Shutdown::Both);
     });
-    let file = RemoteFile::new(format!("http://{addr}/repo.bin"), TIMEOUT);
+    let file = HttpFile::new(format!("http://{addr}/repo.bin"), TIMEOUT);
     let got = file.get_range(r.offset, u64::from(r.stored));
     let _ = server.join();
     let body = got.map_err(|e| e.to_string())?;

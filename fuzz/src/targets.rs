@@ -54,7 +54,7 @@ pub enum Target {
     MwkdNode,
     /// `store::Repository::read` (checksum, LZO) then the method's decoder.
     Repo,
-    /// `store::http::RemoteFile::get_range` on a mutated HTTP answer, then the chunk
+    /// `harness::remote::HttpFile::get_range` on a mutated HTTP answer, then the chunk
     /// ([`crate::http`]).
     Http,
     /// Not a decoder: checks the supervision itself (a panic at input 3, an abort at 5, a

@@ -12,6 +12,7 @@ pub mod memory;
 pub mod metrics;
 pub mod plot;
 pub mod progress;
+pub mod remote;
 pub mod render;
 pub mod reproduce;
 pub mod results;

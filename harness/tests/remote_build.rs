@@ -61,7 +61,12 @@ fn lpc_and_mwkd_over_http_draw_what_they_draw_locally() {
         )
         .unwrap();
         let copy = dir.path().join("copy");
-        let repo = MethodKind::fetch_remote(&server.url(), &copy, Duration::from_secs(20)).unwrap();
+        let repo = MethodKind::fetch_remote(
+            &server.url(),
+            &copy,
+            &harness::remote::opener(Duration::from_secs(20)),
+        )
+        .unwrap();
         // The small files were copied, the repository was not.
         assert!(copy.join("method.json").is_file() && copy.join("index.bin").is_file());
         assert!(!copy.join("repo.bin").exists());
@@ -116,7 +121,7 @@ fn a_build_that_is_not_chunked_is_refused_with_the_reason() {
     let err = MethodKind::fetch_remote(
         &server.url(),
         &dir.path().join("c"),
-        Duration::from_secs(20),
+        &harness::remote::opener(Duration::from_secs(20)),
     )
     .err()
     .unwrap()
@@ -129,7 +134,7 @@ fn a_build_that_is_not_chunked_is_refused_with_the_reason() {
     let err = MethodKind::fetch_remote(
         &format!("{}missing/", server.url()),
         &dir.path().join("d"),
-        Duration::from_secs(20),
+        &harness::remote::opener(Duration::from_secs(20)),
     )
     .err()
     .unwrap()

@@ -9,11 +9,12 @@ use std::path::Path;
 use std::sync::Arc;
 use std::time::{Duration, Instant};
 
+use harness::remote::HttpFile;
 use harness::serve::{ServeOptions, Server};
 use methods::SplatBatch;
 use methods::store::RepoWriter;
 use methods::store::access::{DataAccess, Decoder, Loader, LoaderOptions, Retry};
-use methods::store::http::{HttpSource, RemoteFile};
+use methods::store::remote::RemoteSource;
 
 /// A repository of 6 chunks; chunk `c` holds `(c + 1) · 1000` bytes.
 fn repository(dir: &Path) -> Vec<methods::store::ChunkRef> {
@@ -51,12 +52,12 @@ fn wait_until(what: &str, limit: Duration, cond: impl Fn() -> bool) {
 }
 
 /// A loader over the repository served by `server`, retrying as `retry` says. Requests
-/// time out after 1 s: the connection kept alive from `HttpSource::open` outlives a stopped
+/// time out after 1 s: the connection kept alive from `RemoteSource::open` outlives a stopped
 /// server (`Server::stop`), so the first attempt after a stop waits for its timeout, as on a
 /// half-open connection; later attempts connect anew and are refused at once.
 fn loader(server: &Server, refs: Vec<methods::store::ChunkRef>, retry: Retry) -> Loader {
-    let file = RemoteFile::new(format!("{}repo.bin", server.url()), Duration::from_secs(1));
-    let source = HttpSource::open(file, refs, "node").unwrap();
+    let file = HttpFile::new(format!("{}repo.bin", server.url()), Duration::from_secs(1));
+    let source = RemoteSource::open(std::sync::Arc::new(file), refs, "node").unwrap();
     Loader::spawn_with(
         Arc::new(source),
         length_decoder(),

@@ -9,11 +9,12 @@
 use std::sync::Arc;
 use std::time::{Duration, Instant};
 
+use harness::remote::HttpFile;
 use harness::serve::{ServeOptions, Server};
 use methods::SplatBatch;
 use methods::store::RepoWriter;
 use methods::store::access::{Clock, DataAccess, Loader, LoaderOptions, ManualClock, Retry};
-use methods::store::http::{HttpSource, RemoteFile};
+use methods::store::remote::RemoteSource;
 
 /// Chunks of the repository, each [`CHUNK`] bytes that LZO cannot shrink.
 const CHUNKS: u32 = 24;
@@ -50,8 +51,8 @@ fn the_estimate_is_a_throttled_servers_rate() {
     opt.clock = Clock::Manual(clock.clone());
     let server = Server::start(&opt, Box::new(std::io::sink())).unwrap();
     for in_flight in [1, 4] {
-        let file = RemoteFile::new(format!("{}repo.bin", server.url()), Duration::from_secs(10));
-        let source = HttpSource::open(file, refs.clone(), "cloud").unwrap();
+        let file = HttpFile::new(format!("{}repo.bin", server.url()), Duration::from_secs(10));
+        let source = RemoteSource::open(std::sync::Arc::new(file), refs.clone(), "cloud").unwrap();
         let l = Loader::spawn_clocked(
             Arc::new(source),
             Arc::new(|_, b: &[u8]| {

@@ -1,4 +1,4 @@
-//! `methods::store::http` against `harness::serve` over loopback: chunks read over HTTP
+//! `harness::remote` and `methods::store::remote` against `harness::serve` over loopback: chunks read over HTTP
 //! ranges equal the local reads, over one kept-alive connection, and every fault is an
 //! error naming the URL (and the chunk), within the timeout.
 #![allow(clippy::unwrap_used)]
@@ -6,10 +6,11 @@
 use std::path::Path;
 use std::time::{Duration, Instant};
 
+use harness::remote::HttpFile;
 use harness::serve::Server;
 use methods::MethodError;
 use methods::store::access::{ChunkSource, LocalSource};
-use methods::store::http::{HttpSource, RemoteFile};
+use methods::store::remote::RemoteSource;
 use methods::store::{ChunkRef, RepoWriter, Repository};
 use serving::serve;
 
@@ -30,8 +31,8 @@ fn repository(dir: &Path) -> Vec<ChunkRef> {
     refs
 }
 
-fn remote(server: &Server, name: &str) -> RemoteFile {
-    RemoteFile::new(format!("{}{name}", server.url()), Duration::from_secs(10))
+fn remote(server: &Server, name: &str) -> HttpFile {
+    HttpFile::new(format!("{}{name}", server.url()), Duration::from_secs(10))
 }
 
 #[test]
@@ -45,7 +46,12 @@ fn chunks_over_http_equal_the_local_reads_over_one_connection() {
         "node",
     );
     let (server, log) = serve(dir.path(), |_| {});
-    let source = HttpSource::open(remote(&server, "repo.bin"), refs, "node").unwrap();
+    let source = RemoteSource::open(
+        std::sync::Arc::new(remote(&server, "repo.bin")),
+        refs,
+        "node",
+    )
+    .unwrap();
     assert_eq!(source.len(), 12);
     for id in (0..12).rev() {
         assert_eq!(
@@ -83,18 +89,26 @@ fn whole_files_and_missing_ones() {
         err.contains("/nope.json") && err.contains("HTTP 404"),
         "{err}"
     );
-    let err = HttpSource::open(remote(&server, "nope.bin"), Vec::new(), "node")
-        .err()
-        .unwrap()
-        .to_string();
+    let err = RemoteSource::open(
+        std::sync::Arc::new(remote(&server, "nope.bin")),
+        Vec::new(),
+        "node",
+    )
+    .err()
+    .unwrap()
+    .to_string();
     assert!(
         err.contains("/nope.bin") && err.contains("HTTP 404"),
         "{err}"
     );
-    let err = HttpSource::open(remote(&server, "index.json"), Vec::new(), "node")
-        .err()
-        .unwrap()
-        .to_string();
+    let err = RemoteSource::open(
+        std::sync::Arc::new(remote(&server, "index.json")),
+        Vec::new(),
+        "node",
+    )
+    .err()
+    .unwrap()
+    .to_string();
     assert!(err.contains("bad magic"), "{err}");
 }
 
@@ -107,7 +121,12 @@ fn a_corrupted_chunk_is_an_error_naming_the_url_and_the_chunk() {
     bytes[refs[5].offset as usize + 10] ^= 0x40;
     std::fs::write(&path, &bytes).unwrap();
     let (server, _) = serve(dir.path(), |_| {});
-    let source = HttpSource::open(remote(&server, "repo.bin"), refs, "node").unwrap();
+    let source = RemoteSource::open(
+        std::sync::Arc::new(remote(&server, "repo.bin")),
+        refs,
+        "node",
+    )
+    .unwrap();
     assert!(source.fetch(4).is_ok());
     let err = source.fetch(5).unwrap_err();
     assert!(matches!(err, MethodError::Corrupt { .. }), "{err}");
@@ -124,7 +143,12 @@ fn a_truncated_repository_and_server_errors_are_named() {
     let refs = repository(dir.path());
     let path = dir.path().join("repo.bin");
     let (server, _) = serve(dir.path(), |o| o.fail_after = Some(3));
-    let source = HttpSource::open(remote(&server, "repo.bin"), refs.clone(), "node").unwrap();
+    let source = RemoteSource::open(
+        std::sync::Arc::new(remote(&server, "repo.bin")),
+        refs.clone(),
+        "node",
+    )
+    .unwrap();
     assert!(source.fetch(0).is_ok());
     // Cut the file inside chunk 11: its range now runs past the end.
     let len = std::fs::metadata(&path).unwrap().len();
@@ -154,12 +178,12 @@ fn a_server_that_does_not_answer_is_an_error_within_the_timeout() {
     let dir = tempfile::tempdir().unwrap();
     let refs = repository(dir.path());
     let (server, _) = serve(dir.path(), |o| o.latency = Duration::from_secs(2));
-    let file = RemoteFile::new(
+    let file = HttpFile::new(
         format!("{}repo.bin", server.url()),
         Duration::from_millis(300),
     );
     let t = Instant::now();
-    let err = HttpSource::open(file, refs, "node")
+    let err = RemoteSource::open(std::sync::Arc::new(file), refs, "node")
         .err()
         .unwrap()
         .to_string();
@@ -241,7 +265,7 @@ fn a_reset_a_short_body_and_wrong_answers_are_errors_naming_the_url() {
     ];
     for (what, reply, needle) in cases {
         let url = scripted(reply);
-        let file = RemoteFile::new(url.clone(), Duration::from_secs(5));
+        let file = HttpFile::new(url.clone(), Duration::from_secs(5));
         let t = Instant::now();
         let err = file.get_range(100, 100).unwrap_err().to_string();
         assert!(
@@ -262,7 +286,7 @@ fn a_reset_a_short_body_and_wrong_answers_are_errors_naming_the_url() {
 #[test]
 fn a_name_that_does_not_resolve_is_an_error_within_the_timeout() {
     let url = "http://splatbench-test.invalid:8080/repo.bin";
-    let file = RemoteFile::new(url, Duration::from_secs(2));
+    let file = HttpFile::new(url, Duration::from_secs(2));
     let t = Instant::now();
     let err = file.get().unwrap_err().to_string();
     assert!(t.elapsed() < Duration::from_secs(6), "{:?}", t.elapsed());

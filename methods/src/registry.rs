@@ -2,12 +2,11 @@
 //! `match`; nothing registers itself.
 
 use std::path::Path;
-use std::time::Duration;
 
 use scenes::{PointCloud, Progress};
 
 use crate::store::access::RepoAt;
-use crate::store::http::RemoteFile;
+use crate::store::remote::RemoteOpener;
 use crate::strays::{self, Strays};
 use crate::{
     BuildStats, LodMethod, Manifest, MethodError, Params, full, lpc, mwkd, potree, qsplat, spt,
@@ -271,20 +270,23 @@ impl MethodKind {
     }
 
     /// Copies the small files of the build served at `url` (its manifest, `build.json` and
-    /// [`MethodKind::remote_files`]) into the directory `into`, each fetched once, and
-    /// returns where its repository is read: the same URL's `repo.bin`, by range requests.
-    /// Each request may take `timeout`. Methods other than LPC and MWKD, and builds with
-    /// `strays=apart` (a second build inside), are refused with an error saying so.
-    pub fn fetch_remote(url: &str, into: &Path, timeout: Duration) -> Result<RepoAt, MethodError> {
+    /// [`MethodKind::remote_files`]) into the directory `into`, each fetched once through
+    /// `open` (a client: `harness::remote`), and returns where its repository is read: the
+    /// same URL's `repo.bin`, by range requests. Methods other than LPC and MWKD, and builds
+    /// with `strays=apart` (a second build inside), are refused with an error saying so.
+    pub fn fetch_remote(
+        url: &str,
+        into: &Path,
+        open: RemoteOpener<'_>,
+    ) -> Result<RepoAt, MethodError> {
         let base = if url.ends_with('/') {
             url.to_string()
         } else {
             format!("{url}/")
         };
         std::fs::create_dir_all(into).map_err(|e| MethodError::io(into, e))?;
-        let agent = RemoteFile::new(format!("{base}{}", Manifest::FILE), timeout);
         let copy = |name: &str| -> Result<(), MethodError> {
-            let bytes = agent.sibling(format!("{base}{name}")).get()?;
+            let bytes = open(&format!("{base}{name}")).get()?;
             let path = into.join(name);
             std::fs::write(&path, bytes).map_err(|e| MethodError::io(&path, e))
         };
@@ -317,7 +319,7 @@ impl MethodKind {
             MethodKind::Mwkd => mwkd::codec::REPO_FILE,
             _ => lpc::REPO_FILE,
         };
-        Ok(RepoAt::Remote(agent.sibling(format!("{base}{repo}"))))
+        Ok(RepoAt::Remote(open(&format!("{base}{repo}"))))
     }
 
     /// Opens a remote build whose small files [`MethodKind::fetch_remote`] copied into

@@ -130,7 +130,8 @@ pub fn open_method(
             None,
         ),
         BuildSource::Remote(remote, dir) => {
-            let repo = MethodKind::fetch_remote(&remote.url, dir, remote.timeout)
+            let open = crate::remote::opener(remote.timeout);
+            let repo = MethodKind::fetch_remote(&remote.url, dir, &open)
                 .with_context(|| format!("--build-url {}", remote.url))?;
             (
                 dir.to_path_buf(),

@@ -12,8 +12,8 @@
 //! available now" and "get it", and a local implementation that decodes on a loader thread.
 
 pub mod access;
-pub mod http;
 pub mod records;
+pub mod remote;
 pub mod source;
 
 use std::fs::File;

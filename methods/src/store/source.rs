@@ -1,5 +1,5 @@
 //! Where the bytes of chunks come from: the one interface a local repository
-//! (`access::LocalSource`) and an HTTP one (`http::HttpSource`) implement, under both and
+//! (`access::LocalSource`) and a remote one (`remote::RemoteSource`) implement, under both and
 //! the loader that reads through them.
 
 use crate::MethodError;

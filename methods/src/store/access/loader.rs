@@ -457,7 +457,7 @@ impl Loader {
         match repo {
             RepoAt::Local(path) => Self::local(path, refs, noun, decode, options),
             RepoAt::Remote(file) => {
-                let source = crate::store::http::HttpSource::open(file.clone(), refs, noun)?;
+                let source = crate::store::remote::RemoteSource::open(file.clone(), refs, noun)?;
                 let mut loader = Self::spawn_with(Arc::new(source), decode, options, Retry::REMOTE);
                 loader.origin = file.url().to_string();
                 Ok(loader)

@@ -111,8 +111,9 @@ pub const REMOTE_IN_FLIGHT: u32 = 4;
 pub enum RepoAt {
     /// A local file, memory-mapped.
     Local(std::path::PathBuf),
-    /// A file served over HTTP, read by range requests ([`super::http`]).
-    Remote(super::http::RemoteFile),
+    /// A file served elsewhere (over HTTP: `harness::remote`), read by range requests
+    /// ([`super::remote`]).
+    Remote(std::sync::Arc<dyn super::remote::RemoteFile>),
 }
 
 impl RepoAt {

@@ -1,26 +1,24 @@
-//! A repository read over HTTP/1.1 range requests (LPC §3: "over HTTP/1.1 range requests
-//! with persistent connections"): [`RemoteFile`] fetches a whole small file (an index, a
-//! manifest) or one byte range of a large one; [`HttpSource`] is the [`ChunkSource`] of a
-//! remote repository file, each chunk one range request, verified by the same checksum and
-//! decompression as a local read ([`super::unpack`]).
+//! The HTTP client of remote builds (`--build-url`, LPC §3: "over HTTP/1.1 range requests
+//! with persistent connections"): [`HttpFile`] fetches a whole small file (an index, a
+//! manifest) or one byte range of a large one, and is the [`RemoteFile`] through which
+//! `methods` reads a remote repository ([`methods::store::remote::RemoteSource`] verifies
+//! each chunk as a local read would).
 //!
 //! The client is [`ureq`] without TLS (builds are served on loopback or a lab network; see
 //! `splatbench serve`): its agent keeps connections alive and reuses them, so consecutive
 //! chunks travel over one connection per request in flight (the loader's `in_flight`).
-//! Every answer is checked before its bytes are used: a
-//! range must come back `206` with the `Content-Range` asked for and exactly that many
-//! bytes (a server that ignores `Range` and sends the whole file is an error, not a
-//! download of the whole repository); a whole file must come back `200`. Any other status,
-//! a connection refused or reset, a short body, or no answer within the timeout is a
-//! [`MethodError::Remote`] naming the URL; a checksum mismatch is [`MethodError::Corrupt`]
-//! naming the URL and the chunk. Retrying is the loader's business, not this layer's.
+//! Every answer is checked before its bytes are used: a range must come back `206` with the
+//! `Content-Range` asked for and exactly that many bytes (a server that ignores `Range` and
+//! sends the whole file is an error, not a download of the whole repository); a whole file
+//! must come back `200`. Any other status, a connection refused or reset, a short body, or no
+//! answer within the timeout is a [`MethodError::Remote`] naming the URL.
 
-use std::sync::atomic::{AtomicU64, Ordering};
+use std::sync::Arc;
 use std::time::Duration;
 
-use super::source::{ChunkSource, MAX_IN_FLIGHT};
-use super::{ChunkRef, REPO_MAGIC, unpack};
-use crate::MethodError;
+use methods::MethodError;
+use methods::store::remote::RemoteFile;
+use methods::store::source::MAX_IN_FLIGHT;
 
 /// How long one request may take, connection to last byte, unless set otherwise.
 pub const DEFAULT_TIMEOUT: Duration = Duration::from_secs(30);
@@ -31,13 +29,13 @@ pub const WHOLE_FILE_MAX: u64 = 1 << 30;
 
 /// One file at a URL, read through a keep-alive agent.
 #[derive(Clone)]
-pub struct RemoteFile {
+pub struct HttpFile {
     agent: ureq::Agent,
     url: String,
     timeout: Duration,
 }
 
-impl RemoteFile {
+impl HttpFile {
     /// The file at `url`; each request may take at most `timeout`.
     pub fn new(url: impl Into<String>, timeout: Duration) -> Self {
         let config = ureq::Agent::config_builder()
@@ -163,63 +161,23 @@ impl RemoteFile {
     }
 }
 
-/// The chunks of a repository file served over HTTP.
-pub struct HttpSource {
-    file: RemoteFile,
-    refs: Vec<ChunkRef>,
-    noun: &'static str,
-    read: AtomicU64,
-}
-
-impl HttpSource {
-    /// Chunks `refs` of the repository file `file`, whose magic is checked now; `noun` names
-    /// a chunk in errors ("cloud", "node").
-    pub fn open(
-        file: RemoteFile,
-        refs: Vec<ChunkRef>,
-        noun: &'static str,
-    ) -> Result<Self, MethodError> {
-        let magic = file.get_range(0, REPO_MAGIC.len() as u64)?;
-        if magic != REPO_MAGIC {
-            return Err(MethodError::corrupt(
-                file.url(),
-                "not a splatbench repository (bad magic)",
-            ));
-        }
-        Ok(Self {
-            file,
-            refs,
-            noun,
-            read: AtomicU64::new(0),
-        })
+impl RemoteFile for HttpFile {
+    fn url(&self) -> &str {
+        HttpFile::url(self)
     }
 
-    /// The repository's URL.
-    pub fn url(&self) -> &str {
-        self.file.url()
+    fn get(&self) -> Result<Vec<u8>, MethodError> {
+        HttpFile::get(self)
+    }
+
+    fn get_range(&self, start: u64, len: u64) -> Result<Vec<u8>, MethodError> {
+        HttpFile::get_range(self, start, len)
     }
 }
 
-impl ChunkSource for HttpSource {
-    fn len(&self) -> usize {
-        self.refs.len()
-    }
-
-    fn fetch(&self, id: u32) -> Result<Vec<u8>, MethodError> {
-        let r = crate::store::chunk_ref(&self.refs, id)?;
-        let what = format!("{} {id}", self.noun);
-        let span = super::chunk_span(r, None, &what)
-            .map_err(|msg| MethodError::corrupt(self.file.url(), msg))?;
-        let stored = self.file.get_range(span.start, span.end - span.start)?;
-        self.read.fetch_add(stored.len() as u64, Ordering::Relaxed);
-        unpack(&stored, r, &what).map_err(|msg| MethodError::corrupt(self.file.url(), msg))
-    }
-
-    fn bytes_read(&self) -> u64 {
-        self.read.load(Ordering::Relaxed)
-    }
-
-    fn stored_bytes(&self, id: u32) -> u64 {
-        crate::store::chunk_ref(&self.refs, id).map_or(0, |r| u64::from(r.stored))
-    }
+/// An opener for [`methods::MethodKind::fetch_remote`]: every file through one agent whose
+/// requests may each take `timeout`.
+pub fn opener(timeout: Duration) -> impl Fn(&str) -> Arc<dyn RemoteFile> {
+    let agent = HttpFile::new("", timeout);
+    move |url| Arc::new(agent.sibling(url)) as Arc<dyn RemoteFile>
 }

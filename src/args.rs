@@ -24,6 +24,18 @@ pub fn kernel_parser() -> impl clap::builder::TypedValueParser<Value = Kernel> {
     PossibleValuesParser::new(names).try_map(|s| s.parse::<Kernel>())
 }
 
+/// `--param` pairs parsed and checked for `kind`, an error in the flag's words (the library
+/// names no flag: its wording is "method parameter: …").
+pub fn method_params(kind: MethodKind, pairs: &[String]) -> anyhow::Result<methods::Params> {
+    let flag = |e: methods::MethodError| match e {
+        methods::MethodError::Param(m) => anyhow::anyhow!("--param: {m}"),
+        e => e.into(),
+    };
+    let params = methods::Params::parse(pairs).map_err(flag)?;
+    kind.check_params(&params).map_err(flag)?;
+    Ok(params)
+}
+
 #[derive(Args, Clone)]
 pub struct MethodArgs {
     /// Method.
@@ -224,7 +236,9 @@ impl TargetArgs {
     /// beyond what an `f32` holds is refused with its value (it used to read "got inf").
     pub fn target(&self) -> anyhow::Result<methods::Target> {
         Ok(match (self.eps, self.budget) {
-            (_, Some(b)) => methods::Target::budget(b)?,
+            (_, Some(b)) => {
+                methods::Target::budget(b).map_err(|e| anyhow::anyhow!("--budget {b}: {e}"))?
+            }
             (e, None) => {
                 let e = e.unwrap_or(1.0);
                 if e.is_finite() && e.abs() > f64::from(f32::MAX) {
@@ -233,7 +247,8 @@ impl TargetArgs {
                         f32::MAX
                     );
                 }
-                methods::Target::tolerance(e as f32)?
+                methods::Target::tolerance(e as f32)
+                    .map_err(|err| anyhow::anyhow!("--eps {e}: {err}"))?
             }
         })
     }

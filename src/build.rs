@@ -4,7 +4,6 @@ use std::path::{Path, PathBuf};
 
 use anyhow::Context as _;
 use clap::Args;
-use methods::Params;
 
 use crate::args::{CacheArgs, MethodArgs, SceneArgs};
 
@@ -38,8 +37,7 @@ pub fn build(
     out: &Path,
     cache: &Path,
 ) -> anyhow::Result<methods::BuildStats> {
-    let params = Params::parse(&m.params)?;
-    m.method.check_params(&params)?;
+    let params = crate::args::method_params(m.method, &m.params)?;
     let spec = s.spec()?;
     let bar = harness::progress::Bar::new();
     let cloud = spec

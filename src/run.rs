@@ -5,7 +5,6 @@ use std::path::PathBuf;
 
 use clap::Args;
 use harness::runner::RunConfig;
-use methods::Params;
 use scenes::paths::PathSpec;
 
 use crate::args::{BuildSourceArgs, CacheArgs, MethodArgs, RenderArgs, SceneArgs, TargetArgs};
@@ -51,7 +50,7 @@ pub struct RunArgs {
 
 /// The runner's configuration for `run`'s arguments (`sweep` makes one per target).
 pub fn run_config(a: &RunArgs) -> anyhow::Result<RunConfig> {
-    let params = Params::parse(&a.method.params)?;
+    let params = crate::args::method_params(a.method.method, &a.method.params)?;
     let target = a.target.target()?;
     Ok(RunConfig {
         method: a.method.method,

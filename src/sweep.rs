@@ -5,7 +5,6 @@ use std::path::PathBuf;
 use anyhow::Context as _;
 use clap::Args;
 use harness::sweep::SweepTarget;
-use methods::Params;
 
 use crate::args::{
     BuildSourceArgs, CacheArgs, JobArgs, MethodArgs, RenderArgs, SceneArgs, SweepTargetArgs,
@@ -127,8 +126,7 @@ fn base_config(
     targets: &[SweepTarget],
 ) -> anyhow::Result<(harness::runner::RunConfig, PathBuf)> {
     anyhow::ensure!(a.targets.frames >= 1, "--frames must be at least 1");
-    let params = Params::parse(&a.method.params)?;
-    a.method.method.check_params(&params)?;
+    crate::args::method_params(a.method.method, &a.method.params)?;
     let build_dir = a
         .source
         .build_dir

@@ -9,7 +9,6 @@ use std::path::PathBuf;
 use anyhow::Context as _;
 use clap::Args;
 use harness::tune::{self, Cost, Grid, Plan, Record, TargetRecord};
-use methods::Params;
 use scenes::paths::PathSpec;
 
 use crate::args::{
@@ -68,8 +67,7 @@ pub fn plan(a: &TuneArgs) -> anyhow::Result<Plan> {
         a.repeats
     );
     let kind = a.method.method;
-    let fixed = Params::parse(&a.method.params)?;
-    kind.check_params(&fixed)?;
+    let fixed = crate::args::method_params(kind, &a.method.params)?;
     let remote = a.source.remote()?;
     let grid = Grid::parse(
         kind,

@@ -65,7 +65,7 @@ pub struct ViewArgs {
 
 fn methods_of(a: &ViewArgs) -> anyhow::Result<Vec<(MethodKind, Params)>> {
     if let Some(m) = a.method {
-        return Ok(vec![(m, Params::parse(&a.params)?)]);
+        return Ok(vec![(m, crate::args::method_params(m, &a.params)?)]);
     }
     let list = a.methods.as_deref().unwrap_or_default();
     list.split(',')

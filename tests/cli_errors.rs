@@ -47,7 +47,8 @@ fn bad_flags_are_clear_errors() {
             "--out",
             "x",
         ],
-        "sede",
+        // The flag is named by the CLI; the library's own wording is "method parameter: …".
+        "--param: method 'full': unknown field `sede`, expected `seed`",
     );
     fails_with(
         &[

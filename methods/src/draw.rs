@@ -385,7 +385,7 @@ impl Target {
     pub fn tolerance(px: f32) -> Result<Self, MethodError> {
         if !px.is_finite() || px < 0.0 {
             return Err(MethodError::Target(format!(
-                "--eps must be a finite number of pixels ≥ 0, got {px}"
+                "a tolerance must be a finite number of pixels ≥ 0, got {px}"
             )));
         }
         Ok(Target::Tolerance(px))
@@ -394,7 +394,7 @@ impl Target {
     pub fn budget(points: u64) -> Result<Self, MethodError> {
         if points == 0 {
             return Err(MethodError::Target(
-                "--budget must be at least 1 point".into(),
+                "a budget must be at least 1 point".into(),
             ));
         }
         Ok(Target::Budget(points))

@@ -31,8 +31,10 @@ pub enum MethodError {
         /// What went wrong.
         msg: String,
     },
-    /// A `--param` that is unknown or has a bad value.
-    #[error("--param: {0}")]
+    /// A method parameter that is unknown or has a bad value. The wording names no flag: the
+    /// CLI says `--param`, a spec file or a suite its field (`src/args.rs`,
+    /// `harness::reproduce`, `harness::check::suite`).
+    #[error("method parameter: {0}")]
     Param(String),
     /// An unusable target (tolerance NaN/∞/negative, budget 0).
     #[error("invalid target: {0}")]

@@ -254,8 +254,9 @@ pub fn check_budget_above_root(
 ) -> Result<(), MethodError> {
     match (target, root) {
         (Target::Budget(b), Some(r)) if b < u64::from(r) => Err(MethodError::Target(format!(
-            "method '{method}': --budget {b} is smaller than its {what} of {r} points, the \
-             least it can draw (the papers refine from the root): give --budget {r} or more"
+            "method '{method}': a budget of {b} points is smaller than its {what} of {r} \
+             points, the least it can draw (the papers refine from the root): give a budget of \
+             {r} or more"
         ))),
         _ => Ok(()),
     }

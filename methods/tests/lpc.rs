@@ -102,8 +102,8 @@ fn budget_below_the_root_is_an_error_naming_the_least() {
                 .unwrap_err()
                 .to_string();
             assert!(
-                e.contains(&format!("--budget {b} is smaller than"))
-                    && e.contains(&format!("give --budget {root} or more")),
+                e.contains(&format!("a budget of {b} points is smaller than"))
+                    && e.contains(&format!("give a budget of {root} or more")),
                 "{kind}: {e}"
             );
         }

@@ -48,7 +48,9 @@ pub fn leaf_depth(n: u64, fanout: u64, vbo: u64) -> Result<u32, MethodError> {
 
 fn check_args(n: u64, fanout: u64, vbo: u64) -> Result<(), MethodError> {
     if n == 0 {
-        return Err(MethodError::Param("--points must be ≥ 1".into()));
+        return Err(MethodError::Param(
+            "method 'mwkd': the tree needs at least 1 sample".into(),
+        ));
     }
     if fanout < 2 {
         return Err(MethodError::Param(format!(

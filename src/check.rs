@@ -8,6 +8,7 @@
 
 use std::path::PathBuf;
 
+use anyhow::Context as _;
 use clap::Args;
 use harness::check::{self, Baseline, Unusable, suite::Suite};
 
@@ -41,6 +42,11 @@ pub struct CheckArgs {
     /// Print every row of the table (default: the first 60, failures first).
     #[arg(long)]
     pub all: bool,
+    /// Compare runs that are not the same experiment as their baseline's (another
+    /// parameter, kernel, shading, resolution…) instead of refusing them: checks a change's
+    /// effect against a baseline; exit 1 on a figure outside its allowance.
+    #[arg(long)]
+    pub compare_across: bool,
     #[command(flatten)]
     pub cache: CacheArgs,
 }
@@ -154,8 +160,10 @@ fn check(a: &CheckArgs) -> anyhow::Result<u8> {
         &now,
         check::Options {
             timing_gate: a.timing_gate,
+            compare_across: a.compare_across,
         },
-    )?;
+    )
+    .with_context(|| dir.display().to_string())?;
     println!(
         "{} against {} (blessed {} at {} on {})",
         dir.display(),

@@ -228,20 +228,43 @@ fn another_resolution_scene_or_experiment_is_unusable() {
     run.width = 128;
     run.write(d.path());
     let e = unusable(&old, &snap(d.path()));
-    assert!(e.contains("resolution (64×64; this run: 128×64)"), "{e}");
+    assert!(
+        e.contains(
+            "the run: resolution 128×64, the baseline's 64×64: the two are not the same \
+             experiment (--compare-across compares them anyway)"
+        ),
+        "{e}"
+    );
     run.width = 64;
     run.scene = "terrain:5000:1";
     run.write(d.path());
     let e = unusable(&old, &snap(d.path()));
     assert!(
-        e.contains("another scene (statue:5000:1; this run: terrain:5000:1)"),
+        e.contains("scene terrain:5000:1, the baseline's statue:5000:1"),
         "{e}"
     );
     run.scene = "statue:5000:1";
     run.params = serde_json::json!({"m": "512"});
     run.write(d.path());
     let e = unusable(&old, &snap(d.path()));
-    assert!(e.contains("parameters (lpc; this run: lpc m=512)"), "{e}");
+    assert!(
+        e.contains("parameters lpc m=512, the baseline's lpc"),
+        "{e}"
+    );
+    // --compare-across compares them anyway, saying how they differ.
+    let across = check::compare(
+        &old,
+        &snap(d.path()),
+        Options {
+            compare_across: true,
+            ..Options::default()
+        },
+    )
+    .unwrap();
+    assert_eq!(
+        across.across,
+        ["the run: parameters lpc m=512, the baseline's lpc"]
+    );
     // No run in common: a baseline of another experiment altogether.
     let other = tempfile::tempdir().unwrap();
     Run::new("lpc").write(&other.path().join("budget-5000"));
@@ -312,10 +335,24 @@ fn times_never_fail_without_a_gate() {
         .find(|r| r.figure == "gpu_ms (median)")
         .unwrap();
     assert_eq!((gpu.verdict, gpu.ratio), (Verdict::Ratio, Some(10.0)));
+    // One line of geometric means when every time holds; each figure's line with --all.
     let table = check::render_table(&r, Some(60));
     assert!(
-        table.contains("time gpu_ms (median): new/old ×10.000"),
+        table.contains("times, new/old (geometric mean of 1 runs; --all lists each): ")
+            && table.contains("gpu_ms (median) ×10.000"),
         "{table}"
+    );
+    assert!(!table.contains("time gpu_ms"), "{table}");
+    // Figures that follow the machine are named once, never compared.
+    assert!(
+        table.contains("recorded, not compared (they follow the machine or thread timing")
+            && table.contains("): rss_bytes\n"),
+        "{table}"
+    );
+    let all = check::render_table(&r, None);
+    assert!(
+        all.contains("time gpu_ms (median): new/old ×10.000"),
+        "{all}"
     );
     let gated = |g| {
         check::compare(
@@ -323,6 +360,7 @@ fn times_never_fail_without_a_gate() {
             &new,
             Options {
                 timing_gate: Some(g),
+                ..Options::default()
             },
         )
         .unwrap()

@@ -103,7 +103,24 @@ fn check_exits_0_on_a_match_1_on_a_regression_2_on_unusable_input() {
     run(&wide, &cache, "96");
     let (code, _, err) = check(&[&p(&wide), "--baseline", &p(&base)]);
     assert_eq!(code, 2, "{err}");
-    assert!(err.contains("resolution (64×64; this run: 96×64)"), "{err}");
+    assert!(
+        err.contains(&format!(
+            "{}: the run: resolution 96×64, the baseline's 64×64: the two are not the same \
+             experiment (--compare-across compares them anyway)",
+            p(&wide)
+        )),
+        "{err}"
+    );
+    // --compare-across compares them: the images differ in size, so figures fail (exit 1),
+    // and the output says how the runs differ.
+    let (code, out, err) = check(&[&p(&wide), "--baseline", &p(&base), "--compare-across"]);
+    assert_eq!(code, 1, "{out}{err}");
+    assert!(
+        out.contains(
+            "compared across experiments: the run: resolution 96×64, the baseline's 64×64"
+        ),
+        "{out}"
+    );
 
     // Missing baseline, missing directory, a bad gate, a directory and a suite at once.
     let (code, _, err) = check(&[&p(&runs), "--baseline", "nope.json"]);

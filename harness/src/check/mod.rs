@@ -19,6 +19,7 @@
 
 mod figures;
 mod format;
+mod numbers;
 mod record;
 pub mod suite;
 mod table;
@@ -33,6 +34,7 @@ pub use record::{DirKind, RunRecord, adapter_text, find_runs};
 pub use table::render_table;
 
 use crate::gpu::AdapterDesc;
+use numbers::{fmt, show, show_pair};
 
 /// Version of the baseline file format.
 pub const FORMAT: u32 = 1;
@@ -221,6 +223,10 @@ pub struct Row {
 pub struct Options {
     /// Fail a time whose median grew by more than this factor.
     pub timing_gate: Option<f64>,
+    /// Compare runs whose identity differs (another parameter, kernel, shading…) instead of
+    /// refusing them: a parameter's effect checked against a baseline. The differences are
+    /// listed in [`Report::across`].
+    pub compare_across: bool,
 }
 
 /// What a comparison found.
@@ -228,6 +234,11 @@ pub struct Options {
 pub struct Report {
     /// Every compared figure that is not identical, plus one timing row per run and figure.
     pub rows: Vec<Row>,
+    /// With [`Options::compare_across`]: how each run differs from its baseline's experiment.
+    pub across: Vec<String>,
+    /// Figures recorded but never compared: they follow the machine or thread timing
+    /// ([`figures::Class::Machine`]).
+    pub recorded: BTreeSet<String>,
     /// Figures compared (identical ones included).
     pub compared: usize,
     /// Runs compared.
@@ -352,10 +363,19 @@ pub fn compare(baseline: &Baseline, now: &Baseline, opts: Options) -> anyhow::Re
         ))
         .into());
     }
-    for key in &common {
-        identity(key, &baseline.runs[*key], &now.runs[*key])?;
-    }
     let mut report = Report::default();
+    for key in &common {
+        let differs = identity(key, &baseline.runs[*key], &now.runs[*key]);
+        if opts.compare_across {
+            report.across.extend(differs);
+        } else if let Some(first) = differs.into_iter().next() {
+            return Err(Unusable(format!(
+                "{first}: the two are not the same experiment (--compare-across compares them \
+                 anyway)"
+            ))
+            .into());
+        }
+    }
     for (key, old) in &baseline.runs {
         let Some(new) = now.runs.get(key) else {
             report.rows.push(Row {
@@ -399,8 +419,9 @@ pub fn compare(baseline: &Baseline, now: &Baseline, opts: Options) -> anyhow::Re
     Ok(report)
 }
 
-/// The fields that make two runs the same experiment; a difference is [`Unusable`].
-fn identity(key: &str, old: &RunRecord, new: &RunRecord) -> Result<(), Unusable> {
+/// The fields that make two runs the same experiment: each that differs, in words naming the
+/// run (`.`: the directory checked is the run).
+fn identity(key: &str, old: &RunRecord, new: &RunRecord) -> Vec<String> {
     let fields: [(&str, String, String); 9] = [
         ("scene", old.scene.clone(), new.scene.clone()),
         (
@@ -416,15 +437,16 @@ fn identity(key: &str, old: &RunRecord, new: &RunRecord) -> Result<(), Unusable>
         ("kernel", old.kernel.clone(), new.kernel.clone()),
         ("shading", old.shading.clone(), new.shading.clone()),
     ];
-    for (what, a, b) in fields {
-        if a != b {
-            return Err(Unusable(format!(
-                "run '{key}': the baseline is of another {what} ({a}; this run: {b}): not the \
-                 same experiment"
-            )));
-        }
-    }
-    Ok(())
+    let run = if key == "." {
+        "the run".to_string()
+    } else {
+        format!("run '{key}'")
+    };
+    fields
+        .into_iter()
+        .filter(|(_, a, b)| a != b)
+        .map(|(what, a, b)| format!("{run}: {what} {b}, the baseline's {a}"))
+        .collect()
 }
 
 /// Compares run `key` of this run (`new`) with the baseline's (`old`) within `tol`: the run's
@@ -555,7 +577,9 @@ impl RunCompare<'_> {
                         self.push(timing_row(&row, fig, at, a, b, opts, is_rate(k)));
                     }
                 }
-                Class::Machine => {}
+                Class::Machine => {
+                    self.report.recorded.insert(fig);
+                }
                 _ => self.push(exact_row(&row, fig, at, a, b)),
             }
         }
@@ -621,7 +645,11 @@ impl RunCompare<'_> {
                         },
                     ),
                     Class::Image => image_row(&row, c, at.clone(), a, b, tolerance.of(c)),
-                    Class::Timing | Class::Machine => continue,
+                    Class::Machine => {
+                        self.report.recorded.insert(c.clone());
+                        continue;
+                    }
+                    Class::Timing => continue,
                 };
                 self.push(r);
             }
@@ -699,7 +727,8 @@ fn exact_row(
     } else {
         Verdict::Fails
     };
-    row(figure, at, show(a), show(b), "exact".into(), v)
+    let (sa, sb) = show_pair(a, b);
+    row(figure, at, sa, sb, "exact".into(), v)
 }
 
 /// An image metric's row: `|new − old| ≤ tol`; `None` tolerance: shown, not compared.
@@ -718,7 +747,8 @@ fn image_row(
         (Some(_), None, Some(t)) => (Verdict::Missing, format!("± {t}")),
         (_, _, Some(t)) => (Verdict::Fails, format!("± {t}")),
     };
-    row(figure.to_string(), at, show(a), show(b), allowed, v)
+    let (sa, sb) = show_pair(a, b);
+    row(figure.to_string(), at, sa, sb, allowed, v)
 }
 
 /// A time's row: the ratio new/old (for a rate, old/new: larger is slower either way).
@@ -754,18 +784,5 @@ fn timing_row(
             allowed,
             v,
         )
-    }
-}
-
-fn show(v: Option<f64>) -> String {
-    v.map_or_else(|| "empty".into(), fmt)
-}
-
-/// A number as the table prints it: integers whole, others in their shortest exact text.
-fn fmt(v: f64) -> String {
-    if v.fract() == 0.0 && v.abs() < 1e15 {
-        format!("{v:.0}")
-    } else {
-        v.to_string()
     }
 }

@@ -18,9 +18,11 @@ pub const HEADER: [&str; 8] = [
 ];
 
 /// The report as an aligned text table of at most `max_rows` rows (`None`: all, times
-/// included), then one line per time figure (the geometric mean and range of new/old over
-/// the runs) and a closing line counting what was compared and what failed. With a limit,
-/// times are left out of the table unless they fail the timing gate.
+/// included), then the times (one line per figure — the geometric mean and range of new/old
+/// over the runs — with `--all` or when a time failed its gate; else one line of geometric
+/// means) and a closing line counting what was compared and what failed. With a limit,
+/// times are left out of the table unless they fail the timing gate. Runs compared across
+/// experiments (`--compare-across`) are listed first with how they differ.
 pub fn render_table(report: &Report, max_rows: Option<usize>) -> String {
     let cells = |r: &Row| {
         [
@@ -64,6 +66,12 @@ pub fn render_table(report: &Report, max_rows: Option<usize>) -> String {
         s.trim_end().to_string() + "\n"
     };
     let mut out = String::new();
+    if !report.across.is_empty() {
+        out.push_str(&format!(
+            "compared across experiments: {}\n",
+            report.across.join("; ")
+        ));
+    }
     if !shown.is_empty() {
         out.push_str(&line(&HEADER.map(String::from)));
         for r in &shown {
@@ -82,14 +90,37 @@ pub fn render_table(report: &Report, max_rows: Option<usize>) -> String {
             times.entry(r.figure.as_str()).or_default().push(x);
         }
     }
-    for (figure, ratios) in &times {
-        let gmean = (ratios.iter().map(|x| x.ln()).sum::<f64>() / ratios.len() as f64).exp();
-        let (lo, hi) = ratios.iter().fold((f64::INFINITY, 0.0f64), |(lo, hi), x| {
-            (lo.min(*x), hi.max(*x))
-        });
+    let gmean =
+        |ratios: &[f64]| (ratios.iter().map(|x| x.ln()).sum::<f64>() / ratios.len() as f64).exp();
+    let slower = report.rows.iter().any(|r| r.verdict == Verdict::Slower);
+    if max_rows.is_none() || slower {
+        for (figure, ratios) in &times {
+            let (lo, hi) = ratios.iter().fold((f64::INFINITY, 0.0f64), |(lo, hi), x| {
+                (lo.min(*x), hi.max(*x))
+            });
+            out.push_str(&format!(
+                "time {figure}: new/old ×{:.3} (geometric mean of {} runs; ×{lo:.3} to ×{hi:.3})\n",
+                gmean(ratios),
+                ratios.len()
+            ));
+        }
+    } else if !times.is_empty() {
+        let each: Vec<String> = times
+            .iter()
+            .map(|(figure, ratios)| format!("{figure} ×{:.3}", gmean(ratios)))
+            .collect();
+        let runs = times.values().map(Vec::len).max().unwrap_or(0);
         out.push_str(&format!(
-            "time {figure}: new/old ×{gmean:.3} (geometric mean of {} runs; ×{lo:.3} to ×{hi:.3})\n",
-            ratios.len()
+            "times, new/old (geometric mean of {runs} runs; --all lists each): {}\n",
+            each.join(", ")
+        ));
+    }
+    if !report.recorded.is_empty() {
+        let names: Vec<&str> = report.recorded.iter().map(String::as_str).collect();
+        out.push_str(&format!(
+            "recorded, not compared (they follow the machine or thread timing: resident \
+             memory, the loader's queue, selections that follow the clock): {}\n",
+            names.join(", ")
         ));
     }
     let failures = report.failures();

@@ -190,10 +190,51 @@ pub fn needs_redraw(drawn: Option<(&[String], f64)>, lines: &[String], now: f64)
 /// Text height, pixels.
 pub const LINE_PX: u32 = 16;
 
-/// `lines` in white on a dark panel `width` pixels wide (opaque RGBA, one [`LINE_PX`] row
-/// per line plus a margin).
-pub fn draw(lines: &[String], width: u32) -> anyhow::Result<Image> {
+/// Left and right margin of the text, pixels.
+const MARGIN_PX: u32 = 6;
+
+/// `lines` broken so that each fits a panel `width` pixels wide in the HUD's font: a line too
+/// wide is broken at its field separators (two spaces) into as few lines as fit; a single
+/// field wider than the panel keeps a line of its own. At the default 512 px window the
+/// HUD's six lines of 600–700 px were cut at the right edge.
+pub fn fit(lines: &[String], width: u32) -> anyhow::Result<Vec<String>> {
     crate::plot::ensure_font()?;
+    let font = (crate::plot::FONT, LINE_PX as f64 * 0.85).into_font();
+    let room = width.saturating_sub(2 * MARGIN_PX);
+    let px = |t: &str| -> anyhow::Result<u32> {
+        Ok(font
+            .box_size(t)
+            .map_err(|e| anyhow::anyhow!("HUD: {e:?}"))?
+            .0)
+    };
+    let mut out = Vec::new();
+    for line in lines {
+        if px(line)? <= room {
+            out.push(line.clone());
+            continue;
+        }
+        let mut current = String::new();
+        for field in line.split("  ").filter(|f| !f.is_empty()) {
+            let joined = if current.is_empty() {
+                field.to_string()
+            } else {
+                format!("{current}  {field}")
+            };
+            if current.is_empty() || px(&joined)? <= room {
+                current = joined;
+            } else {
+                out.push(std::mem::replace(&mut current, field.to_string()));
+            }
+        }
+        out.push(current);
+    }
+    Ok(out)
+}
+
+/// `lines` in white on a dark panel `width` pixels wide (opaque RGBA, one [`LINE_PX`] row
+/// per line plus a margin), broken to fit the width first ([`fit`]).
+pub fn draw(lines: &[String], width: u32) -> anyhow::Result<Image> {
+    let lines = fit(lines, width)?;
     let height = LINE_PX * lines.len() as u32 + 8;
     let mut rgb = vec![0u8; width as usize * height as usize * 3];
     {
@@ -206,7 +247,7 @@ pub fn draw(lines: &[String], width: u32) -> anyhow::Result<Image> {
         for (n, l) in lines.iter().enumerate() {
             root.draw(&Text::new(
                 l.as_str(),
-                (6, 4 + (n as u32 * LINE_PX) as i32),
+                (MARGIN_PX as i32, 4 + (n as u32 * LINE_PX) as i32),
                 &style,
             ))
             .map_err(|e| anyhow::anyhow!("HUD: {e}"))?;
@@ -249,6 +290,24 @@ mod tests {
         );
     }
 
+    fn state(info: &FrameInfo) -> HudState<'_> {
+        HudState {
+            methods: vec![MethodKind::Qsplat, MethodKind::Spt],
+            current: 1,
+            target: Target::Tolerance(2.0),
+            settings: RenderSettings::default(),
+            info,
+            overlay: Overlay::Holes,
+            levels: true,
+            mode: Mode::Fly,
+            speed: 0.5,
+            keyframes: 2,
+            playing: None,
+            message: "saved",
+            timestamps: false,
+        }
+    }
+
     #[test]
     fn the_hud_reports_the_frame_and_draws_legibly() {
         let info = FrameInfo {
@@ -265,21 +324,7 @@ mod tests {
             flip: Some((7, 0.0123)),
             ..Default::default()
         };
-        let l = lines(&HudState {
-            methods: vec![MethodKind::Qsplat, MethodKind::Spt],
-            current: 1,
-            target: Target::Tolerance(2.0),
-            settings: RenderSettings::default(),
-            info: &info,
-            overlay: Overlay::Holes,
-            levels: true,
-            mode: Mode::Fly,
-            speed: 0.5,
-            keyframes: 2,
-            playing: None,
-            message: "saved",
-            timestamps: false,
-        });
+        let l = lines(&state(&info));
         assert!(l[0].starts_with("spt  [1 qsplat, 2 spt]"), "{}", l[0]);
         assert!(l[1].starts_with("eps 2.000 px  kernel square"), "{}", l[1]);
         assert!(
@@ -296,10 +341,45 @@ mod tests {
             l[4].contains("FLIP 0.0123 (frame 7)")
                 && l[4].contains("showing holes, levels coloured")
         );
+        // A method that loads: the loader's figures make the fifth line the longest.
+        let loading = FrameInfo {
+            traffic: Some(methods::store::access::Traffic {
+                issued: 12_345,
+                bytes: 123 << 20,
+                failed: 2,
+                ..Default::default()
+            }),
+            failed_chunks: 1,
+            ..info.clone()
+        };
+        let long = lines(&HudState {
+            methods: vec![MethodKind::Qsplat, MethodKind::Lpc, MethodKind::Mwkd],
+            info: &loading,
+            message: "saved 3 keyframes to /home/user/.local/share/splatbench/view/path.toml",
+            ..state(&loading)
+        });
         assert!(l[5].starts_with("keyframes 2") && l[5].ends_with("saved"));
-        let img = draw(&l, 600).expect("drawn");
-        assert_eq!((img.width, img.height), (600, 16 * 6 + 8));
+        let img = draw(&l, 1100).expect("drawn");
+        assert_eq!((img.width, img.height), (1100, 16 * 6 + 8));
         let bright = img.rgba.chunks_exact(4).filter(|p| p[0] > 128).count();
         assert!(bright > 500, "text drawn: {bright} bright pixels");
+        // At the default 512 px window no line is cut: long lines are broken at their
+        // fields, and every field of the original lines is still there, in order.
+        let narrow = fit(&long, 512).expect("fitted");
+        assert!(narrow.len() > long.len(), "{narrow:#?}");
+        let font = (crate::plot::FONT, LINE_PX as f64 * 0.85).into_font();
+        for line in &narrow {
+            let w = font.box_size(line).expect("measured").0;
+            assert!(w <= 512 - 2 * MARGIN_PX, "{w} px: {line}");
+        }
+        let fields = |ls: &[String]| -> Vec<String> {
+            ls.iter()
+                .flat_map(|x| x.split("  ").map(String::from).collect::<Vec<_>>())
+                .filter(|f| !f.is_empty())
+                .collect()
+        };
+        assert_eq!(fields(&narrow), fields(&long));
+        let img = draw(&long, 512).expect("drawn");
+        assert_eq!(img.height, 16 * narrow.len() as u32 + 8);
     }
 }

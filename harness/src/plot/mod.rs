@@ -316,9 +316,23 @@ where
     DB::ErrorType: 'static,
     CT: CoordTranslate,
 {
+    draw_legend_at(chart, size, SeriesLabelPosition::UpperRight)
+}
+
+/// [`draw_legend`] at corner `at`.
+fn draw_legend_at<'a, DB, CT>(
+    chart: &mut ChartContext<'a, DB, CT>,
+    size: u32,
+    at: SeriesLabelPosition,
+) -> anyhow::Result<()>
+where
+    DB: DrawingBackend + 'a,
+    DB::ErrorType: 'static,
+    CT: CoordTranslate,
+{
     chart
         .configure_series_labels()
-        .position(SeriesLabelPosition::UpperRight)
+        .position(at)
         .background_style(WHITE.mix(0.85))
         .border_style(BLACK.mix(0.4))
         .label_font((FONT, size))

@@ -514,6 +514,10 @@ pub fn figure(plan: &Plan, rows: &[TuneRow]) -> crate::plot::TuneFigure {
             })
             .collect(),
         front: rows.iter().filter(|r| r.pareto).filter_map(flip).collect(),
+        labels: rows
+            .iter()
+            .filter_map(|r| Some((flip(r)?, plan.targets[r.target].label())))
+            .collect(),
     }
 }
 

@@ -158,7 +158,7 @@ pub struct RenderArgs {
     #[arg(long, value_parser = kernel_parser(), default_value = "square")]
     pub kernel: Kernel,
     /// GPU chunk-cache budget, MiB.
-    #[arg(long, default_value_t = 512, allow_negative_numbers = true)]
+    #[arg(long, default_value_t = harness::render::DEFAULT_GPU_CACHE_MB, allow_negative_numbers = true)]
     pub gpu_cache_mb: u64,
     /// Rasteriser: `quads` (instanced quads, every kernel) or `compute` (a compute shader with
     /// 64-bit atomics, square splats only; the reference is drawn the same way).

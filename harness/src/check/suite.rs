@@ -380,7 +380,11 @@ pub fn run(
                             width: suite.raw.width,
                             height: suite.raw.height,
                             kernel: suite.kernel,
-                            cache_bytes: suite.raw.gpu_cache_mb.unwrap_or(512) << 20,
+                            cache_bytes: suite
+                                .raw
+                                .gpu_cache_mb
+                                .unwrap_or(crate::render::DEFAULT_GPU_CACHE_MB)
+                                << 20,
                             shade: Default::default(),
                             raster: Default::default(),
                         },

@@ -120,13 +120,17 @@ pub struct RenderSettings {
     pub raster: Raster,
 }
 
+/// The GPU chunk cache's budget when none is given (`--gpu-cache-mb`, a suite's or a spec's
+/// `gpu_cache_mb`), MiB.
+pub const DEFAULT_GPU_CACHE_MB: u64 = 512;
+
 impl Default for RenderSettings {
     fn default() -> Self {
         Self {
             width: 512,
             height: 512,
             kernel: Kernel::Square,
-            cache_bytes: 512 << 20,
+            cache_bytes: DEFAULT_GPU_CACHE_MB << 20,
             shade: Shade::default(),
             raster: Raster::Quads,
         }
@@ -268,11 +272,15 @@ pub const SHADER_MODULES: &[(&str, &str)] = &[
 /// to a kernel's shader can never leave images drawn by the old one in a cache (the gaussian
 /// spline of 8def070 did: references cached before it kept being compared with runs after).
 pub fn image_shaders_hash() -> u64 {
-    let mut h = scenes::hash::Fnv64::default();
-    for (name, src) in SHADER_MODULES {
-        h.write_str(name).write_str(src);
-    }
-    h.finish()
+    // The sources are compiled in: hashed once per process (every reference lookup asks).
+    static HASH: std::sync::OnceLock<u64> = std::sync::OnceLock::new();
+    *HASH.get_or_init(|| {
+        let mut h = scenes::hash::Fnv64::default();
+        for (name, src) in SHADER_MODULES {
+            h.write_str(name).write_str(src);
+        }
+        h.finish()
+    })
 }
 
 /// The occlusion-query shader (phase 2 of occlusion culling).

@@ -492,7 +492,9 @@ impl Checker<'_> {
             width: self.image_size(&field, "width", &m.width)?,
             height: self.image_size(&field, "height", &m.height)?,
             kernel,
-            gpu_cache_mb: m.gpu_cache_mb.unwrap_or(512),
+            gpu_cache_mb: m
+                .gpu_cache_mb
+                .unwrap_or(crate::render::DEFAULT_GPU_CACHE_MB),
             metrics: m.metrics.unwrap_or(true),
             isolate: m.isolate.unwrap_or(false),
             points,

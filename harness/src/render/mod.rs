@@ -50,7 +50,8 @@
 //!
 //! ## Files
 //! One room per responsibility, all behind [`Renderer::draw`] (this file: settings, the
-//! renderer's resources and the frame's phases): `splats.rs` (one phase of splat draws: the render
+//! renderer's resources and the frame's phases): `setup.rs` (the fixed resources
+//! [`Renderer::new`] makes: targets, layouts, uniform buffers, timestamp queries), `splats.rs` (one phase of splat draws: the render
 //! passes per kernel, or the compute rasteriser's passes), `interval.rs` (SPT's interval-counting compute pass, `interval.wgsl`),
 //! `pipelines.rs` (pipelines and targets; WGSL in `splat.wgsl` and `normalize.wgsl`),
 //! `queries.rs` and `occlusion.rs` (the occlusion-query pass, `occlusion.wgsl`, and its
@@ -67,6 +68,7 @@ pub mod occlusion;
 mod pipelines;
 mod queries;
 mod readback;
+mod setup;
 pub mod shading;
 mod splats;
 mod uniforms;
@@ -91,6 +93,7 @@ pub use occlusion::OcclusionStats;
 use queries::QueryPipeline;
 pub(crate) use readback::read_texture;
 use readback::{TIMESTAMP_READBACK_BYTES, Timestamps, read_buffer, zeroed_counters};
+use setup::{FrameBuffers, SplatLayouts};
 pub use shading::{ELLIPSE_CLAMP, Shade, Shading};
 use splats::{PhaseItems, PhaseTarget};
 use upload::GpuBatch;
@@ -296,132 +299,25 @@ const DEPTH_FORMAT: wgpu::TextureFormat = wgpu::TextureFormat::Depth32Float;
 impl<'g> Renderer<'g> {
     /// Creates targets and pipelines.
     pub fn new(gpu: &'g Gpu, settings: RenderSettings) -> anyhow::Result<Self> {
+        setup::check_settings(gpu, &settings)?;
         let d = &gpu.device;
-        let max = gpu.limits.max_texture_dimension_2d;
-        if settings.width == 0
-            || settings.height == 0
-            || settings.width > max
-            || settings.height > max
-        {
-            bail!(
-                "--width/--height {}x{} must be between 1 and {max} on adapter '{}'",
-                settings.width,
-                settings.height,
-                gpu.adapter.name
-            );
-        }
-        Shade::check_ellipse_clamp(settings.shade.ellipse_clamp).map_err(anyhow::Error::msg)?;
-        let size = wgpu::Extent3d {
-            width: settings.width,
-            height: settings.height,
-            depth_or_array_layers: 1,
-        };
-        let color = d.create_texture(&wgpu::TextureDescriptor {
-            label: Some("color"),
-            size,
-            mip_level_count: 1,
-            sample_count: 1,
-            dimension: wgpu::TextureDimension::D2,
-            format: COLOR_FORMAT,
-            // Read by the EDL pass, which writes its result back by a copy.
-            usage: wgpu::TextureUsages::RENDER_ATTACHMENT
-                | wgpu::TextureUsages::COPY_SRC
-                | wgpu::TextureUsages::COPY_DST
-                | wgpu::TextureUsages::TEXTURE_BINDING,
-            view_formats: &[],
-        });
-        let depth = d.create_texture(&wgpu::TextureDescriptor {
-            label: Some("depth"),
-            size,
-            mip_level_count: 1,
-            sample_count: 1,
-            dimension: wgpu::TextureDimension::D2,
-            format: DEPTH_FORMAT,
-            // Bound as a texture by the occlusion queries (with a read-only depth attachment).
-            usage: wgpu::TextureUsages::RENDER_ATTACHMENT | wgpu::TextureUsages::TEXTURE_BINDING,
-            view_formats: &[],
-        });
-        let stages = wgpu::ShaderStages::VERTEX | wgpu::ShaderStages::COMPUTE;
-        let uniform = |binding, dynamic, size: u64| wgpu::BindGroupLayoutEntry {
-            binding,
-            visibility: stages,
-            ty: wgpu::BindingType::Buffer {
-                ty: wgpu::BufferBindingType::Uniform,
-                has_dynamic_offset: dynamic,
-                min_binding_size: wgpu::BufferSize::new(size),
-            },
-            count: None,
-        };
-        let bgl0 = d.create_bind_group_layout(&wgpu::BindGroupLayoutDescriptor {
-            label: Some("frame+draw"),
-            entries: &[
-                uniform(0, false, std::mem::size_of::<FrameUniform>() as u64),
-                uniform(1, true, std::mem::size_of::<DrawUniform>() as u64),
-            ],
-        });
-        let storage = |binding| wgpu::BindGroupLayoutEntry {
-            binding,
-            visibility: stages,
-            ty: wgpu::BindingType::Buffer {
-                ty: wgpu::BufferBindingType::Storage { read_only: true },
-                has_dynamic_offset: false,
-                min_binding_size: None,
-            },
-            count: None,
-        };
-        let bgl1 = d.create_bind_group_layout(&wgpu::BindGroupLayoutDescriptor {
-            label: Some("splat columns"),
-            entries: &[storage(0), storage(1), storage(2), storage(3), storage(4)],
-        });
-        let layout = d.create_pipeline_layout(&wgpu::PipelineLayoutDescriptor {
-            label: Some("splat"),
-            bind_group_layouts: &[Some(&bgl0), Some(&bgl1)],
-            immediate_size: 0,
-        });
-        let module = d.create_shader_module(wgpu::ShaderModuleDescriptor {
-            label: Some("splat.wgsl"),
-            source: wgpu::ShaderSource::Wgsl(SPLAT_WGSL.into()),
-        });
-        let bgl2 = d.create_bind_group_layout(&wgpu::BindGroupLayoutDescriptor {
-            label: Some("counters"),
-            entries: &[wgpu::BindGroupLayoutEntry {
-                binding: 0,
-                visibility: wgpu::ShaderStages::COMPUTE,
-                ty: wgpu::BindingType::Buffer {
-                    ty: wgpu::BufferBindingType::Storage { read_only: false },
-                    has_dynamic_offset: false,
-                    min_binding_size: None,
-                },
-                count: None,
-            }],
-        });
-        let count_layout = d.create_pipeline_layout(&wgpu::PipelineLayoutDescriptor {
-            label: Some("count"),
-            bind_group_layouts: &[Some(&bgl0), Some(&bgl1), Some(&bgl2)],
-            immediate_size: 0,
-        });
-        let frame_ubo = d.create_buffer(&wgpu::BufferDescriptor {
-            label: Some("frame"),
-            size: std::mem::size_of::<FrameUniform>() as u64,
-            usage: wgpu::BufferUsages::UNIFORM | wgpu::BufferUsages::COPY_DST,
-            mapped_at_creation: false,
-        });
-        // Dynamic offsets must be multiples of the alignment: round the struct size up to it.
-        let draw_stride = (std::mem::size_of::<DrawUniform>() as u64)
-            .next_multiple_of(gpu.limits.min_uniform_buffer_offset_alignment as u64);
-        let draw_capacity = 256;
-        let draw_ubo = Self::draw_buffer(d, draw_stride * draw_capacity);
-        let dummy = d.create_buffer(&wgpu::BufferDescriptor {
-            label: Some("absent attribute"),
-            size: 16,
-            usage: wgpu::BufferUsages::STORAGE,
-            mapped_at_creation: false,
-        });
-        let quad_indices = d.create_buffer_init(&wgpu::util::BufferInitDescriptor {
-            label: Some("quad indices"),
-            contents: bytemuck::cast_slice(&[0u16, 1, 2, 0, 2, 3]),
-            usage: wgpu::BufferUsages::INDEX,
-        });
+        let (color, depth) = setup::make_targets(d, &settings);
+        let SplatLayouts {
+            bgl0,
+            bgl1,
+            layout,
+            module,
+            bgl2,
+            count_layout,
+        } = SplatLayouts::new(d);
+        let FrameBuffers {
+            frame_ubo,
+            draw_stride,
+            draw_capacity,
+            draw_ubo,
+            dummy,
+            quad_indices,
+        } = FrameBuffers::new(gpu);
         let compute = match settings.raster {
             Raster::Quads => None,
             Raster::Compute => Some(compute::ComputeRaster::new(
@@ -431,26 +327,7 @@ impl<'g> Renderer<'g> {
                 &bgl2,
             )?),
         };
-        let timestamps = gpu.timestamps.then(|| Timestamps {
-            set: d.create_query_set(&wgpu::QuerySetDescriptor {
-                label: Some("frame timestamps"),
-                ty: wgpu::QueryType::Timestamp,
-                count: 6,
-            }),
-            resolve: d.create_buffer(&wgpu::BufferDescriptor {
-                label: Some("timestamp resolve"),
-                size: TIMESTAMP_READBACK_BYTES,
-                usage: wgpu::BufferUsages::QUERY_RESOLVE | wgpu::BufferUsages::COPY_SRC,
-                mapped_at_creation: false,
-            }),
-            readback: d.create_buffer(&wgpu::BufferDescriptor {
-                label: Some("timestamp readback"),
-                size: TIMESTAMP_READBACK_BYTES,
-                usage: wgpu::BufferUsages::MAP_READ | wgpu::BufferUsages::COPY_DST,
-                mapped_at_creation: false,
-            }),
-            period_ns: gpu.queue.get_timestamp_period() as f64,
-        });
+        let timestamps = setup::make_timestamps(gpu);
         Ok(Self {
             gpu,
             settings,

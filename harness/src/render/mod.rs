@@ -90,7 +90,7 @@ use crate::gpu::Gpu;
 use crate::image::Image;
 use occlusion::Icosahedron;
 pub use occlusion::OcclusionStats;
-use queries::QueryPipeline;
+use queries::{PendingQueries, QueryPipeline};
 pub(crate) use readback::read_texture;
 use readback::{TIMESTAMP_READBACK_BYTES, Timestamps, read_buffer, zeroed_counters};
 use setup::{FrameBuffers, SplatLayouts};
@@ -407,6 +407,73 @@ impl<'g> Renderer<'g> {
         method: &dyn LodMethod,
         readback: bool,
     ) -> anyhow::Result<(FrameStats, Option<Image>)> {
+        self.check_view(view)?;
+        let t0 = Instant::now();
+        let shape = list.shape.unwrap_or(self.settings.kernel);
+        self.check_list(list, shape)?;
+        self.ensure_pipelines(shape);
+        self.ensure_count_pipeline(list);
+        self.cache.begin_frame();
+        let mut stats = FrameStats::default();
+        self.gpu.queue.write_buffer(
+            &self.frame_ubo,
+            0,
+            bytemuck::bytes_of(&frame_uniform(view, &self.settings.shade)),
+        );
+        // Timestamp pairs written, by first index: 0 = phase 1 (or the only pass), 2 = the
+        // occlusion queries, 4 = phase 3.
+        let mut ts_pairs: Vec<u32> = vec![0];
+
+        // Phase 1 (or the whole frame without occlusion culling).
+        let items: Vec<&DrawItem> = list.items.iter().collect();
+        let phase1 = PhaseTarget {
+            clear: true,
+            store_depth: list.occlusion.is_some() || self.edl.is_some(),
+            ts: (0, 1),
+        };
+        let (mut enc, counters1, streams) =
+            self.encode_phase(shape, method, &items, &mut stats, phase1)?;
+        let mut counters = vec![counters1];
+        let mut keep_alive = vec![streams];
+        let Some(occ) = &list.occlusion else {
+            self.resolve_timestamps(&mut enc, 0..2, 0);
+            self.gpu.queue.submit([enc.finish()]);
+            self.gpu.wait()?;
+            return self.finish_frame(view, t0, stats, counters, &ts_pairs, readback);
+        };
+
+        // Phase 2: one occlusion query per candidate against phase 1's depth.
+        let pending = self.encode_queries(view, occ, &mut enc, (2, 3))?;
+        let queried_any = pending.readback.is_some();
+        if queried_any {
+            ts_pairs.push(2);
+        }
+        self.resolve_timestamps(&mut enc, 0..if queried_any { 4 } else { 2 }, 0);
+        self.gpu.queue.submit([enc.finish()]);
+        self.gpu.wait()?;
+        let mut occlusion = self.read_occlusion(occ, &pending)?;
+
+        // Phase 3: upload (only now) and draw the visible candidates not drawn in phase 1.
+        if let Some((counters3, streams3)) =
+            self.draw_phase3(shape, method, occ, &mut occlusion, &mut stats)?
+        {
+            counters.push(counters3);
+            ts_pairs.push(4);
+            keep_alive.push(streams3);
+        }
+        drop(keep_alive);
+        drop(pending);
+        let (mut stats, image) =
+            self.finish_frame(view, t0, stats, counters, &ts_pairs, readback)?;
+        if queried_any {
+            occlusion.query_gpu_ms = stats.phase_gpu_ms.get(1).copied().flatten();
+        }
+        stats.occlusion = Some(occlusion);
+        Ok((stats, image))
+    }
+
+    /// Refuses a view whose size is not the renderer's.
+    fn check_view(&self, view: &View) -> anyhow::Result<()> {
         if view.width != self.settings.width || view.height != self.settings.height {
             bail!(
                 "view is {}x{} but the renderer was made for {}x{}",
@@ -416,8 +483,13 @@ impl<'g> Renderer<'g> {
                 self.settings.height
             );
         }
-        let t0 = Instant::now();
-        let shape = list.shape.unwrap_or(self.settings.kernel);
+        Ok(())
+    }
+
+    /// Refuses a draw list this renderer cannot draw with kernel `shape`: an occlusion
+    /// threshold without exact sample counts, a kernel the compute rasteriser lacks, or
+    /// occlusion culling with the gaussian kernel.
+    fn check_list(&self, list: &DrawList, shape: Kernel) -> anyhow::Result<()> {
         if let Some(o) = &list.occlusion
             && o.threshold > 0
             && !exact_counts(self.gpu)
@@ -445,7 +517,12 @@ impl<'g> Renderer<'g> {
                  another --kernel or turn the method's occlusion culling off"
             );
         }
-        self.ensure_pipelines(shape);
+        Ok(())
+    }
+
+    /// Makes the interval-counting pipeline on first use: when an item of phase 1 or a
+    /// candidate's item (phase 3) is sequential (SPT).
+    fn ensure_count_pipeline(&mut self, list: &DrawList) {
         let phase3_items = list
             .occlusion
             .iter()
@@ -468,55 +545,45 @@ impl<'g> Renderer<'g> {
                 },
             ));
         }
-        self.cache.begin_frame();
-        let mut stats = FrameStats::default();
-        self.gpu.queue.write_buffer(
-            &self.frame_ubo,
-            0,
-            bytemuck::bytes_of(&frame_uniform(view, &self.settings.shade)),
-        );
-        // Timestamp pairs written, by first index: 0 = phase 1 (or the only pass), 2 = the
-        // occlusion queries, 4 = phase 3.
-        let mut ts_pairs: Vec<u32> = vec![0];
+    }
 
-        // Phase 1 (or the whole frame without occlusion culling).
-        let items: Vec<&DrawItem> = list.items.iter().collect();
-        let streams = self.upload_items(&items, method, &mut stats)?;
-        self.ensure_draw_capacity(&items, &streams)?;
+    /// Uploads one phase's `items` ([`Self::upload_items`]), grows the draw buffer for them
+    /// and records their splat draws ([`Self::encode_splats`]) into a new command encoder.
+    /// Returns the encoder (not yet submitted), the interval counters' readback, if any, and
+    /// the stream buffers, which must live until the encoder's submission is done.
+    fn encode_phase(
+        &mut self,
+        shape: Kernel,
+        method: &dyn LodMethod,
+        items: &[&DrawItem],
+        stats: &mut FrameStats,
+        target: PhaseTarget,
+    ) -> anyhow::Result<PhaseEncoded> {
+        let streams = self.upload_items(items, method, stats)?;
+        self.ensure_draw_capacity(items, &streams)?;
         let mut enc = self.gpu.device.create_command_encoder(&Default::default());
-        let counters1 = self.encode_splats(
+        let counters = self.encode_splats(
             shape,
             PhaseItems {
                 method,
-                items: &items,
+                items,
                 streams: &streams,
             },
-            &mut stats,
+            stats,
             &mut enc,
-            PhaseTarget {
-                clear: true,
-                store_depth: list.occlusion.is_some() || self.edl.is_some(),
-                ts: (0, 1),
-            },
+            target,
         )?;
-        let mut counters = vec![counters1];
-        let mut keep_alive = vec![streams];
-        let Some(occ) = &list.occlusion else {
-            self.resolve_timestamps(&mut enc, 0..2, 0);
-            self.gpu.queue.submit([enc.finish()]);
-            self.gpu.wait()?;
-            return self.finish_frame(view, t0, stats, counters, &ts_pairs, readback);
-        };
+        Ok((enc, counters, streams))
+    }
 
-        // Phase 2: one occlusion query per candidate against phase 1's depth.
-        let pending = self.encode_queries(view, occ, &mut enc, (2, 3))?;
-        let queried_any = pending.readback.is_some();
-        if queried_any {
-            ts_pairs.push(2);
-        }
-        self.resolve_timestamps(&mut enc, 0..if queried_any { 4 } else { 2 }, 0);
-        self.gpu.queue.submit([enc.finish()]);
-        self.gpu.wait()?;
+    /// Phase 2's results, once its submission is done: reads the query counts back (exact
+    /// fragment counts where the adapter has them, else the hardware results) and classifies
+    /// the candidates against the pass's threshold.
+    fn read_occlusion(
+        &self,
+        occ: &OcclusionPass,
+        pending: &PendingQueries,
+    ) -> anyhow::Result<OcclusionStats> {
         let mut samples = vec![None; occ.candidates.len()];
         let mut query_results = vec![None; occ.candidates.len()];
         if let Some((buf, bytes)) = &pending.readback {
@@ -532,8 +599,21 @@ impl<'g> Renderer<'g> {
         }
         let mut occlusion = OcclusionStats::classify(&occ.candidates, samples, occ.threshold);
         occlusion.query_results = query_results;
+        Ok(occlusion)
+    }
 
-        // Phase 3: upload (only now) and draw the visible candidates not drawn in phase 1.
+    /// Phase 3, its own submission: uploads and draws the visible candidates that carry an
+    /// item, waits for it and records the splats drawn in `occlusion.phase3_points`. Returns
+    /// the interval counters' readback and the stream buffers, or `None` when no candidate
+    /// was drawn.
+    fn draw_phase3(
+        &mut self,
+        shape: Kernel,
+        method: &dyn LodMethod,
+        occ: &OcclusionPass,
+        occlusion: &mut OcclusionStats,
+        stats: &mut FrameStats,
+    ) -> anyhow::Result<Option<(IntervalCounters, Vec<GpuBatch>)>> {
         let items3: Vec<&DrawItem> = occ
             .candidates
             .iter()
@@ -541,44 +621,31 @@ impl<'g> Renderer<'g> {
             .filter(|(i, _)| occlusion.is_visible(*i, occ.threshold))
             .filter_map(|(_, c)| c.item.as_ref())
             .collect();
-        if !items3.is_empty() {
-            let points_before = stats.points;
-            let streams3 = self.upload_items(&items3, method, &mut stats)?;
-            self.ensure_draw_capacity(&items3, &streams3)?;
-            let mut enc = self.gpu.device.create_command_encoder(&Default::default());
-            counters.push(self.encode_splats(
-                shape,
-                PhaseItems {
-                    method,
-                    items: &items3,
-                    streams: &streams3,
-                },
-                &mut stats,
-                &mut enc,
-                PhaseTarget {
-                    clear: false,
-                    store_depth: self.edl.is_some(),
-                    ts: (4, 5),
-                },
-            )?);
-            ts_pairs.push(4);
-            self.resolve_timestamps(&mut enc, 4..6, wgpu::QUERY_RESOLVE_BUFFER_ALIGNMENT);
-            self.gpu.queue.submit([enc.finish()]);
-            self.gpu.wait()?;
-            occlusion.phase3_points = stats.points - points_before;
-            keep_alive.push(streams3);
+        if items3.is_empty() {
+            return Ok(None);
         }
-        drop(keep_alive);
-        drop(pending);
-        let (mut stats, image) =
-            self.finish_frame(view, t0, stats, counters, &ts_pairs, readback)?;
-        if queried_any {
-            occlusion.query_gpu_ms = stats.phase_gpu_ms.get(1).copied().flatten();
-        }
-        stats.occlusion = Some(occlusion);
-        Ok((stats, image))
+        let points_before = stats.points;
+        let phase3 = PhaseTarget {
+            clear: false,
+            store_depth: self.edl.is_some(),
+            ts: (4, 5),
+        };
+        let (mut enc, counters, streams3) =
+            self.encode_phase(shape, method, &items3, stats, phase3)?;
+        self.resolve_timestamps(&mut enc, 4..6, wgpu::QUERY_RESOLVE_BUFFER_ALIGNMENT);
+        self.gpu.queue.submit([enc.finish()]);
+        self.gpu.wait()?;
+        occlusion.phase3_points = stats.points - points_before;
+        Ok(Some((counters, streams3)))
     }
 }
+
+/// The interval counters' readback of one phase (buffer and size), when a draw had a test.
+type IntervalCounters = Option<(wgpu::Buffer, u64)>;
+
+/// One phase recorded by [`Renderer::encode_phase`]: its command encoder, the interval
+/// counters' readback, if any, and the stream buffers uploaded for it.
+type PhaseEncoded = (wgpu::CommandEncoder, IntervalCounters, Vec<GpuBatch>);
 
 /// Workgroups `(x, y)` of 64 invocations covering `count` splats when one dimension holds at
 /// most `max_per_dimension` workgroups (65,535 on most adapters, so 4,194,240 splats): rows of

@@ -22,6 +22,72 @@ pub(super) struct QueryPipeline {
     pub(super) sampler: wgpu::Sampler,
 }
 
+/// The buffers of one frame's queries.
+struct QueryBuffers {
+    /// The queried candidates' icosahedra, 12 vertices each.
+    vertices: wgpu::Buffer,
+    /// The hardware query results (u64 each), `bytes` long.
+    resolve: wgpu::Buffer,
+    /// The fragment counters (u32 each), `counter_bytes` long.
+    counters: wgpu::Buffer,
+    /// The results followed by the counters, mapped for reading.
+    readback: wgpu::Buffer,
+    bytes: u64,
+    counter_bytes: u64,
+    /// Queries, one per candidate queried.
+    queries: usize,
+}
+
+impl QueryBuffers {
+    /// The buffers for `n` queries of the icosahedra `verts`.
+    fn new(d: &wgpu::Device, verts: &[[f32; 3]], n: usize) -> Self {
+        let vertices = d.create_buffer_init(&wgpu::util::BufferInitDescriptor {
+            label: Some("query icosahedra"),
+            contents: bytemuck::cast_slice(verts),
+            usage: wgpu::BufferUsages::VERTEX,
+        });
+        let bytes = n as u64 * wgpu::QUERY_SIZE as u64;
+        let resolve = d.create_buffer(&wgpu::BufferDescriptor {
+            label: Some("occlusion resolve"),
+            size: bytes,
+            usage: wgpu::BufferUsages::QUERY_RESOLVE | wgpu::BufferUsages::COPY_SRC,
+            mapped_at_creation: false,
+        });
+        let counter_bytes = n as u64 * 4;
+        let counters = zeroed_counters(d, "occlusion fragment counters", counter_bytes);
+        let readback = d.create_buffer(&wgpu::BufferDescriptor {
+            label: Some("occlusion readback"),
+            size: bytes + counter_bytes,
+            usage: wgpu::BufferUsages::MAP_READ | wgpu::BufferUsages::COPY_DST,
+            mapped_at_creation: false,
+        });
+        Self {
+            vertices,
+            resolve,
+            counters,
+            readback,
+            bytes,
+            counter_bytes,
+            queries: n,
+        }
+    }
+}
+
+/// The candidates that need a query ([`occlusion::needs_query`]), by index, and their
+/// icosahedra's vertices, in query order.
+fn query_candidates(view: &View, occ: &OcclusionPass) -> (Vec<usize>, Vec<[f32; 3]>) {
+    let mut queried = Vec::new();
+    let mut verts: Vec<[f32; 3]> = Vec::new();
+    for (i, c) in occ.candidates.iter().enumerate() {
+        let v = Icosahedron::vertices(c.center, c.radius);
+        if occlusion::needs_query(view, c, &v) {
+            queried.push(i);
+            verts.extend(v.map(Into::<[f32; 3]>::into));
+        }
+    }
+    (queried, verts)
+}
+
 impl Renderer<'_> {
     /// Phase 2: records one occlusion query per candidate that needs one (in as many render
     /// passes as [`wgpu::QUERY_SET_MAX_QUERIES`] requires), timestamps `ts` around them, and
@@ -33,15 +99,7 @@ impl Renderer<'_> {
         enc: &mut wgpu::CommandEncoder,
         ts: (u32, u32),
     ) -> anyhow::Result<PendingQueries> {
-        let mut queried = Vec::new();
-        let mut verts: Vec<[f32; 3]> = Vec::new();
-        for (i, c) in occ.candidates.iter().enumerate() {
-            let v = Icosahedron::vertices(c.center, c.radius);
-            if occlusion::needs_query(view, c, &v) {
-                queried.push(i);
-                verts.extend(v.map(Into::<[f32; 3]>::into));
-            }
-        }
+        let (queried, verts) = query_candidates(view, occ);
         if queried.is_empty() {
             return Ok(PendingQueries {
                 queried,
@@ -50,11 +108,38 @@ impl Renderer<'_> {
                 _keep: Vec::new(),
             });
         }
+        let shared_depth = self.prepare_queries(queried.len());
+        let bufs = QueryBuffers::new(&self.gpu.device, &verts, queried.len());
+        let q = self.query.as_ref().context("query pipeline missing")?;
+        let bind_group = self.query_bind_group(q, shared_depth, &bufs.counters);
+        self.encode_query_passes(enc, q, &bind_group, &bufs, shared_depth, ts);
+        let QueryBuffers {
+            vertices,
+            resolve,
+            counters,
+            readback,
+            bytes,
+            counter_bytes,
+            ..
+        } = bufs;
+        enc.copy_buffer_to_buffer(&resolve, 0, &readback, 0, bytes);
+        enc.copy_buffer_to_buffer(&counters, 0, &readback, bytes, counter_bytes);
+        Ok(PendingQueries {
+            queried,
+            readback: Some((readback, bytes + counter_bytes)),
+            counters_at: bytes,
+            _keep: vec![vertices, counters, resolve],
+        })
+    }
+
+    /// Makes what `n` queries need on first use: the query pipeline, enough query sets and,
+    /// on backends without exact counts, the depth stand-in. Returns whether the queries share
+    /// phase 1's depth buffer (attached read-only and bound as a texture).
+    fn prepare_queries(&mut self, n: usize) -> bool {
         if self.query.is_none() {
             self.query = Some(self.make_query_pipeline());
         }
-        let per_set = wgpu::QUERY_SET_MAX_QUERIES as usize;
-        let sets = queried.len().div_ceil(per_set);
+        let sets = n.div_ceil(wgpu::QUERY_SET_MAX_QUERIES as usize);
         while self.query_sets.len() < sets {
             let set = self.gpu.device.create_query_set(&wgpu::QuerySetDescriptor {
                 label: Some("occlusion queries"),
@@ -82,60 +167,69 @@ impl Renderer<'_> {
             });
             self.depth_copy = Some(t.create_view(&Default::default()));
         }
+        shared_depth
+    }
+
+    /// The queries' bind group: the frame's `view_proj`, the depth they sample (phase 1's,
+    /// or the stand-in unless `shared_depth`), the fragment `counters` and the sampler.
+    fn query_bind_group(
+        &self,
+        q: &QueryPipeline,
+        shared_depth: bool,
+        counters: &wgpu::Buffer,
+    ) -> wgpu::BindGroup {
         let sampled_depth = match (&self.depth_copy, shared_depth) {
             (Some(copy), false) => copy,
             _ => &self.depth_view,
         };
-        let d = &self.gpu.device;
-        let vertices = d.create_buffer_init(&wgpu::util::BufferInitDescriptor {
-            label: Some("query icosahedra"),
-            contents: bytemuck::cast_slice(&verts),
-            usage: wgpu::BufferUsages::VERTEX,
-        });
-        let bytes = queried.len() as u64 * wgpu::QUERY_SIZE as u64;
-        let resolve = d.create_buffer(&wgpu::BufferDescriptor {
-            label: Some("occlusion resolve"),
-            size: bytes,
-            usage: wgpu::BufferUsages::QUERY_RESOLVE | wgpu::BufferUsages::COPY_SRC,
-            mapped_at_creation: false,
-        });
-        let counter_bytes = queried.len() as u64 * 4;
-        let counters = zeroed_counters(d, "occlusion fragment counters", counter_bytes);
-        let readback = d.create_buffer(&wgpu::BufferDescriptor {
-            label: Some("occlusion readback"),
-            size: bytes + counter_bytes,
-            usage: wgpu::BufferUsages::MAP_READ | wgpu::BufferUsages::COPY_DST,
-            mapped_at_creation: false,
-        });
-        let q = self.query.as_ref().context("query pipeline missing")?;
-        let bind_group = d.create_bind_group(&wgpu::BindGroupDescriptor {
-            label: Some("occlusion queries"),
-            layout: &q.bgl,
-            entries: &[
-                // `QueryFrame` is the leading `view_proj` of the frame uniform.
-                wgpu::BindGroupEntry {
-                    binding: 0,
-                    resource: wgpu::BindingResource::Buffer(wgpu::BufferBinding {
-                        buffer: &self.frame_ubo,
-                        offset: 0,
-                        size: wgpu::BufferSize::new(64),
-                    }),
-                },
-                wgpu::BindGroupEntry {
-                    binding: 1,
-                    resource: wgpu::BindingResource::TextureView(sampled_depth),
-                },
-                wgpu::BindGroupEntry {
-                    binding: 2,
-                    resource: counters.as_entire_binding(),
-                },
-                wgpu::BindGroupEntry {
-                    binding: 3,
-                    resource: wgpu::BindingResource::Sampler(&q.sampler),
-                },
-            ],
-        });
-        for (k, chunk) in queried.chunks(per_set).enumerate() {
+        self.gpu
+            .device
+            .create_bind_group(&wgpu::BindGroupDescriptor {
+                label: Some("occlusion queries"),
+                layout: &q.bgl,
+                entries: &[
+                    // `QueryFrame` is the leading `view_proj` of the frame uniform.
+                    wgpu::BindGroupEntry {
+                        binding: 0,
+                        resource: wgpu::BindingResource::Buffer(wgpu::BufferBinding {
+                            buffer: &self.frame_ubo,
+                            offset: 0,
+                            size: wgpu::BufferSize::new(64),
+                        }),
+                    },
+                    wgpu::BindGroupEntry {
+                        binding: 1,
+                        resource: wgpu::BindingResource::TextureView(sampled_depth),
+                    },
+                    wgpu::BindGroupEntry {
+                        binding: 2,
+                        resource: counters.as_entire_binding(),
+                    },
+                    wgpu::BindGroupEntry {
+                        binding: 3,
+                        resource: wgpu::BindingResource::Sampler(&q.sampler),
+                    },
+                ],
+            })
+    }
+
+    /// Records the query passes, one per query set of [`wgpu::QUERY_SET_MAX_QUERIES`]
+    /// queries (of `bufs.queries` in all), each followed by the resolve of its results into
+    /// `bufs.resolve`; timestamps `ts` at the beginning of the first and the end of the last.
+    fn encode_query_passes(
+        &self,
+        enc: &mut wgpu::CommandEncoder,
+        q: &QueryPipeline,
+        bind_group: &wgpu::BindGroup,
+        bufs: &QueryBuffers,
+        shared_depth: bool,
+        ts: (u32, u32),
+    ) {
+        let per_set = wgpu::QUERY_SET_MAX_QUERIES as usize;
+        let n = bufs.queries;
+        let sets = n.div_ceil(per_set);
+        for k in 0..sets {
+            let len = per_set.min(n - k * per_set);
             let (first, last) = (k == 0, k + 1 == sets);
             let timestamp_writes = self.timestamps.as_ref().filter(|_| first || last).map(|t| {
                 wgpu::RenderPassTimestampWrites {
@@ -162,10 +256,10 @@ impl Renderer<'_> {
                 multiview_mask: None,
             });
             pass.set_pipeline(&q.pipeline);
-            pass.set_bind_group(0, &bind_group, &[]);
-            pass.set_vertex_buffer(0, vertices.slice(..));
+            pass.set_bind_group(0, bind_group, &[]);
+            pass.set_vertex_buffer(0, bufs.vertices.slice(..));
             pass.set_index_buffer(q.indices.slice(..), wgpu::IndexFormat::Uint16);
-            for j in 0..chunk.len() {
+            for j in 0..len {
                 let n = (k * per_set + j) as u32;
                 pass.begin_occlusion_query(j as u32);
                 pass.draw_indexed(0..60, (n * 12) as i32, n..n + 1);
@@ -174,21 +268,15 @@ impl Renderer<'_> {
             drop(pass);
             enc.resolve_query_set(
                 &self.query_sets[k],
-                0..chunk.len() as u32,
-                &resolve,
+                0..len as u32,
+                &bufs.resolve,
                 (k * per_set) as u64 * wgpu::QUERY_SIZE as u64,
             );
         }
-        enc.copy_buffer_to_buffer(&resolve, 0, &readback, 0, bytes);
-        enc.copy_buffer_to_buffer(&counters, 0, &readback, bytes, counter_bytes);
-        Ok(PendingQueries {
-            queried,
-            readback: Some((readback, bytes + counter_bytes)),
-            counters_at: bytes,
-            _keep: vec![vertices, counters, resolve],
-        })
     }
 
+    /// Makes the occlusion-query pipeline: `occlusion.wgsl`, its bind-group layout, the
+    /// icosahedron's index buffer and the depth-compare sampler.
     pub(super) fn make_query_pipeline(&self) -> QueryPipeline {
         let d = &self.gpu.device;
         let module = d.create_shader_module(wgpu::ShaderModuleDescriptor {

@@ -300,15 +300,7 @@ impl std::str::FromStr for SplatShape {
 
     /// The shape of a name (exact, lower case).
     fn from_str(s: &str) -> Result<Self, Self::Err> {
-        Self::ALL
-            .iter()
-            .copied()
-            .find(|k| k.name() == s)
-            .ok_or_else(|| crate::error::UnknownName {
-                what: "kernel",
-                name: s.to_string(),
-                known: Self::ALL.iter().map(|k| k.name()).collect(),
-            })
+        crate::error::UnknownName::lookup("kernel", Self::ALL, Self::name, s)
     }
 }
 

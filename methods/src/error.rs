@@ -72,6 +72,25 @@ pub struct UnknownName {
     pub known: Vec<&'static str>,
 }
 
+impl UnknownName {
+    /// The one of `all` whose `name` is `s` (exact), else the error listing every name.
+    pub fn lookup<T: Copy>(
+        what: &'static str,
+        all: &[T],
+        name: impl Fn(T) -> &'static str,
+        s: &str,
+    ) -> Result<T, Self> {
+        all.iter()
+            .copied()
+            .find(|&k| name(k) == s)
+            .ok_or_else(|| Self {
+                what,
+                name: s.to_string(),
+                known: all.iter().map(|&k| name(k)).collect(),
+            })
+    }
+}
+
 impl MethodError {
     /// Shorthand for [`MethodError::Io`].
     pub fn io(path: impl Into<PathBuf>, error: std::io::Error) -> Self {

@@ -385,15 +385,7 @@ impl std::str::FromStr for MethodKind {
 
     /// The method of a registry name (exact, lower case).
     fn from_str(s: &str) -> Result<Self, Self::Err> {
-        Self::ALL
-            .iter()
-            .copied()
-            .find(|k| k.name() == s)
-            .ok_or_else(|| crate::error::UnknownName {
-                what: "method",
-                name: s.to_string(),
-                known: Self::ALL.iter().map(|k| k.name()).collect(),
-            })
+        crate::error::UnknownName::lookup("method", Self::ALL, Self::name, s)
     }
 }
 

@@ -209,94 +209,16 @@ fn raw_chunks(kind: MethodKind, dir: &Path, most: usize) -> Result<Vec<Seed>, St
 /// Builds the corpus of `target`, writing what it needs under `work`.
 pub fn corpus(target: Target, work: &Path) -> Result<Corpus, String> {
     std::fs::create_dir_all(work).map_err(|e| format!("{}: {e}", work.display()))?;
-    let err = |e: scenes::SceneError| e.to_string();
     let real = repo_root().join("scenes/tests/data/real");
     let committed = Path::new(env!("CARGO_MANIFEST_DIR")).join("seeds");
     let mut dir = None;
     let mut refs_out = Vec::new();
     let bounds = scene()?.bounds();
     let seeds = match target {
-        Target::PlyAscii => vec![
-            written(work, "attrs.ply", |p| {
-                ply::write(p, &small_cloud(30, true)?, PlyFormat::Ascii)
-                    .map(drop)
-                    .map_err(err)
-            })?,
-            written(work, "mesh.ply", |p| {
-                ply::write_mesh(p, &SQUARE, &[[0, 1, 2], [0, 2, 3]], PlyFormat::Ascii)
-                    .map(drop)
-                    .map_err(err)
-            })?,
-            Seed {
-                name: "mixed.ply".into(),
-                bytes: ASCII_MIXED.as_bytes().to_vec(),
-            },
-        ],
-        Target::PlyBinary => {
-            let mut s = Vec::new();
-            for (f, tag) in [
-                (PlyFormat::BinaryLittleEndian, "le"),
-                (PlyFormat::BinaryBigEndian, "be"),
-            ] {
-                s.push(written(work, &format!("attrs-{tag}.ply"), |p| {
-                    ply::write(p, &small_cloud(30, true)?, f)
-                        .map(drop)
-                        .map_err(err)
-                })?);
-                s.push(written(work, &format!("mesh-{tag}.ply"), |p| {
-                    ply::write_mesh(p, &SQUARE, &[[0, 1, 2], [0, 2, 3]], f)
-                        .map(drop)
-                        .map_err(err)
-                })?);
-            }
-            for be in [false, true] {
-                s.push(Seed {
-                    name: format!("lists-{be}.ply"),
-                    bytes: binary_with_lists(be),
-                });
-            }
-            s
-        }
-        Target::Las => {
-            let c = written(work, "rgb.las", |p| {
-                scenes::las::write(p, &small_cloud(40, true)?)
-                    .map(drop)
-                    .map_err(err)
-            })?;
-            let p = written(work, "plain.las", |p| {
-                scenes::las::write(p, &small_cloud(40, false)?)
-                    .map(drop)
-                    .map_err(err)
-            })?;
-            let v14 = Seed {
-                name: "v14.las".into(),
-                bytes: to_las14(&c.bytes, false),
-            };
-            vec![c, p, v14, read_seed(&committed.join("las14-format6.las"))?]
-        }
-        Target::Laz => {
-            let c = written(work, "rgb.laz", |p| {
-                scenes::las::write(p, &small_cloud(300, true)?)
-                    .map(drop)
-                    .map_err(err)
-            })?;
-            let v14 = Seed {
-                name: "v14.laz".into(),
-                bytes: to_las14(&c.bytes, true),
-            };
-            vec![
-                read_seed(&real.join("plane.laz"))?,
-                c,
-                written(work, "plain.laz", |p| {
-                    scenes::las::write(p, &small_cloud(300, false)?)
-                        .map(drop)
-                        .map_err(err)
-                })?,
-                v14,
-                read_seed(&committed.join("las14-format6.laz"))?,
-                read_seed(&committed.join("las14-format7.laz"))?,
-            ]
-        }
+        Target::PlyAscii => ply_ascii_seeds(work)?,
+        Target::PlyBinary => ply_binary_seeds(work)?,
+        Target::Las => las_seeds(work, &committed)?,
+        Target::Laz => laz_seeds(work, &real, &committed)?,
         Target::Pcd => [
             "ascii.pcd",
             "binary.pcd",
@@ -308,49 +230,9 @@ pub fn corpus(target: Target, work: &Path) -> Result<Corpus, String> {
         .map(|n| read_seed(&real.join(n)))
         .collect::<Result<_, _>>()?,
         Target::E57 => vec![read_seed(&real.join("pipeSpherical.e57"))?],
-        Target::Sbc => vec![
-            written(work, "attrs.sbc", |p| {
-                scenes::colfile::write(p, &small_cloud(40, true)?)
-                    .map(drop)
-                    .map_err(err)
-            })?,
-            written(work, "plain.sbc", |p| {
-                scenes::colfile::write(p, &small_cloud(40, false)?)
-                    .map(drop)
-                    .map_err(err)
-            })?,
-        ],
-        Target::SceneToml => [
-            "generator = \"statue\"\npoints = 200\nseed = 3\n",
-            "generator = \"terrain\"\npoints = 100\nkeep_attributes = true\nup = \"y\"\n",
-            "file = \"scan.ply\"\nsample = 1000\nseed = 2\nup = \"z\"\n",
-            "file = \"tile.laz\"\n",
-            "generator = \"isosurface\"\npoints = 150\n",
-        ]
-        .iter()
-        .enumerate()
-        .map(|(i, t)| Seed {
-            name: format!("scene{i}.toml"),
-            bytes: t.as_bytes().to_vec(),
-        })
-        .collect(),
-        Target::PathToml => {
-            let mut s = Vec::new();
-            let paths = repo_root().join("scenes/paths");
-            let mut names: Vec<PathBuf> = std::fs::read_dir(&paths)
-                .map_err(|e| format!("{}: {e}", paths.display()))?
-                .filter_map(|e| e.ok().map(|e| e.path()))
-                .filter(|p| p.extension().is_some_and(|e| e == "toml"))
-                .collect();
-            names.sort();
-            for p in names {
-                s.push(read_seed(&p)?);
-            }
-            if s.is_empty() {
-                return Err(format!("no .toml camera paths in {}", paths.display()));
-            }
-            s
-        }
+        Target::Sbc => sbc_seeds(work)?,
+        Target::SceneToml => scene_toml_seeds(),
+        Target::PathToml => path_toml_seeds()?,
         Target::Method(kind) => {
             let d = build(kind, work)?;
             let s = dir_seeds(&d)?;
@@ -388,4 +270,159 @@ pub fn corpus(target: Target, work: &Path) -> Result<Corpus, String> {
         refs: refs_out,
         bounds,
     })
+}
+
+/// A scene error as the corpus builder's error text.
+fn err(e: scenes::SceneError) -> String {
+    e.to_string()
+}
+
+/// ASCII PLY seeds: a cloud with attributes, a mesh, mixed element types.
+fn ply_ascii_seeds(work: &Path) -> Result<Vec<Seed>, String> {
+    Ok(vec![
+        written(work, "attrs.ply", |p| {
+            ply::write(p, &small_cloud(30, true)?, PlyFormat::Ascii)
+                .map(drop)
+                .map_err(err)
+        })?,
+        written(work, "mesh.ply", |p| {
+            ply::write_mesh(p, &SQUARE, &[[0, 1, 2], [0, 2, 3]], PlyFormat::Ascii)
+                .map(drop)
+                .map_err(err)
+        })?,
+        Seed {
+            name: "mixed.ply".into(),
+            bytes: ASCII_MIXED.as_bytes().to_vec(),
+        },
+    ])
+}
+
+/// Binary PLY seeds, little and big endian: a cloud with attributes, a mesh, list properties.
+fn ply_binary_seeds(work: &Path) -> Result<Vec<Seed>, String> {
+    let mut s = Vec::new();
+    for (f, tag) in [
+        (PlyFormat::BinaryLittleEndian, "le"),
+        (PlyFormat::BinaryBigEndian, "be"),
+    ] {
+        s.push(written(work, &format!("attrs-{tag}.ply"), |p| {
+            ply::write(p, &small_cloud(30, true)?, f)
+                .map(drop)
+                .map_err(err)
+        })?);
+        s.push(written(work, &format!("mesh-{tag}.ply"), |p| {
+            ply::write_mesh(p, &SQUARE, &[[0, 1, 2], [0, 2, 3]], f)
+                .map(drop)
+                .map_err(err)
+        })?);
+    }
+    for be in [false, true] {
+        s.push(Seed {
+            name: format!("lists-{be}.ply"),
+            bytes: binary_with_lists(be),
+        });
+    }
+    Ok(s)
+}
+
+/// LAS seeds: with and without colour, a 1.4 header, and the committed format-6 file.
+fn las_seeds(work: &Path, committed: &Path) -> Result<Vec<Seed>, String> {
+    let c = written(work, "rgb.las", |p| {
+        scenes::las::write(p, &small_cloud(40, true)?)
+            .map(drop)
+            .map_err(err)
+    })?;
+    let p = written(work, "plain.las", |p| {
+        scenes::las::write(p, &small_cloud(40, false)?)
+            .map(drop)
+            .map_err(err)
+    })?;
+    let v14 = Seed {
+        name: "v14.las".into(),
+        bytes: to_las14(&c.bytes, false),
+    };
+    Ok(vec![
+        c,
+        p,
+        v14,
+        read_seed(&committed.join("las14-format6.las"))?,
+    ])
+}
+
+/// LAZ seeds: a real file, ours with and without colour, a 1.4 header, the committed
+/// formats 6 and 7.
+fn laz_seeds(work: &Path, real: &Path, committed: &Path) -> Result<Vec<Seed>, String> {
+    let c = written(work, "rgb.laz", |p| {
+        scenes::las::write(p, &small_cloud(300, true)?)
+            .map(drop)
+            .map_err(err)
+    })?;
+    let v14 = Seed {
+        name: "v14.laz".into(),
+        bytes: to_las14(&c.bytes, true),
+    };
+    Ok(vec![
+        read_seed(&real.join("plane.laz"))?,
+        c,
+        written(work, "plain.laz", |p| {
+            scenes::las::write(p, &small_cloud(300, false)?)
+                .map(drop)
+                .map_err(err)
+        })?,
+        v14,
+        read_seed(&committed.join("las14-format6.laz"))?,
+        read_seed(&committed.join("las14-format7.laz"))?,
+    ])
+}
+
+/// Column-file seeds, with and without attributes.
+fn sbc_seeds(work: &Path) -> Result<Vec<Seed>, String> {
+    Ok(vec![
+        written(work, "attrs.sbc", |p| {
+            scenes::colfile::write(p, &small_cloud(40, true)?)
+                .map(drop)
+                .map_err(err)
+        })?,
+        written(work, "plain.sbc", |p| {
+            scenes::colfile::write(p, &small_cloud(40, false)?)
+                .map(drop)
+                .map_err(err)
+        })?,
+    ])
+}
+
+/// Scene `.toml` seeds: generators and files with their keys.
+fn scene_toml_seeds() -> Vec<Seed> {
+    [
+        "generator = \"statue\"\npoints = 200\nseed = 3\n",
+        "generator = \"terrain\"\npoints = 100\nkeep_attributes = true\nup = \"y\"\n",
+        "file = \"scan.ply\"\nsample = 1000\nseed = 2\nup = \"z\"\n",
+        "file = \"tile.laz\"\n",
+        "generator = \"isosurface\"\npoints = 150\n",
+    ]
+    .iter()
+    .enumerate()
+    .map(|(i, t)| Seed {
+        name: format!("scene{i}.toml"),
+        bytes: t.as_bytes().to_vec(),
+    })
+    .collect()
+}
+
+/// Camera-path seeds: every committed keyframe file under `scenes/paths/`.
+fn path_toml_seeds() -> Result<Vec<Seed>, String> {
+    let paths = repo_root().join("scenes/paths");
+    let mut names: Vec<PathBuf> = std::fs::read_dir(&paths)
+        .map_err(|e| format!("{}: {e}", paths.display()))?
+        .filter_map(|e| e.ok().map(|e| e.path()))
+        .filter(|p| p.extension().is_some_and(|e| e == "toml"))
+        .collect();
+    names.sort();
+    let s = names
+        .iter()
+        .map(|p| read_seed(p))
+        .collect::<Result<Vec<_>, _>>()?;
+    if s.is_empty() {
+        return Err(format!("no .toml camera paths in {}", paths.display()));
+    }
+    Ok(s)
 }

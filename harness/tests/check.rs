@@ -437,3 +437,56 @@ fn runs_are_found_by_path_but_not_in_builds_images_or_parts() {
         ["repeats/m-512/budget-1/rep-1", "runs/m-512/budget-1"]
     );
 }
+
+/// With enough frames the timing gate judges the 95 % interval of the ratio, not one median:
+/// a run three times slower on every frame fails a ×1.5 gate, a run whose median doubled but
+/// whose frames scatter from 0.2× to 4× does not (its interval reaches below the gate).
+#[test]
+fn a_timing_gate_with_enough_frames_fails_only_a_slowdown_the_frames_show() {
+    let d = tempfile::tempdir().unwrap();
+    let n = 12;
+    let mut run = Run::new("full");
+    run.points = vec![1000; n];
+    run.flip = vec![0.1; n];
+    run.prefix = vec![5000; n];
+    run.gpu_ms = (0..n).map(|i| 10.0 + (i % 3) as f64).collect();
+    run.write(d.path());
+    let old = snap(d.path());
+    let gate = Options {
+        timing_gate: Some(1.5),
+        ..Options::default()
+    };
+    let gpu_row = |r: &check::Report| {
+        r.rows
+            .iter()
+            .find(|r| r.figure == "gpu_ms (median)")
+            .cloned()
+            .unwrap()
+    };
+    run.gpu_ms = run.gpu_ms.iter().map(|x| 3.0 * x).collect();
+    run.write(d.path());
+    let slower = check::compare(&old, &snap(d.path()), gate).unwrap();
+    let row = gpu_row(&slower);
+    assert_eq!(row.verdict, Verdict::Slower, "{row:?}");
+    assert!(
+        row.new.contains("[95 % ×") && row.allowed == "slowdown ≤ ×1.5 (95 % interval)",
+        "{row:?}"
+    );
+    // Median ×2 (21 against 10.5…), frames from 2 to 45 ms: not shown to be slower.
+    run.gpu_ms = vec![
+        2.0, 45.0, 21.0, 3.0, 40.0, 21.0, 2.5, 44.0, 22.0, 3.5, 42.0, 20.0,
+    ];
+    run.write(d.path());
+    let scattered = check::compare(&old, &snap(d.path()), gate).unwrap();
+    let row = gpu_row(&scattered);
+    assert_eq!(row.verdict, Verdict::Ratio, "{row:?}");
+    // Three frames (the other tests): no interval, the medians are gated as before.
+    let few = tempfile::tempdir().unwrap();
+    Run::new("full").write(few.path());
+    let three = snap(few.path());
+    assert!(
+        !gpu_row(&check::compare(&three, &three, gate).unwrap())
+            .new
+            .contains("95 %")
+    );
+}

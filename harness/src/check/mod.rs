@@ -19,6 +19,7 @@
 
 mod figures;
 mod format;
+mod interval;
 mod numbers;
 mod record;
 pub mod suite;
@@ -683,14 +684,25 @@ impl RunCompare<'_> {
                     .and_then(|v| crate::results::median(v.iter().flatten().copied()))
             };
             if let (Some(a), Some(b)) = (med(old), med(new)) {
-                self.push(timing_row(
-                    &row,
-                    format!("{c} (median)"),
-                    old.target.clone(),
-                    a,
-                    b,
+                let frames = |r: &RunRecord| -> Vec<f64> {
+                    r.columns
+                        .get(c)
+                        .map(|v| v.iter().flatten().copied().collect())
+                        .unwrap_or_default()
+                };
+                let ci = interval::ratio_interval(&frames(old), &frames(new));
+                self.push(gated_frames_row(
+                    timing_row(
+                        &row,
+                        format!("{c} (median)"),
+                        old.target.clone(),
+                        a,
+                        b,
+                        opts,
+                        false,
+                    ),
+                    ci,
                     opts,
-                    false,
                 ));
             }
         }
@@ -708,6 +720,26 @@ impl RunCompare<'_> {
             }
         }
     }
+}
+
+/// A per-frame time's row with the 95 % interval of its ratio ([`interval`]), where the
+/// frames give one: the gate then fails it only when the whole interval lies beyond the
+/// gate (a slowdown the frames show), and passes one whose interval reaches below it
+/// however far its median moved.
+fn gated_frames_row(mut r: Row, ci: Option<(f64, f64)>, opts: Options) -> Row {
+    let Some((lo, hi)) = ci else {
+        return r;
+    };
+    r.new = format!("{} [95 % ×{lo:.3}–×{hi:.3}]", r.new);
+    if let Some(g) = opts.timing_gate {
+        r.verdict = if lo > g {
+            Verdict::Slower
+        } else {
+            Verdict::Ratio
+        };
+        r.allowed = format!("slowdown ≤ ×{g} (95 % interval)");
+    }
+    r
 }
 
 /// An exactly compared figure's row.

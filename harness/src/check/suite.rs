@@ -173,18 +173,8 @@ impl Suite {
                 .and_then(|p| kind.check_params(&p).map(|_| p))
                 .map_err(|e| err(&format!("params.{name}"), e.to_string()))?;
             let over = raw.method.get(name).cloned().unwrap_or_default();
-            // A list of `[method.NAME]`, or the suite's: with the field to name in errors.
-            let field = |key: &str, own: bool| {
-                if own {
-                    format!("method.{name}.{key}")
-                } else {
-                    key.to_string()
-                }
-            };
-            let (scenes_field, scene_list) = match &over.scenes {
-                Some(l) => (field("scenes", true), l),
-                None => (field("scenes", false), &raw.scenes),
-            };
+            let (scenes_field, scene_list) =
+                own_or_suite(name, "scenes", &over.scenes, &raw.scenes);
             if scene_list.is_empty() {
                 return Err(err(&scenes_field, "the list is empty".into()));
             }
@@ -196,14 +186,9 @@ impl Suite {
                     None => scenes.push((spec, vec![i])),
                 }
             }
-            let (eps_field, eps) = match &over.eps {
-                Some(l) => (field("eps", true), l),
-                None => (field("eps", false), &raw.eps),
-            };
-            let (budgets_field, budgets) = match &over.budgets {
-                Some(l) => (field("budgets", true), l),
-                None => (field("budgets", false), &raw.budgets),
-            };
+            let (eps_field, eps) = own_or_suite(name, "eps", &over.eps, &raw.eps);
+            let (budgets_field, budgets) =
+                own_or_suite(name, "budgets", &over.budgets, &raw.budgets);
             if eps.is_empty() && budgets.is_empty() {
                 return Err(err(
                     &format!("{eps_field}/{budgets_field}"),
@@ -279,6 +264,20 @@ impl Suite {
             .flat_map(|(_, users)| users.iter().map(|&i| per(&self.methods[i])))
             .sum();
         pairs * self.paths.len()
+    }
+}
+
+/// Method `name`'s list `key`: its `[method.NAME]` one if given, else the suite's; with the
+/// field that errors name (`method.NAME.KEY` or `KEY`).
+fn own_or_suite<'a, T>(
+    name: &str,
+    key: &str,
+    own: &'a Option<Vec<T>>,
+    suite: &'a [T],
+) -> (String, &'a [T]) {
+    match own {
+        Some(list) => (format!("method.{name}.{key}"), list),
+        None => (key.to_string(), suite),
     }
 }
 

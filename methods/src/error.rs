@@ -57,6 +57,9 @@ pub enum MethodError {
     /// Errors from the scene layer.
     #[error(transparent)]
     Scene(#[from] scenes::SceneError),
+    /// A name that is none of the known ones (a method in a manifest or a suite).
+    #[error(transparent)]
+    Unknown(#[from] UnknownName),
 }
 
 /// A name that is not one of a list (a method, a kernel): the error of the registry enums'

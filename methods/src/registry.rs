@@ -78,10 +78,10 @@ impl MethodKind {
     }
 
     /// Looks a method up by registry name (exact, lower case): [`std::str::FromStr`]'s lookup
-    /// as a [`MethodError::Param`].
+    /// as a [`MethodError::Unknown`] (not a parameter error: it said "method parameter:
+    /// unknown method …").
     pub fn from_name(name: &str) -> Result<Self, MethodError> {
-        name.parse()
-            .map_err(|e: crate::error::UnknownName| MethodError::Param(e.to_string()))
+        Ok(name.parse::<Self>()?)
     }
 
     /// Checks `params` against the method's parameter struct without building.

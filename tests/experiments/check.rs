@@ -146,7 +146,10 @@ fn a_suite_file_with_a_typo_is_refused_naming_file_and_field() {
     let out = tmp.path().join("out");
     let cases = [
         (format!("{good}framez = 3\n"), "unknown field `framez`"),
-        (good.replace("\"lpc\"", "\"lcp\""), "unknown method 'lcp'"),
+        (
+            good.replace("\"lpc\"", "\"lcp\""),
+            "methods: unknown method 'lcp'",
+        ),
         (format!("{good}[params]\nlpc = [\"mm=3\"]\n"), "params.lpc"),
         (
             format!("{good}[params]\nmwkd = [\"vbo=3\"]\n"),

@@ -82,23 +82,10 @@ pub fn inlier_origin(world: &[[f64; 3]], lo: glam::DVec3, hi: glam::DVec3) -> Op
 /// a sample is an inlier when it lies inside it (bounds included). `None` when every sample
 /// does, or the cloud has fewer than 3 samples.
 pub fn inlier_box(cloud: &PointCloud) -> Option<Aabb> {
-    let p = cloud.positions();
-    if p.len() < 3 {
+    if cloud.len() < 3 {
         return None;
     }
-    // The strided sample is gathered a block at a time and the block's pages of a mapped
-    // cloud released behind it: a stride of a few dozen samples touches every page, and a
-    // run that opens a build (and draws nothing from the scene) kept the whole position
-    // column of a cloud without strays resident (1.1 GB of the 100 M walkthrough's peak,
-    // issue 35; [`framing`] releases the pages it reads, but returns early on such a cloud).
-    let stride = quantile_stride(p.len());
-    let block = stride * 4096;
-    let mut sample: Vec<[f32; 3]> = Vec::with_capacity(p.len().div_ceil(stride));
-    for start in (0..p.len()).step_by(block) {
-        let r = start..(start + block).min(p.len());
-        sample.extend(p[r.clone()].iter().step_by(stride));
-        cloud.release_pages(r);
-    }
+    let sample = strided_sample(cloud);
     let (lo, hi) = quantile_box(&sample, f32::total_cmp);
     let (lo, hi) = (glam::Vec3::from(lo), glam::Vec3::from(hi));
     let m = (hi - lo).max_element() * MARGIN;
@@ -108,6 +95,32 @@ pub fn inlier_box(cloud: &PointCloud) -> Option<Aabb> {
     };
     let b = cloud.bounds();
     (!(inlier.min.cmple(b.min).all() && inlier.max.cmpge(b.max).all())).then_some(inlier)
+}
+
+/// Every [`quantile_stride`]-th sample of `cloud` (at most [`QUANTILE_SAMPLES`]). Gathered a
+/// block at a time and the block's pages of a mapped cloud released behind it: a stride of
+/// a few dozen samples touches every page, and a run that opens a build (and draws nothing
+/// from the scene) kept the whole position column of a cloud without strays resident (1.1
+/// GB of the 100 M walkthrough's peak, issue 35; [`framing`] releases the pages it reads,
+/// but returns early on such a cloud).
+fn strided_sample(cloud: &PointCloud) -> Vec<[f32; 3]> {
+    let p = cloud.positions();
+    let stride = quantile_stride(p.len());
+    let block = stride * 4096;
+    let mut sample: Vec<[f32; 3]> = Vec::with_capacity(p.len().div_ceil(stride));
+    for start in (0..p.len()).step_by(block) {
+        let r = start..(start + block).min(p.len());
+        sample.extend(p[r.clone()].iter().step_by(stride));
+        cloud.release_pages(r);
+    }
+    sample
+}
+
+/// The flat base ([`crate::axis::flat_base`]) of `cloud`'s samples inside `framed` (the
+/// [`framing`]'s bounds, so strays neither stretch the box nor count), estimated from the
+/// same strided sample as the quantiles: a hint that a file is not Z-up.
+pub fn flat_base(cloud: &PointCloud, framed: &Aabb) -> Option<crate::axis::FlatBase> {
+    crate::axis::flat_base(strided_sample(cloud).iter(), (framed.min, framed.max))
 }
 
 /// True if `v` is an inlier of `inlier` ([`inlier_box`]).

@@ -60,6 +60,10 @@ pub fn load_scene(
         eprintln!("warning: {w}");
         warnings.push(w);
     }
+    if let Some(w) = up_hint(spec, &cloud, &framing.framed) {
+        eprintln!("warning: {w}");
+        warnings.push(w);
+    }
     let render = RenderSettings {
         shade: Shade {
             shading: render.shade.shading.resolve(cloud.attributes()),
@@ -77,6 +81,45 @@ pub fn load_scene(
         warnings,
         render,
     })
+}
+
+/// A file read Z-up (no `--up`, no `up` in its scene file) whose samples have a flat base
+/// at the low or high y end ([`scenes::framing::flat_base`]) is likely Y-up (Stanford's
+/// scans, most graphics PLY data) and would render on its side: the warning says so and
+/// names `--up`. Only ±y is suggested: a flat end elsewhere is more often a wall or a roof
+/// than a base, and files that are X-up or upside down are rare (laspy's `plane.laz` has
+/// 12.6 % of its samples at its high z end). LAS/LAZ files are never hinted: their z is
+/// elevation by the format. Generated scenes are Z-up by construction.
+fn up_hint(spec: &SceneSpec, cloud: &PointCloud, framed: &Aabb) -> Option<String> {
+    use scenes::spec::SceneSource;
+    let file = !matches!(
+        spec.source,
+        SceneSource::Generator { .. } | SceneSource::Las { .. }
+    );
+    if !file || spec.up != scenes::Up::Z {
+        return None;
+    }
+    let base = scenes::framing::flat_base(cloud, framed)?;
+    if !matches!(base.up, scenes::Up::Y | scenes::Up::NegY) {
+        return None;
+    }
+    let (axis, end) = match base.up.to_string().strip_prefix('-') {
+        Some(a) => (a.to_string(), "high"),
+        None => (base.up.to_string(), "low"),
+    };
+    Some(format!(
+        "{}: the samples have a flat base at the {end} {axis} end ({:.1} % of them lie in its \
+         slab of {:.0} % of the extent, at most {:.1} % at any other end), as a {}-up file \
+         standing on it would; splatbench's world is Z-up, so it would render on its side: if \
+         it does, run with `--up {}` (or `up = \"{}\"` in a scene file)",
+        spec.text,
+        base.share * 100.0,
+        scenes::axis::BASE_SLAB * 100.0,
+        base.next * 100.0,
+        base.up.to_string().to_uppercase(),
+        base.up,
+        base.up
+    ))
 }
 
 /// Where a method's build comes from.

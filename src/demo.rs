@@ -1,4 +1,6 @@
-//! `splatbench demo`: every registered method on the embedded scene along a short orbit.
+//! `splatbench demo`: every registered method on the embedded scene along a short orbit, and
+//! beside a method whose result a documented effect dominates, the departure that changes it
+//! ([`methods::MethodKind::known_effect`]).
 
 use std::path::PathBuf;
 use std::time::Instant;
@@ -38,11 +40,10 @@ fn demo(out: &std::path::Path, frames: usize) -> anyhow::Result<()> {
     println!(
         "demo: every method on the embedded scene {DEMO_SCENE}, {frames} frames of orbit, 512x512, eps 1 px"
     );
-    for m in MethodKind::ALL {
-        let dir = out.join(m.name());
+    let run = |method: MethodKind, params: Params, dir: PathBuf| -> anyhow::Result<_> {
         let cfg = RunConfig {
-            method: *m,
-            params: Params::default(),
+            method,
+            params,
             scene: SceneSpec::parse(DEMO_SCENE, None, 1)?,
             path: PathSpec::parse("orbit")?,
             frames,
@@ -62,7 +63,19 @@ fn demo(out: &std::path::Path, frames: usize) -> anyhow::Result<()> {
         let s = harness::runner::run(&cfg, &gpu, &bar)?;
         harness::plot::plot_run(&dir)?;
         print_summary(&s);
+        Ok(s)
+    };
+    for m in MethodKind::ALL {
+        let dir = out.join(m.name());
+        let s = run(*m, Params::default(), dir.clone())?;
         dirs.push(dir);
+        // A result dominated by a documented effect: the departure that changes it runs
+        // next, so the paper's row and the departure's stand side by side (issue 37).
+        if let Some(e) = s.known_effect {
+            let dir = out.join(format!("{}-{}", m.name(), e.param.replace('=', "-")));
+            run(*m, Params::parse(&[&e.param])?, dir.clone())?;
+            dirs.push(dir);
+        }
     }
     let files = harness::plot::plot_comparison(&dirs, out)?;
     println!(

@@ -66,9 +66,14 @@ pub fn print_summary(s: &Summary) {
         "gpu_ms" => ("gpu", m.gpu_ms),
         _ => ("wall", m.wall_ms),
     };
+    // The parameters as given follow the method's name: a departure's row reads apart from
+    // the paper's (the demo prints both).
+    let method: Vec<String> = std::iter::once(s.method.clone())
+        .chain(s.params.0.iter().map(|(k, v)| format!("{k}={v}")))
+        .collect();
     println!(
         "{:<8} {:<22} frames {:>4}  points {:>11}  {clock} {:>9} ms  splats/s {:>13}  flip {:>6}  holes {:>7}",
-        s.method,
+        method.join(" "),
         s.scene.label,
         s.frames,
         show(m.points_drawn, &thousands),
@@ -77,4 +82,10 @@ pub fn print_summary(s: &Summary) {
         show(m.flip_mean, &|v| format!("{v:.4}")),
         show(m.hole_ratio, &|v| format!("{:.2} %", v * 100.0)),
     );
+    if let Some(e) = &s.known_effect {
+        println!(
+            "  known effect: {}; `--param {}` changes it ({}; {})",
+            e.effect, e.param, e.cost, e.doc
+        );
+    }
 }

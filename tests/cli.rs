@@ -153,8 +153,10 @@ fn demo_runs_every_method_and_plots() {
         return;
     }
     let d = tempfile::tempdir().unwrap();
-    bin()
-        .args(["demo", "--frames", "2", "--out"])
+    // 12 frames: LPC refines over the first 3–4 (as fast as the loader delivers), so the
+    // median frame is a refined one (24 frames: median holes 3.8 %, the first frame 0.8 %).
+    let out = bin()
+        .args(["demo", "--frames", "12", "--out"])
         .arg(d.path())
         .assert()
         .success()
@@ -162,6 +164,33 @@ fn demo_runs_every_method_and_plots() {
     for m in methods::MethodKind::ALL {
         assert!(d.path().join(m.name()).join("frames.csv").exists(), "{m}");
     }
+    // LPC's holes on the randomly sampled statue are its spacing rule's Boolean-model gaps
+    // (above lpc::SPACING_HOLES): the summary line and summary.json say so and name the
+    // departure, which the demo runs beside the paper's row (issue 37, item 2).
+    let stdout = String::from_utf8_lossy(&out.get_output().stdout).to_string();
+    assert!(
+        stdout.contains("known effect: holes")
+            && stdout.contains("`--param spacing_rule=cover90` changes it"),
+        "{stdout}"
+    );
+    let summary = |dir: &str| -> serde_json::Value {
+        serde_json::from_str(
+            &std::fs::read_to_string(d.path().join(dir).join("summary.json")).unwrap(),
+        )
+        .unwrap()
+    };
+    let effect = |dir: &str| summary(dir)["known_effect"].clone();
+    // What the departure buys: its holes are under the threshold the paper's rule passed.
+    let holes = |dir: &str| summary(dir)["medians"]["hole_ratio"].as_f64().unwrap();
+    assert!(holes("lpc") > methods::lpc::SPACING_HOLES);
+    assert!(holes("lpc-spacing_rule-cover90") < methods::lpc::SPACING_HOLES);
+    assert_eq!(effect("lpc")["param"], "spacing_rule=cover90");
+    assert!(
+        stdout.contains("\nlpc spacing_rule=cover90 statue:60000:1"),
+        "{stdout}"
+    );
+    assert_eq!(effect("lpc-spacing_rule-cover90"), serde_json::Value::Null);
+    assert_eq!(effect("qsplat"), serde_json::Value::Null);
     assert!(d.path().join("comparison.png").exists());
     // `plot --out` creates the directory it is given.
     let out = d.path().join("new/plots");

@@ -43,6 +43,6 @@ pub use draw::{
     SplatBatch, SplatShape, SplatSize, Target,
 };
 pub use error::{MethodError, UnknownName};
-pub use method::{BuildStats, LodMethod, Manifest, MethodStats};
+pub use method::{BuildStats, KnownEffect, LodMethod, Manifest, MethodStats, Observed};
 pub use params::Params;
 pub use registry::MethodKind;

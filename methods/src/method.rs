@@ -191,6 +191,28 @@ pub struct MethodStats {
     pub levels: u32,
 }
 
+/// A documented effect that dominates a run's result, and the parameter that changes it
+/// ([`crate::MethodKind::known_effect`]): a run's summary line and `summary.json` carry it,
+/// so a result that looks broken says why and what to try.
+#[derive(Debug, Clone, PartialEq, serde::Serialize, serde::Deserialize)]
+pub struct KnownEffect {
+    /// What dominates the result, with the figure that shows it.
+    pub effect: String,
+    /// The parameter (`key=value`) that changes it.
+    pub param: String,
+    /// What that parameter is (a departure from the paper, say) and what it costs.
+    pub cost: String,
+    /// Where the effect is documented and measured.
+    pub doc: String,
+}
+
+/// The figures of a run that a [`KnownEffect`] shows in (medians over its frames).
+#[derive(Debug, Clone, Copy, Default, PartialEq)]
+pub struct Observed {
+    /// Median hole ratio: the share of the reference's covered pixels the run left bare.
+    pub hole_ratio: Option<f64>,
+}
+
 /// `method.json`: what a build directory holds, read by `open`.
 #[derive(Debug, Clone, PartialEq, serde::Serialize, serde::Deserialize)]
 #[serde(deny_unknown_fields)]

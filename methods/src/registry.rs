@@ -165,6 +165,24 @@ impl MethodKind {
         out
     }
 
+    /// The documented effect that dominates a run of this method with `params` (the
+    /// parameters in force) that measured `observed`, if one does (each method's README
+    /// documents its own; today LPC's spacing rule).
+    pub fn known_effect(
+        self,
+        params: &Params,
+        observed: &crate::Observed,
+    ) -> Option<crate::KnownEffect> {
+        match self {
+            MethodKind::Lpc => lpc::known_effect(params, observed),
+            MethodKind::Full
+            | MethodKind::Qsplat
+            | MethodKind::Spt
+            | MethodKind::Mwkd
+            | MethodKind::Potree => None,
+        }
+    }
+
     /// Parameters that only steer rendering (read at `open`, not used by `build`): a run of
     /// an existing build may change these and no others.
     pub fn runtime_params(self) -> &'static [&'static str] {

@@ -478,6 +478,7 @@ fn initial_summary(
         medians: Medians::default(),
         failed_chunks: Vec::new(),
         traffic: None,
+        known_effect: None,
         peak_rss_bytes: 0,
         method_resident_bytes: 0,
         rss_max: None,
@@ -710,6 +711,12 @@ impl PathRun<'_> {
             summary.scene.warnings.push(w);
         }
         summary.medians = Medians::of(rows);
+        summary.known_effect = cfg.method.known_effect(
+            &summary.params,
+            &methods::Observed {
+                hole_ratio: summary.medians.hole_ratio,
+            },
+        );
         let method = &self.method;
         if method.loads_chunks() {
             summary.traffic = Some(TrafficTotals::of(traffic, method.throughput()));

@@ -82,6 +82,9 @@ pub struct Summary {
     pub rss_max: Option<crate::rss::Breakdown>,
     /// Wall time of the whole run, s.
     pub run_seconds: f64,
+    /// The documented effect that dominates this run's result and the parameter that
+    /// changes it ([`methods::MethodKind::known_effect`]), if one does.
+    pub known_effect: Option<methods::KnownEffect>,
 }
 
 /// A run's data traffic in `summary.json` ([`methods::store::access::Traffic`] over the

@@ -30,6 +30,7 @@
 
 pub mod build;
 pub mod cloud;
+mod effects;
 pub mod index;
 mod layout;
 mod multilevel;
@@ -38,6 +39,8 @@ mod sizes;
 mod source;
 pub mod spacing;
 pub mod traverse;
+
+pub use effects::{SPACING_HOLES, known_effect};
 
 use std::path::Path;
 use std::sync::Arc;

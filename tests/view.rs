@@ -94,21 +94,30 @@ fn a_scripted_session_screenshots_runs_image_and_records_a_path_run_reads() {
     assert!(o.status.success(), "{stdout}\n{stderr}");
     assert!(stdout.contains("view: 18 frames"), "{stdout}");
 
-    // The window's picture: the frame with the HUD over its top-left corner.
+    // The window's picture: the HUD's band across the top, the frame right under it, 1:1
+    // (issue 37, item 7: the HUD lay over the frame's top).
     let window = Image::load_png(&shot).unwrap();
-    assert_eq!(
-        (window.width, window.height),
-        (320, 240),
-        "the window is the frame's size"
-    );
-    // The HUD panel, RGB (16, 16, 24) at 85 % (present.wgsl) over what the window shows at the
-    // end, the hole mask (H), opaque black in a corner no splat reaches: (14, 14, 20); without
-    // the HUD it would be (0, 0, 0).
-    let hud_bg = window.pixel(window.width - 2, 2);
-    let want = [14u8, 14, 20, 255];
+    assert_eq!(window.width, 320, "the window is the frame's width");
     assert!(
-        hud_bg.iter().zip(want).all(|(a, b)| a.abs_diff(b) <= 2),
-        "the HUD panel over the corner: {hud_bg:?}, want {want:?}"
+        window.height > 240,
+        "{} rows: no band above the frame",
+        window.height
+    );
+    let band = window.height - 240;
+    // The HUD panel, RGB (16, 16, 24) at 85 % (present.wgsl) over the background (0.12, 0.12,
+    // 0.14) · 255 that lies outside the frame: (18, 18, 26).
+    let near = |p: [u8; 4], want: [u8; 4]| p.iter().zip(want).all(|(a, b)| a.abs_diff(b) <= 2);
+    let hud_bg = window.pixel(window.width - 2, 2);
+    assert!(near(hud_bg, [18, 18, 26, 255]), "the HUD panel: {hud_bg:?}");
+    // What the window shows at the end, the hole mask (H), is opaque black in a corner no
+    // splat reaches: so is the frame's top-right pixel under the band, with nothing over it.
+    let corner = window.pixel(window.width - 2, band + 1);
+    assert!(
+        near(corner, [0, 0, 0, 255]),
+        "the frame's corner under the band ({band} rows): {corner:?}; column {:?}",
+        (0..window.height)
+            .map(|y| window.pixel(window.width - 2, y)[0])
+            .collect::<Vec<_>>()
     );
 
     // The screenshot is run's frame at the sidecar's pose, within the golden tolerance (the

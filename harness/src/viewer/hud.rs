@@ -1,6 +1,6 @@
 //! The on-screen HUD: what the frame cost and what the viewer is doing, as lines of text
 //! ([`lines`], a plain function) drawn with the plots' bundled font into an image
-//! ([`draw`]) that the window lays over the top-left corner.
+//! ([`draw`]) that the window shows in a band above the frame ([`super::present::frame_rect`]).
 
 use methods::{MethodKind, Target};
 use plotters::prelude::*;

@@ -17,10 +17,26 @@ pub const PRESENT_WGSL: &str = include_str!("present.wgsl");
 #[derive(Clone, Copy, Pod, Zeroable)]
 struct PresentUniform {
     frame_size: [f32; 2],
-    surface_size: [f32; 2],
+    frame_origin: [f32; 2],
+    frame_extent: [f32; 2],
     hud_size: [f32; 2],
     decode_srgb: f32,
     _pad: f32,
+}
+
+/// Where the frame goes on a surface of `surface` pixels whose top `band` rows hold the HUD:
+/// `[x, y, width, height]`, the frame (`frame` pixels) scaled by the largest factor that fits
+/// the rest (aspect kept), centred across and placed right under the band. The window opens
+/// at the frame's size plus the band, where the factor is 1: the HUD covers nothing (before,
+/// it lay over the frame's top at 85 %, a third of the default 512² frame once its lines
+/// were broken to fit). A surface with no room left under the band gets the whole surface.
+pub fn frame_rect(frame: (u32, u32), surface: (u32, u32), band: u32) -> [f32; 4] {
+    let (fw, fh) = (frame.0.max(1) as f32, frame.1.max(1) as f32);
+    let (sw, sh) = (surface.0.max(1) as f32, surface.1.max(1) as f32);
+    let band = if band < surface.1 { band as f32 } else { 0.0 };
+    let scale = (sw / fw).min((sh - band) / fh);
+    let (w, h) = (fw * scale, fh * scale);
+    [((sw - w) / 2.0).floor(), band, w, h]
 }
 
 /// An RGBA8 texture holding an [`Image`], remade when the size changes.
@@ -133,15 +149,17 @@ impl Presenter {
         }
     }
 
-    /// Draws `shown` (frame size `frame`) and `hud` (an image and a generation number that
-    /// changes with it: uploaded only then) into `target` (a surface texture of `surface`
-    /// pixels) and submits.
+    /// Draws `shown` (frame size `frame`) under a HUD band of `band` rows ([`frame_rect`])
+    /// and `hud` (an image and a generation number that changes with it: uploaded only then)
+    /// into `target` (a surface texture of `surface` pixels) and submits.
+    #[allow(clippy::too_many_arguments)]
     pub fn present(
         &mut self,
         gpu: &Gpu,
         shown: Display<'_>,
         frame: (u32, u32),
         (hud, hud_generation): (&Image, u64),
+        band: u32,
         target: &wgpu::TextureView,
         surface: (u32, u32),
     ) {
@@ -159,9 +177,11 @@ impl Presenter {
         let Some(hud_view) = self.hud.as_ref().map(|u| &u.view) else {
             return;
         };
+        let [x, y, w, h] = frame_rect(frame, surface, band);
         let u = PresentUniform {
             frame_size: [frame.0 as f32, frame.1 as f32],
-            surface_size: [surface.0.max(1) as f32, surface.1.max(1) as f32],
+            frame_origin: [x, y],
+            frame_extent: [w, h],
             hud_size: [hud.width as f32, hud.height as f32],
             decode_srgb: if self.decode_srgb { 1.0 } else { 0.0 },
             _pad: 0.0,
@@ -211,13 +231,14 @@ impl Presenter {
     }
 }
 
-/// The window's picture as an image: `shown` and `hud` presented, by the same pass, into an
-/// offscreen RGBA8 target of the window's size `surface` and read back (`--window-shot`).
+/// The window's picture as an image: `shown` and `hud` presented (HUD band `band`), by the
+/// same pass, into an offscreen RGBA8 target of the window's size `surface` and read back
+/// (`--window-shot`).
 pub fn window_image(
     gpu: &Gpu,
     shown: Display<'_>,
     frame: (u32, u32),
-    hud: &Image,
+    (hud, band): (&Image, u32),
     surface: (u32, u32),
 ) -> anyhow::Result<Image> {
     let texture = gpu.device.create_texture(&wgpu::TextureDescriptor {
@@ -235,7 +256,7 @@ pub fn window_image(
         view_formats: &[],
     });
     let view = texture.create_view(&Default::default());
-    Presenter::new(gpu, COLOR_FORMAT).present(gpu, shown, frame, (hud, 0), &view, surface);
+    Presenter::new(gpu, COLOR_FORMAT).present(gpu, shown, frame, (hud, 0), band, &view, surface);
     crate::render::read_texture(gpu, &texture)
 }
 
@@ -259,6 +280,30 @@ pub fn surface_format(formats: &[wgpu::TextureFormat]) -> Option<wgpu::TextureFo
 mod tests {
     use super::*;
     use wgpu::TextureFormat as F;
+
+    #[test]
+    fn the_frame_lies_under_the_band_one_to_one_at_the_opening_size() {
+        // Opened at the frame's size plus the band: 1:1, right under it.
+        assert_eq!(
+            frame_rect((320, 240), (320, 440), 200),
+            [0.0, 200.0, 320.0, 240.0]
+        );
+        // Twice as wide: the height limits, centred across.
+        assert_eq!(
+            frame_rect((320, 240), (640, 440), 200),
+            [160.0, 200.0, 320.0, 240.0]
+        );
+        // Twice the room every way: scaled ×2.
+        assert_eq!(
+            frame_rect((320, 240), (640, 680), 200),
+            [0.0, 200.0, 640.0, 480.0]
+        );
+        // Shorter than the band: the band is ignored, the frame fills what there is.
+        assert_eq!(
+            frame_rect((320, 240), (320, 150), 200),
+            [60.0, 0.0, 200.0, 150.0]
+        );
+    }
 
     #[test]
     fn a_plain_format_is_preferred_to_srgb() {

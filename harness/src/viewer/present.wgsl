@@ -1,10 +1,14 @@
-// The viewer's present pass: the frame (the renderer's colour target, or an image made on the
-// CPU) scaled to the window, nearest pixel, over a dark background where no splat landed
-// (alpha 0), with the HUD laid over the top-left corner.
+// The viewer's present pass: the HUD panel across the top, and below it the frame (the
+// renderer's colour target, or an image made on the CPU) in the rectangle present.rs's
+// frame_rect gives (1:1 at the window's opening size; scaled, nearest pixel, with its aspect
+// kept after a resize), over a dark background where no splat landed (alpha 0). A HUD that
+// grew taller than its band since the window opened covers the frame's top at 85 %.
 
 struct Present {
     frame_size: vec2<f32>,
-    surface_size: vec2<f32>,
+    // The frame's rectangle on the surface: top-left corner and size, pixels.
+    frame_origin: vec2<f32>,
+    frame_extent: vec2<f32>,
     hud_size: vec2<f32>,
     // 1 when the surface encodes sRGB itself: the frame's sRGB values are decoded first.
     decode_srgb: f32,
@@ -33,9 +37,13 @@ fn srgb_to_linear(c: vec3<f32>) -> vec3<f32> {
 
 @fragment
 fn fs_present(@builtin(position) pos: vec4<f32>) -> @location(0) vec4<f32> {
-    let src = min(vec2<i32>(pos.xy * u.frame_size / u.surface_size), vec2<i32>(u.frame_size) - 1);
-    let f = textureLoad(frame, src, 0);
-    var c = mix(BACKGROUND, f.rgb, f.a);
+    let rel = (pos.xy - u.frame_origin) / u.frame_extent;
+    var c = BACKGROUND;
+    if (all(rel >= vec2<f32>(0.0)) && all(rel < vec2<f32>(1.0))) {
+        let src = min(vec2<i32>(rel * u.frame_size), vec2<i32>(u.frame_size) - 1);
+        let f = textureLoad(frame, src, 0);
+        c = mix(BACKGROUND, f.rgb, f.a);
+    }
     if (pos.x < u.hud_size.x && pos.y < u.hud_size.y) {
         let h = textureLoad(hud, vec2<i32>(pos.xy), 0);
         c = mix(c, h.rgb, HUD_OPACITY);

@@ -89,6 +89,9 @@ pub struct LoopTimes {
     pub hud_ms: Vec<f64>,
 }
 
+/// The HUD panel's widest, pixels: its longest line (≈ 1,100 px) unbroken.
+const HUD_MAX_WIDTH: u32 = 1100;
+
 struct App<'s, 'g> {
     session: &'s mut Session<'g>,
     gpu: &'g Gpu,
@@ -107,6 +110,9 @@ struct App<'s, 'g> {
     hud: Option<(Vec<String>, f64, crate::image::Image)>,
     /// Times the HUD was drawn (its image's generation for the presenter).
     hud_draws: u64,
+    /// Rows at the window's top kept for the HUD, set when the window opens
+    /// ([`super::present::frame_rect`]).
+    band: u32,
 }
 
 /// Opens the window and runs the viewer until quit (Esc, the window closed, a script's
@@ -134,6 +140,7 @@ pub fn run<'g>(
         started: Instant::now(),
         hud: None,
         hud_draws: 0,
+        band: 0,
     };
     display
         .event_loop
@@ -186,11 +193,15 @@ pub fn key_name(code: KeyCode) -> Option<&'static str> {
 impl App<'_, '_> {
     fn open_window(&mut self, el: &ActiveEventLoop) -> anyhow::Result<()> {
         let s = self.session.settings();
+        // The HUD's band: its height at the frame's width now, and one line more for a
+        // message or a loader line that breaks later; the frame goes under it, 1:1.
+        let hud = super::hud::draw(&self.session.hud(), s.width.clamp(1, HUD_MAX_WIDTH))?;
+        self.band = hud.height + super::hud::LINE_PX;
         let window = Arc::new(
             el.create_window(
                 Window::default_attributes()
                     .with_title(self.cfg.title.clone())
-                    .with_inner_size(PhysicalSize::new(s.width, s.height)),
+                    .with_inner_size(PhysicalSize::new(s.width, s.height + self.band)),
             )
             .context("creating the viewer's window")?,
         );
@@ -277,7 +288,7 @@ impl App<'_, '_> {
         let s = self.session.settings();
         let lines = self.session.hud();
         let now = self.started.elapsed().as_secs_f64();
-        let width = config.width.clamp(1, 1100);
+        let width = config.width.clamp(1, HUD_MAX_WIDTH);
         let drawn = self.hud.as_ref().map(|(l, at, _)| (l.as_slice(), *at));
         let resized = self
             .hud
@@ -293,11 +304,23 @@ impl App<'_, '_> {
         let Some((_, _, hud)) = &self.hud else {
             return Ok(());
         };
+        // A HUD taller than its band (a message or a loader line broken over more lines):
+        // the band grows and the window with it, so the frame stays 1:1 and uncovered; until
+        // the window system resizes it, the frame is scaled to what is left.
+        if hud.height > self.band {
+            let grow = hud.height - self.band;
+            self.band = hud.height;
+            if let Some(w) = &self.window {
+                let size = w.inner_size();
+                let _ = w.request_inner_size(PhysicalSize::new(size.width, size.height + grow));
+            }
+        }
         presenter.present(
             self.gpu,
             self.session.display(),
             (s.width, s.height),
             (hud, self.hud_draws),
+            self.band,
             &view,
             (config.width, config.height),
         );
@@ -349,12 +372,12 @@ impl App<'_, '_> {
             return Ok(());
         };
         let s = self.session.settings();
-        let hud = super::hud::draw(&self.session.hud(), config.width.clamp(1, 1100))?;
+        let hud = super::hud::draw(&self.session.hud(), config.width.clamp(1, HUD_MAX_WIDTH))?;
         let img = super::present::window_image(
             self.gpu,
             self.session.display(),
             (s.width, s.height),
-            &hud,
+            (&hud, self.band),
             (config.width, config.height),
         )?;
         img.save_png(&file)?;

@@ -43,8 +43,12 @@
 
 pub mod flip;
 pub mod magma;
+pub mod popping;
+pub mod warp;
 
 use rayon::prelude::*;
+
+use scenes::View;
 
 use crate::image::{Image, ImageError};
 use flip::FlipFeatures;
@@ -282,10 +286,15 @@ pub fn flip_prepared(a: &mut Prepared, b: &mut Prepared) -> Result<f64, MetricsE
 /// reference does at the same views. A level of detail that switches visibly between
 /// frames (popping) scores above 0; one that changes like the reference scores ≈ 0; the
 /// `full` method scores exactly 0. Each image is FLIP-prepared once and kept one frame.
+///
+/// With the reference's depth ([`PathMetrics::frame_warped`]) it also measures popping
+/// against exact motion at lags 1 and 7 ([`popping`]).
 #[derive(Debug, Default)]
 pub struct PathMetrics {
     /// The previous frame's (reference, test).
     previous: Option<(Prepared, Prepared)>,
+    /// The frames the warped lags look back to.
+    warped: popping::WarpedHistory,
 }
 
 /// What [`PathMetrics::frame`] measures for one frame.
@@ -295,6 +304,9 @@ pub struct FrameMetrics {
     pub image: ImageMetrics,
     /// Popping FLIP (see [`PathMetrics`]); `None` for the first frame of a path.
     pub popping_flip: Option<f64>,
+    /// Warped popping at [`popping::LAGS`] (`None` without depth, before the path has
+    /// that many frames, or with no valid pixel).
+    pub warped: [Option<popping::Lagged>; 2],
 }
 
 impl PathMetrics {
@@ -305,8 +317,33 @@ impl PathMetrics {
 
     /// Measures the next frame of the path; all frames of a path must have one size.
     pub fn frame(&mut self, reference: Image, test: Image) -> Result<FrameMetrics, MetricsError> {
+        self.measure(reference, test, None)
+    }
+
+    /// [`PathMetrics::frame`] with the frame's `view` and the reference's `depth`, which
+    /// the warped popping lags need; a path measures all its frames one way or the other.
+    pub fn frame_warped(
+        &mut self,
+        view: &View,
+        depth: popping::DepthImage,
+        reference: Image,
+        test: Image,
+    ) -> Result<FrameMetrics, MetricsError> {
+        self.measure(reference, test, Some((view, depth)))
+    }
+
+    fn measure(
+        &mut self,
+        reference: Image,
+        test: Image,
+        warp: Option<(&View, popping::DepthImage)>,
+    ) -> Result<FrameMetrics, MetricsError> {
         let (mut reference, mut test) = (Prepared::new(reference), Prepared::new(test));
         let image = compare_prepared(&mut reference, &mut test)?;
+        let warped = match warp {
+            Some((view, depth)) => self.warped.frame(view, depth, &mut reference, &mut test)?,
+            None => [None; 2],
+        };
         let popping_flip = match self.previous.as_mut() {
             Some((previous_reference, previous_test)) => Some(
                 flip_prepared(&mut test, previous_test)?
@@ -318,6 +355,7 @@ impl PathMetrics {
         Ok(FrameMetrics {
             image,
             popping_flip,
+            warped,
         })
     }
 }

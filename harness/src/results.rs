@@ -76,6 +76,28 @@ frame_row! {
     /// FLIP(this frame, previous frame) − FLIP(reference, previous reference): popping
     /// ([`crate::metrics::PathMetrics`]); empty for frame 0 and runs without a reference.
     popping_flip: Option<f64>,
+    /// Mean FLIP between this frame and the frame before it warped into its view by exact
+    /// reprojection, over the valid pixels ([`crate::metrics::popping`]); empty for frame 0.
+    warped_flip_l1: Option<f64>,
+    /// The same for the reference's frames.
+    warped_ref_flip_l1: Option<f64>,
+    /// `warped_flip_l1 − warped_ref_flip_l1`: the popping the method adds, motion removed.
+    popping_warped_l1: Option<f64>,
+    /// Pop events at lag 1: valid pixels whose warped change exceeds the threshold where the
+    /// reference's does not.
+    pop_events_l1: Option<u64>,
+    /// Fraction of pixels valid at lag 1 (covered, in view and not disoccluded).
+    warp_valid_l1: Option<f64>,
+    /// [`FrameRow::warped_flip_l1`] against the frame 7 before; empty for frames 0–6.
+    warped_flip_l7: Option<f64>,
+    /// [`FrameRow::warped_ref_flip_l1`] at lag 7.
+    warped_ref_flip_l7: Option<f64>,
+    /// [`FrameRow::popping_warped_l1`] at lag 7.
+    popping_warped_l7: Option<f64>,
+    /// [`FrameRow::pop_events_l1`] at lag 7.
+    pop_events_l7: Option<u64>,
+    /// [`FrameRow::warp_valid_l1`] at lag 7.
+    warp_valid_l7: Option<f64>,
     /// Time to compute this frame's image metrics (both FLIP preparations, SSIM, PSNR,
     /// coverage and popping), ms; empty without a reference.
     metrics_ms: Option<f64>,
@@ -288,6 +310,20 @@ pub fn median(values: impl IntoIterator<Item = f64>) -> Option<f64> {
     })
 }
 
+/// The `q`-quantile (0..=1) of the finite `values` by linear interpolation between order
+/// statistics (position `q · (n − 1)`, as numpy's default), `None` if there is none;
+/// [`median`] is the 0.5-quantile.
+pub fn quantile(values: impl IntoIterator<Item = f64>, q: f64) -> Option<f64> {
+    let mut v: Vec<f64> = values.into_iter().filter(|x| x.is_finite()).collect();
+    if v.is_empty() {
+        return None;
+    }
+    v.sort_by(f64::total_cmp);
+    let at = q.clamp(0.0, 1.0) * (v.len() - 1) as f64;
+    let (lo, hi) = (at.floor() as usize, at.ceil() as usize);
+    Some(v[lo] + (v[hi] - v[lo]) * (at - lo as f64))
+}
+
 /// Files and bytes under `dir` (0 for a folder that does not exist). Symbolic links are
 /// counted as links, never followed.
 pub fn dir_size(dir: &std::path::Path) -> std::io::Result<(u64, u64)> {
@@ -320,7 +356,9 @@ mod tests {
             FrameRow::COLUMNS.join(","),
             "frame,method,scene,path,target,eps_px,budget,points_drawn,chunks_drawn,gpu_ms,\
              wall_ms,cpu_select_ms,upload_bytes,splats_per_s,rss_bytes,gpu_cache_bytes,psnr_db,\
-             ssim,flip_mean,hole_ratio,extra_coverage,popping_flip,metrics_ms"
+             ssim,flip_mean,hole_ratio,extra_coverage,popping_flip,warped_flip_l1,\
+             warped_ref_flip_l1,popping_warped_l1,pop_events_l1,warp_valid_l1,warped_flip_l7,\
+             warped_ref_flip_l7,popping_warped_l7,pop_events_l7,warp_valid_l7,metrics_ms"
         );
     }
 
@@ -330,6 +368,16 @@ mod tests {
         assert_eq!(shell_quote("a b"), "'a b'");
         assert_eq!(shell_quote("it's"), "'it'\\''s'");
         assert_eq!(shell_quote(""), "''");
+    }
+
+    #[test]
+    fn quantiles() {
+        let v = [4.0, 1.0, 3.0, 2.0, 5.0];
+        assert_eq!(quantile(v, 0.5), median(v));
+        assert_eq!(quantile(v, 0.95), Some(4.8));
+        assert_eq!(quantile(v, 1.0), Some(5.0));
+        assert_eq!(quantile([7.0], 0.95), Some(7.0));
+        assert_eq!(quantile([f64::NAN], 0.95), None);
     }
 
     #[test]

@@ -80,6 +80,14 @@ pub fn column_class(column: &str, traits: RunTraits) -> Class {
         "psnr_db" | "ssim" | "flip_mean" | "hole_ratio" | "extra_coverage" | "popping_flip" => {
             Class::Image
         }
+        // Warped popping: FLIP maps and the reference's depth, as the image metrics.
+        c if c.starts_with("warped_")
+            || c.starts_with("popping_warped_")
+            || c.starts_with("pop_events_")
+            || c.starts_with("warp_valid_") =>
+        {
+            Class::Image
+        }
         // Resident memory is the machine's; the loader's queue length is thread timing; the
         // bandwidth estimate is bytes over the loader's measured busy time.
         "rss_bytes" | "loader_pending" | "bandwidth_est_bytes_per_s" => Class::Machine,
@@ -138,6 +146,12 @@ mod tests {
         assert_eq!(column_class("front_nodes", none), Class::Exact);
         assert_eq!(column_class("flip_mean", none), Class::Image);
         assert_eq!(column_class("popping_flip", none), Class::Image);
+        for c in crate::results::FrameRow::COLUMNS
+            .iter()
+            .filter(|c| c.contains("_l1") || c.contains("_l7"))
+        {
+            assert_eq!(column_class(c, none), Class::Image, "{c}");
+        }
         assert_eq!(column_class("gpu_ms", none), Class::Timing);
         assert_eq!(
             column_class("bandwidth_est_bytes_per_s", none),

@@ -80,6 +80,15 @@ pub struct ImageTolerance {
     /// the column existed, which then do not compare it.
     #[serde(default)]
     pub popping_flip: Option<f64>,
+    /// The warped popping figures (`warped_flip_*`, `warped_ref_flip_*`,
+    /// `popping_warped_*`: FLIP means and their difference); absent in baselines blessed
+    /// before they existed, which then do not compare them.
+    #[serde(default)]
+    pub popping_warped: Option<f64>,
+    /// The warp's counts (`pop_events_*`, pixels; `warp_valid_*`, a fraction of pixels);
+    /// absent in older baselines as above.
+    #[serde(default)]
+    pub warp_counts: Option<f64>,
 }
 
 impl ImageTolerance {
@@ -92,6 +101,10 @@ impl ImageTolerance {
             "psnr_db" => self.psnr_db,
             "ssim" => self.ssim,
             "popping_flip" => self.popping_flip,
+            c if c.starts_with("warped_") || c.starts_with("popping_warped_") => {
+                self.popping_warped
+            }
+            c if c.starts_with("pop_events_") || c.starts_with("warp_valid_") => self.warp_counts,
             _ => None,
         }
     }
@@ -117,14 +130,17 @@ impl Default for Tolerances {
     /// adapter: the golden-image tolerance of `harness/tests/render.rs` (FLIP ≤ 0.02, holes
     /// ≤ 0.01, set on llvmpipe); PSNR, SSIM and extra coverage swing with a few pixels of
     /// rasterisation and are not compared there. Popping FLIP is a difference of two FLIP
-    /// means, so it gets twice FLIP's allowance.
+    /// means, so it gets twice FLIP's allowance, as do the warped popping figures; the
+    /// warp's counts are exact on one adapter.
     fn default() -> Self {
         Self {
             note: "same adapter: renders repeat byte for byte, the allowance covers the \
                    metrics' floating point on another CPU; other adapter: the golden-image \
                    tolerance of harness/tests/render.rs (FLIP 0.02, holes 0.01), PSNR, SSIM \
                    and extra coverage not compared; popping FLIP, a difference of two FLIP \
-                   means, twice FLIP's allowance"
+                   means, twice FLIP's allowance, and so the warped popping figures; the \
+                   warp's counts exact on one adapter, not compared on another (a pixel more \
+                   or less at every splat edge)"
                 .into(),
             same_adapter: ImageTolerance {
                 flip_mean: Some(1e-6),
@@ -133,6 +149,8 @@ impl Default for Tolerances {
                 psnr_db: Some(1e-4),
                 ssim: Some(1e-6),
                 popping_flip: Some(2e-6),
+                popping_warped: Some(2e-6),
+                warp_counts: Some(0.0),
             },
             other_adapter: ImageTolerance {
                 flip_mean: Some(0.02),
@@ -141,6 +159,8 @@ impl Default for Tolerances {
                 psnr_db: None,
                 ssim: None,
                 popping_flip: Some(0.04),
+                popping_warped: Some(0.04),
+                warp_counts: None,
             },
         }
     }

@@ -1,5 +1,5 @@
 //! The comparison of several runs: FLIP against points drawn, median splats per second and
-//! median popping FLIP.
+//! median popping, as drawn and with the motion removed.
 
 use super::*;
 
@@ -16,6 +16,8 @@ pub(super) struct RunSeries {
     /// Median popping FLIP over the frames that have one (`None`: no reference, one frame,
     /// or a `frames.csv` older than the column).
     pub(super) median_popping_flip: Option<f64>,
+    /// Median warped popping at lag 1 ([`crate::metrics::popping`]; `None` as above).
+    pub(super) median_popping_warped_l1: Option<f64>,
 }
 
 /// The comparison figure of several runs.
@@ -62,20 +64,41 @@ impl Figure for Comparison {
             .map(|r| Some(r.median_splats_per_s))
             .collect();
         bar_panel(&top, &self.runs, &splats, "median splats/s", "splats/s", si)?;
-        let popping: Vec<Option<f64>> = self.runs.iter().map(|r| r.median_popping_flip).collect();
-        let caption = if popping.iter().all(Option::is_none) {
-            "median popping FLIP (not recorded)"
-        } else {
-            "median popping FLIP (frame-to-frame, minus the reference's)"
-        };
-        bar_panel(
-            &bottom,
-            &self.runs,
-            &popping,
-            caption,
-            "popping_flip",
-            |v| format!("{v:.4}"),
-        )
+        // Popping twice: frame to frame as drawn (dominated by the motion), and with the
+        // motion removed by exact reprojection (lag 1); each minus the reference's.
+        let (width, _) = bottom.dim_in_pixel();
+        let (plain, warped) = bottom.split_horizontally(width / 2);
+        let panels = [
+            (
+                &plain,
+                self.runs
+                    .iter()
+                    .map(|r| r.median_popping_flip)
+                    .collect::<Vec<_>>(),
+                "median popping FLIP (unwarped)",
+                "popping_flip",
+            ),
+            (
+                &warped,
+                self.runs
+                    .iter()
+                    .map(|r| r.median_popping_warped_l1)
+                    .collect(),
+                "median popping, motion removed (lag 1)",
+                "popping_warped_l1",
+            ),
+        ];
+        for (area, values, caption, desc) in panels {
+            let caption = if values.iter().all(Option::is_none) {
+                format!("{caption}: not recorded")
+            } else {
+                caption.to_string()
+            };
+            bar_panel(area, &self.runs, &values, &caption, desc, |v| {
+                format!("{v:.4}")
+            })?;
+        }
+        Ok(())
     }
 }
 

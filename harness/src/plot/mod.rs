@@ -5,9 +5,10 @@
 //! counters, are ignored). Per row:
 //! - `method`, `scene`, `path` are free text; `target` is `eps` or `budget`;
 //! - `eps_px`, `budget` and the image-metric columns (`psnr_db`, `ssim`, `flip_mean`,
-//!   `hole_ratio`, `extra_coverage`, `popping_flip`) may be empty (no reference for that
-//!   run; `popping_flip` also in frame 0); `popping_flip` may also be missing from the header
-//!   (files written before it existed);
+//!   `hole_ratio`, `extra_coverage`, `popping_flip`, `popping_warped_l1`,
+//!   `popping_warped_l7`) may be empty (no reference for that run; the popping columns also
+//!   in the frames before their lag); the popping columns may also be missing from the
+//!   header (files written before they existed);
 //! - `gpu_ms` may be empty too (an adapter without timestamp queries);
 //! - every other column must be a number: integer columns (`frame`, `budget`,
 //!   `points_drawn`, `chunks_drawn`, `upload_bytes`, `rss_bytes`, `gpu_cache_bytes`) as
@@ -27,8 +28,9 @@
 //!   0..1 axis). Frames are sorted by frame number; empty values leave gaps.
 //! - Comparison: left, per-frame `flip_mean` (y) against `points_drawn` (x), one colour and
 //!   legend entry per run; x is logarithmic when all x > 0 and max/min > 10. Right, two bar
-//!   panels, one labelled bar per run: the median `splats_per_s` (top) and the median
-//!   `popping_flip` (bottom; no bar for a run without one). A run is labelled by its method,
+//!   panels, one labelled bar per run: the median `splats_per_s` (top) and, below, the
+//!   median `popping_flip` (left) and `popping_warped_l1` (right; no bar for a run without
+//!   one). A run is labelled by its method,
 //!   plus its target when the runs' targets differ, plus its folder name if labels still
 //!   collide.
 //!
@@ -76,7 +78,7 @@ use timeline::*;
 pub use tune::{TUNE_SIZE, TuneFigure, plot_tune};
 
 /// The leading columns of every `frames.csv`, in the order runs write them.
-pub const FRAME_COLUMNS: [&str; 22] = [
+pub const FRAME_COLUMNS: [&str; 24] = [
     "frame",
     "method",
     "scene",
@@ -99,6 +101,8 @@ pub const FRAME_COLUMNS: [&str; 22] = [
     "hole_ratio",
     "extra_coverage",
     "popping_flip",
+    "popping_warped_l1",
+    "popping_warped_l7",
 ];
 
 /// Size in pixels of `timeline.png` (and of `timeline.svg` in user units).
@@ -175,6 +179,11 @@ pub struct FrameRecord {
     /// Popping FLIP ([`crate::metrics::PathMetrics`]); empty for frame 0, without a
     /// reference, and in files written before the column existed.
     pub popping_flip: Option<f64>,
+    /// Warped popping at lag 1 ([`crate::metrics::popping`]); empty for frame 0, without a
+    /// reference, and in files written before the column existed.
+    pub popping_warped_l1: Option<f64>,
+    /// Warped popping at lag 7; empty for frames 0–6 and as above.
+    pub popping_warped_l7: Option<f64>,
 }
 
 /// Reads `frames.csv` by header name (extra columns ignored). Errors name the file, and for
@@ -228,6 +237,9 @@ pub fn plot_comparison(run_dirs: &[PathBuf], out_dir: &Path) -> anyhow::Result<V
             median_splats_per_s: median(frames.iter().map(|f| f.splats_per_s).collect()),
             median_popping_flip: crate::results::median(
                 frames.iter().filter_map(|f| f.popping_flip),
+            ),
+            median_popping_warped_l1: crate::results::median(
+                frames.iter().filter_map(|f| f.popping_warped_l1),
             ),
         })
         .collect();
@@ -437,6 +449,8 @@ mod tests {
             hole_ratio: Some(0.0),
             extra_coverage: None,
             popping_flip: flip.map(|f| f / 10.0),
+            popping_warped_l1: flip.map(|f| f / 20.0),
+            popping_warped_l7: flip.map(|f| f / 5.0),
         }
     }
 
@@ -490,7 +504,7 @@ mod tests {
         let e = format!("{:#}", read_sweep(&path).unwrap_err());
         assert!(e.contains("missing column 'scene'"), "{e}");
         let mut fields: Vec<&str> = vec!["lpc", "", "s", "orbit", "budget", "500", "2"];
-        fields.extend(["x"; 11]);
+        fields.extend(vec!["x"; SWEEP_COLUMNS.len() - 7]);
         let bad = format!("{}\n{}\n", SWEEP_COLUMNS.join(","), fields.join(","));
         std::fs::write(&path, bad).unwrap();
         let e = format!("{:#}", read_sweep(&path).unwrap_err());
@@ -500,7 +514,7 @@ mod tests {
         );
     }
 
-    /// Files written before `popping_flip` existed still read, as if it were empty.
+    /// Files written before the popping columns existed still read, as if they were empty.
     #[test]
     fn files_without_the_popping_columns_still_read() {
         let dir = tempfile::tempdir().unwrap();
@@ -508,23 +522,30 @@ mod tests {
         let row = SweepRow::of_run(&[frame(0, 100, Some(0.25), 1)], "", 100.0).unwrap();
         assert_eq!(row.popping_flip_median, Some(0.025));
         write_sweep(&path, std::slice::from_ref(&row)).unwrap();
-        // Drop the column from the header and the row.
+        assert_eq!(row.popping_warped_l1_median, Some(0.0125));
+        // Drop the popping columns (each added after files were committed) from the header
+        // and the row.
         let text = std::fs::read_to_string(&path).unwrap();
-        let at = SWEEP_COLUMNS
-            .iter()
-            .position(|c| *c == "popping_flip_median")
-            .unwrap();
+        let mut at: Vec<usize> = (0..SWEEP_COLUMNS.len())
+            .filter(|&i| SWEEP_COLUMNS[i].starts_with("popping_"))
+            .collect();
+        assert_eq!(at.len(), 5);
+        at.reverse();
         let old: String = text
             .lines()
             .map(|l| {
                 let mut f: Vec<&str> = l.split(',').collect();
-                f.remove(at);
+                for &i in &at {
+                    f.remove(i);
+                }
                 f.join(",") + "\n"
             })
             .collect();
         std::fs::write(&path, old).unwrap();
         let read = read_sweep(&path).unwrap();
         assert_eq!(read[0].popping_flip_median, None);
+        assert_eq!(read[0].popping_warped_l1_median, None);
+        assert_eq!(read[0].popping_warped_l7_p95, None);
         assert_eq!(read[0].flip_mean_median, Some(0.25));
         // Other columns stay required.
         std::fs::write(&path, "method,params\nmwkd,\n").unwrap();

@@ -5,7 +5,7 @@ use super::*;
 
 /// The columns of `sweep.csv`, in file order: one row per target of a sweep, the medians
 /// (and some maxima) over that target's run.
-pub const SWEEP_COLUMNS: [&str; 18] = [
+pub const SWEEP_COLUMNS: [&str; 22] = [
     "method",
     "params",
     "scene",
@@ -23,6 +23,10 @@ pub const SWEEP_COLUMNS: [&str; 18] = [
     "hole_ratio_max",
     "psnr_db_median",
     "popping_flip_median",
+    "popping_warped_l1_median",
+    "popping_warped_l1_p95",
+    "popping_warped_l7_median",
+    "popping_warped_l7_p95",
     "rss_bytes_max",
 ];
 
@@ -67,6 +71,15 @@ pub struct SweepRow {
     /// Median popping FLIP (empty without a reference or with one frame; see
     /// [`crate::metrics::PathMetrics`]).
     pub popping_flip_median: Option<f64>,
+    /// Median warped popping at lag 1 ([`crate::metrics::popping`]; empty without a
+    /// reference, with one frame, or in files older than the column).
+    pub popping_warped_l1_median: Option<f64>,
+    /// Its 95th percentile over the frames.
+    pub popping_warped_l1_p95: Option<f64>,
+    /// Median warped popping at lag 7 (empty with fewer than 8 frames, and as above).
+    pub popping_warped_l7_median: Option<f64>,
+    /// Its 95th percentile over the frames.
+    pub popping_warped_l7_p95: Option<f64>,
     /// Largest resident set size after a frame, bytes.
     pub rss_bytes_max: u64,
 }
@@ -84,6 +97,9 @@ impl SweepRow {
         };
         let max = |f: fn(&FrameRecord) -> Option<f64>| frames.iter().filter_map(f).reduce(f64::max);
         let med = |f: fn(&FrameRecord) -> Option<f64>| median(frames.iter().filter_map(f));
+        let p95 = |f: fn(&FrameRecord) -> Option<f64>| {
+            crate::results::quantile(frames.iter().filter_map(f), 0.95)
+        };
         let need = |v: Option<f64>, what: &str| {
             v.ok_or_else(|| anyhow!("no finite {what} in the run's frames"))
         };
@@ -105,6 +121,10 @@ impl SweepRow {
             hole_ratio_max: max(|f| f.hole_ratio),
             psnr_db_median: med(|f| f.psnr_db),
             popping_flip_median: med(|f| f.popping_flip),
+            popping_warped_l1_median: med(|f| f.popping_warped_l1),
+            popping_warped_l1_p95: p95(|f| f.popping_warped_l1),
+            popping_warped_l7_median: med(|f| f.popping_warped_l7),
+            popping_warped_l7_p95: p95(|f| f.popping_warped_l7),
             rss_bytes_max: frames.iter().map(|f| f.rss_bytes).max().unwrap_or(0),
         })
     }
@@ -130,6 +150,10 @@ impl SweepRow {
             opt(self.hole_ratio_max),
             opt(self.psnr_db_median),
             opt(self.popping_flip_median),
+            opt(self.popping_warped_l1_median),
+            opt(self.popping_warped_l1_p95),
+            opt(self.popping_warped_l7_median),
+            opt(self.popping_warped_l7_p95),
             self.rss_bytes_max.to_string(),
         ]
     }

@@ -5,7 +5,16 @@ use super::*;
 
 /// Columns added after files were committed with the older header: a file without them
 /// reads as if they were empty in every row.
-pub(super) const OPTIONAL_COLUMNS: [&str; 2] = ["popping_flip", "popping_flip_median"];
+pub(super) const OPTIONAL_COLUMNS: [&str; 8] = [
+    "popping_flip",
+    "popping_flip_median",
+    "popping_warped_l1",
+    "popping_warped_l7",
+    "popping_warped_l1_median",
+    "popping_warped_l1_p95",
+    "popping_warped_l7_median",
+    "popping_warped_l7_p95",
+];
 
 /// Reads a CSV file whose header holds `columns` (any order, extra columns ignored; those of
 /// [`OPTIONAL_COLUMNS`] may be missing), one `parse` per record. Errors name the file; a file without rows is an error ("no `what` in
@@ -171,6 +180,8 @@ impl Row<'_> {
             hole_ratio: self.opt_f64("hole_ratio")?,
             extra_coverage: self.opt_f64("extra_coverage")?,
             popping_flip: self.opt_f64("popping_flip")?,
+            popping_warped_l1: self.opt_f64("popping_warped_l1")?,
+            popping_warped_l7: self.opt_f64("popping_warped_l7")?,
         })
     }
 
@@ -194,6 +205,10 @@ impl Row<'_> {
             hole_ratio_max: self.opt_f64("hole_ratio_max")?,
             psnr_db_median: self.opt_f64("psnr_db_median")?,
             popping_flip_median: self.opt_f64("popping_flip_median")?,
+            popping_warped_l1_median: self.opt_f64("popping_warped_l1_median")?,
+            popping_warped_l1_p95: self.opt_f64("popping_warped_l1_p95")?,
+            popping_warped_l7_median: self.opt_f64("popping_warped_l7_median")?,
+            popping_warped_l7_p95: self.opt_f64("popping_warped_l7_p95")?,
             rss_bytes_max: self.u64("rss_bytes_max")?,
         })
     }

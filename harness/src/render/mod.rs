@@ -230,6 +230,8 @@ pub struct Renderer<'g> {
     compute: Option<compute::ComputeRaster>,
     /// Tint chunks by their level ([`LodMethod::chunk_level`]): the viewer's `L`.
     level_colours: bool,
+    /// Store the depth target at the end of every frame, for [`Renderer::read_depth`].
+    keep_depth: bool,
 }
 
 /// Which pipeline: an opaque kernel, or one of the gaussian passes.
@@ -359,6 +361,7 @@ impl<'g> Renderer<'g> {
                 .then(|| edl::EdlPass::new(gpu, settings.width, settings.height, COLOR_FORMAT)),
             compute,
             level_colours: false,
+            keep_depth: false,
         })
     }
 
@@ -367,6 +370,13 @@ impl<'g> Renderer<'g> {
     /// shaded as usual) when `on`; the viewer's `L`. Runs never set it.
     pub fn set_level_colours(&mut self, on: bool) {
         self.level_colours = on;
+    }
+
+    /// Keep the depth target of every frame for [`Renderer::read_depth`] (the reference's,
+    /// for the warped popping metric): every pass then stores its depth instead of
+    /// discarding it.
+    pub fn keep_depth(&mut self, on: bool) {
+        self.keep_depth = on;
     }
 
     /// True when occlusion sample counts are exact on this renderer's adapter
@@ -428,7 +438,7 @@ impl<'g> Renderer<'g> {
         let items: Vec<&DrawItem> = list.items.iter().collect();
         let phase1 = PhaseTarget {
             clear: true,
-            store_depth: list.occlusion.is_some() || self.edl.is_some(),
+            store_depth: list.occlusion.is_some() || self.edl.is_some() || self.keep_depth,
             ts: (0, 1),
         };
         let (mut enc, counters1, streams) =
@@ -627,7 +637,7 @@ impl<'g> Renderer<'g> {
         let points_before = stats.points;
         let phase3 = PhaseTarget {
             clear: false,
-            store_depth: self.edl.is_some(),
+            store_depth: self.edl.is_some() || self.keep_depth,
             ts: (4, 5),
         };
         let (mut enc, counters, streams3) =

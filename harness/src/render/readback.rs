@@ -2,6 +2,7 @@
 //! and the colour target.
 
 use super::*;
+use crate::metrics::warp::DepthImage;
 
 /// Bytes of the timestamp resolve/readback buffers: queries 0..4 at offset 0, 4..6 at the
 /// second [`wgpu::QUERY_RESOLVE_BUFFER_ALIGNMENT`] slot (phase 3 resolves in its own
@@ -91,24 +92,56 @@ impl Renderer<'_> {
     pub fn read_color(&self) -> anyhow::Result<Image> {
         read_texture(self.gpu, &self.color)
     }
+
+    /// Reads the depth target of the last frame drawn of `view` back as view depths
+    /// ([`DepthImage::from_ndc`]). The depth is kept only by a renderer made to keep it
+    /// ([`Renderer::keep_depth`]): an error otherwise.
+    pub fn read_depth(&self, view: &View) -> anyhow::Result<DepthImage> {
+        anyhow::ensure!(
+            self.keep_depth,
+            "the renderer does not keep its depth (Renderer::keep_depth)"
+        );
+        let raw = read_rows(self.gpu, &self.depth, wgpu::TextureAspect::DepthOnly, 4)?;
+        let ndc: Vec<f32> = bytemuck::pod_collect_to_vec(&raw);
+        Ok(DepthImage::from_ndc(view, &ndc))
+    }
 }
 
 /// Reads an RGBA8 `texture` back (its whole first mip level).
 pub(crate) fn read_texture(gpu: &Gpu, texture: &wgpu::Texture) -> anyhow::Result<Image> {
+    let rgba = read_rows(gpu, texture, wgpu::TextureAspect::All, 4)?;
+    Ok(Image {
+        width: texture.width(),
+        height: texture.height(),
+        rgba,
+    })
+}
+
+/// The first mip level of `aspect` of `texture` (`texel` bytes per texel), its rows packed
+/// without the copy's row padding.
+fn read_rows(
+    gpu: &Gpu,
+    texture: &wgpu::Texture,
+    aspect: wgpu::TextureAspect,
+    texel: u32,
+) -> anyhow::Result<Vec<u8>> {
     let (w, h) = (texture.width(), texture.height());
-    let row = w * 4;
+    let row = w * texel;
     let padded =
         row.div_ceil(wgpu::COPY_BYTES_PER_ROW_ALIGNMENT) * wgpu::COPY_BYTES_PER_ROW_ALIGNMENT;
     let size = padded as u64 * h as u64;
     let buf = gpu.device.create_buffer(&wgpu::BufferDescriptor {
-        label: Some("color readback"),
+        label: Some("texture readback"),
         size,
         usage: wgpu::BufferUsages::MAP_READ | wgpu::BufferUsages::COPY_DST,
         mapped_at_creation: false,
     });
     let mut enc = gpu.device.create_command_encoder(&Default::default());
     enc.copy_texture_to_buffer(
-        texture.as_image_copy(),
+        wgpu::TexelCopyTextureInfo {
+            aspect,
+            ..texture.as_image_copy()
+        },
         wgpu::TexelCopyBufferInfo {
             buffer: &buf,
             layout: wgpu::TexelCopyBufferLayout {
@@ -121,16 +154,12 @@ pub(crate) fn read_texture(gpu: &Gpu, texture: &wgpu::Texture) -> anyhow::Result
     );
     gpu.queue.submit([enc.finish()]);
     let bytes = read_buffer(gpu, &buf, size)?;
-    let mut rgba = Vec::with_capacity((row * h) as usize);
+    let mut out = Vec::with_capacity((row * h) as usize);
     for y in 0..h as usize {
         let start = y * padded as usize;
-        rgba.extend_from_slice(&bytes[start..start + row as usize]);
+        out.extend_from_slice(&bytes[start..start + row as usize]);
     }
-    Ok(Image {
-        width: w,
-        height: h,
-        rgba,
-    })
+    Ok(out)
 }
 
 /// Maps `buf`, waits for the device, and copies its first `size` bytes out.

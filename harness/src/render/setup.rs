@@ -85,8 +85,11 @@ pub(super) fn make_targets(
         sample_count: 1,
         dimension: wgpu::TextureDimension::D2,
         format: DEPTH_FORMAT,
-        // Bound as a texture by the occlusion queries (with a read-only depth attachment).
-        usage: wgpu::TextureUsages::RENDER_ATTACHMENT | wgpu::TextureUsages::TEXTURE_BINDING,
+        // Bound as a texture by the occlusion queries (with a read-only depth attachment);
+        // copied out for the reference's depth (`Renderer::read_depth`).
+        usage: wgpu::TextureUsages::RENDER_ATTACHMENT
+            | wgpu::TextureUsages::TEXTURE_BINDING
+            | wgpu::TextureUsages::COPY_SRC,
         view_formats: &[],
     });
     (color, depth)

@@ -53,7 +53,7 @@ pub use prepare::{
     BuildSource, OpenedMethod, PreparedScene, check_gpu_budget, load_scene, open_method,
 };
 pub use reference::Reference;
-pub use summary::{FailedChunk, Medians, SceneStats, Summary, TrafficTotals};
+pub use summary::{FailedChunk, Medians, SceneStats, Summary, Tails, TrafficTotals};
 
 /// Bump when the renderer's output changes through its Rust side (a shader's change is in the
 /// key already: [`crate::render::image_shaders_hash`]), to invalidate cached reference images.
@@ -327,6 +327,7 @@ fn initial_summary(
         build,
         splats_per_s_basis: if gpu.timestamps { "gpu_ms" } else { "wall_ms" },
         medians: Medians::default(),
+        p95: Tails::default(),
         failed_chunks: Vec::new(),
         traffic: None,
         known_effect: None,
@@ -461,12 +462,12 @@ impl PathRun<'_> {
         let Some(r) = self.reference.as_mut() else {
             return Ok((None, None));
         };
-        let ref_img = r.image(view, self.progress)?;
+        let (ref_img, depth) = r.frame(view, self.progress)?;
         if self.cfg.save_images {
             ref_img.save_png(&self.images.join(format!("ref_{i:04}.png")))?;
         }
         let t = Instant::now();
-        let m = path_metrics.frame(ref_img, img)?;
+        let m = path_metrics.frame_warped(view, depth, ref_img, img)?;
         Ok((Some(m), Some(t.elapsed().as_secs_f64() * 1e3)))
     }
 
@@ -501,6 +502,7 @@ impl PathRun<'_> {
         let denom = stats.gpu_ms.unwrap_or(stats.wall_ms);
         // Splats actually drawn: those that passed the GPU's LOD test, if there was one.
         let drawn = stats.gpu_passed.unwrap_or(stats.points);
+        let lag = |k: usize| m.and_then(|m| m.warped[k]);
         FrameRow {
             frame: i as u64,
             method: cfg.method.name().into(),
@@ -531,6 +533,16 @@ impl PathRun<'_> {
             hole_ratio: m.map(|m| m.image.hole_ratio),
             extra_coverage: m.map(|m| m.image.extra_coverage),
             popping_flip: m.and_then(|m| m.popping_flip),
+            warped_flip_l1: lag(0).map(|l| l.method),
+            warped_ref_flip_l1: lag(0).map(|l| l.reference),
+            popping_warped_l1: lag(0).map(|l| l.popping()),
+            pop_events_l1: lag(0).map(|l| l.pops),
+            warp_valid_l1: lag(0).map(|l| l.valid),
+            warped_flip_l7: lag(1).map(|l| l.method),
+            warped_ref_flip_l7: lag(1).map(|l| l.reference),
+            popping_warped_l7: lag(1).map(|l| l.popping()),
+            pop_events_l7: lag(1).map(|l| l.pops),
+            warp_valid_l7: lag(1).map(|l| l.valid),
             metrics_ms,
         }
     }
@@ -562,6 +574,7 @@ impl PathRun<'_> {
             summary.scene.warnings.push(w);
         }
         summary.medians = Medians::of(rows);
+        summary.p95 = Tails::of(rows);
         summary.known_effect = cfg.method.known_effect(
             &summary.params,
             &methods::Observed {

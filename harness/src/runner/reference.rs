@@ -10,6 +10,7 @@ use scenes::{PointCloud, Progress, View};
 use super::REFERENCE_VERSION;
 use crate::gpu::Gpu;
 use crate::image::Image;
+use crate::metrics::warp::DepthImage;
 use crate::render::{RenderSettings, Renderer};
 
 /// Full-resolution reference images, cached on disk.
@@ -123,31 +124,58 @@ impl<'g> Reference<'g> {
         Ok(())
     }
 
+    fn cached(&self, view: &View, ext: &str) -> PathBuf {
+        self.cache
+            .join("refs")
+            .join(format!("{}.{ext}", self.key(view)))
+    }
+
     /// The reference image of `view` (rendered and cached if missing).
     pub fn image(&mut self, view: &View, progress: &dyn Progress) -> anyhow::Result<Image> {
-        let path = self
-            .cache
-            .join("refs")
-            .join(format!("{}.png", self.key(view)));
         // A cached image that fails to load (e.g. truncated by a crash) is re-rendered.
-        if path.exists()
-            && let Ok(img) = Image::load_png(&path)
-        {
+        if let Ok(img) = Image::load_png(&self.cached(view, "png")) {
             return Ok(img);
         }
+        Ok(self.render(view, progress)?.0)
+    }
+
+    /// The reference image of `view` and its depth (rendered and cached if either is
+    /// missing or fails to load): what the warped popping metric reprojects with.
+    pub fn frame(
+        &mut self,
+        view: &View,
+        progress: &dyn Progress,
+    ) -> anyhow::Result<(Image, DepthImage)> {
+        if let (Ok(img), Ok(depth)) = (
+            Image::load_png(&self.cached(view, "png")),
+            DepthImage::load(&self.cached(view, "depth")),
+        ) && (depth.width, depth.height) == (view.width, view.height)
+        {
+            return Ok((img, depth));
+        }
+        self.render(view, progress)
+    }
+
+    /// Renders the reference of `view` and caches its image and depth.
+    fn render(
+        &mut self,
+        view: &View,
+        progress: &dyn Progress,
+    ) -> anyhow::Result<(Image, DepthImage)> {
         if self.full.is_none() {
             let dir = self.full_dir();
             if methods::Manifest::read(&dir).is_err() {
                 self.build_full(&dir, progress)?;
             }
             let m = MethodKind::open(&dir)?;
-            let r = Renderer::new(
+            let mut r = Renderer::new(
                 self.gpu,
                 RenderSettings {
                     cache_bytes: self.settings.cache_bytes,
                     ..self.settings
                 },
             )?;
+            r.keep_depth(true);
             self.full = Some((m, r));
         }
         let Some((m, r)) = self.full.as_mut() else {
@@ -156,9 +184,14 @@ impl<'g> Reference<'g> {
         let list = m.frame(view, Target::Tolerance(1.0), &Feedback::default())?;
         let (_, img) = r.draw(view, &list, m.as_ref(), true)?;
         let img = img.context("reference readback")?;
-        std::fs::create_dir_all(path.parent().unwrap_or(&self.cache))
+        let depth = r.read_depth(view).context("reference depth readback")?;
+        let (png, dep) = (self.cached(view, "png"), self.cached(view, "depth"));
+        std::fs::create_dir_all(png.parent().unwrap_or(&self.cache))
             .with_context(|| format!("creating {}", self.cache.display()))?;
-        img.save_png(&path)?;
-        Ok(img)
+        img.save_png(&png)?;
+        depth
+            .save(&dep)
+            .with_context(|| format!("writing {}", dep.display()))?;
+        Ok((img, depth))
     }
 }

@@ -66,6 +66,8 @@ pub struct Summary {
     pub splats_per_s_basis: &'static str,
     /// Medians over the frames.
     pub medians: Medians,
+    /// 95th percentiles over the frames (popping).
+    pub p95: Tails,
     /// Chunks that failed to load: the frames drew without them, so they are not a
     /// faithful measurement (the run fails unless `--allow-missing-chunks`).
     pub failed_chunks: Vec<FailedChunk>,
@@ -176,8 +178,47 @@ pub struct Medians {
     pub extra_coverage: Option<f64>,
     /// Popping FLIP.
     pub popping_flip: Option<f64>,
+    /// Warped popping at lag 1 (`popping_warped_l1`).
+    pub popping_warped_l1: Option<f64>,
+    /// Warped popping at lag 7.
+    pub popping_warped_l7: Option<f64>,
+    /// Pop events at lag 1.
+    pub pop_events_l1: Option<f64>,
+    /// Pop events at lag 7.
+    pub pop_events_l7: Option<f64>,
     /// Image-metrics time per frame, ms.
     pub metrics_ms: Option<f64>,
+}
+
+/// 95th percentiles over the frames of the figures whose tail matters: popping comes in
+/// bursts, which a median hides.
+#[derive(Debug, Clone, Default, PartialEq, serde::Serialize)]
+pub struct Tails {
+    /// Popping FLIP (lag 1, unwarped).
+    pub popping_flip: Option<f64>,
+    /// Warped popping at lag 1.
+    pub popping_warped_l1: Option<f64>,
+    /// Warped popping at lag 7.
+    pub popping_warped_l7: Option<f64>,
+    /// Pop events at lag 1.
+    pub pop_events_l1: Option<f64>,
+    /// Pop events at lag 7.
+    pub pop_events_l7: Option<f64>,
+}
+
+impl Tails {
+    pub(super) fn of(rows: &[FrameRow]) -> Self {
+        let p = |f: fn(&FrameRow) -> Option<f64>| {
+            crate::results::quantile(rows.iter().filter_map(f), 0.95)
+        };
+        Self {
+            popping_flip: p(|r| r.popping_flip),
+            popping_warped_l1: p(|r| r.popping_warped_l1),
+            popping_warped_l7: p(|r| r.popping_warped_l7),
+            pop_events_l1: p(|r| r.pop_events_l1.map(|n| n as f64)),
+            pop_events_l7: p(|r| r.pop_events_l7.map(|n| n as f64)),
+        }
+    }
 }
 
 impl Medians {
@@ -195,6 +236,10 @@ impl Medians {
             hole_ratio: m(|r| r.hole_ratio),
             extra_coverage: m(|r| r.extra_coverage),
             popping_flip: m(|r| r.popping_flip),
+            popping_warped_l1: m(|r| r.popping_warped_l1),
+            popping_warped_l7: m(|r| r.popping_warped_l7),
+            pop_events_l1: m(|r| r.pop_events_l1.map(|n| n as f64)),
+            pop_events_l7: m(|r| r.pop_events_l7.map(|n| n as f64)),
             metrics_ms: m(|r| r.metrics_ms),
         }
     }

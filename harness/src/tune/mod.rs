@@ -310,7 +310,7 @@ pub fn run_part(
 }
 
 /// The fixed columns of `tune.csv`; the grid's keys go after `setting`.
-pub const TUNE_FIXED_COLUMNS: [&str; 20] = [
+pub const TUNE_FIXED_COLUMNS: [&str; 24] = [
     "setting",
     "target",
     "value",
@@ -320,6 +320,10 @@ pub const TUNE_FIXED_COLUMNS: [&str; 20] = [
     "hole_ratio_median",
     "psnr_db_median",
     "popping_flip_median",
+    "popping_warped_l1_median",
+    "popping_warped_l1_p95",
+    "popping_warped_l7_median",
+    "popping_warped_l7_p95",
     "gpu_ms_median",
     "wall_ms_median",
     "cpu_select_ms_median",
@@ -473,6 +477,10 @@ pub fn write_csv(plan: &Plan, rows: &[TuneRow], path: &Path) -> anyhow::Result<(
             opt(r.sweep.hole_ratio_median),
             opt(r.sweep.psnr_db_median),
             opt(r.sweep.popping_flip_median),
+            opt(r.sweep.popping_warped_l1_median),
+            opt(r.sweep.popping_warped_l1_p95),
+            opt(r.sweep.popping_warped_l7_median),
+            opt(r.sweep.popping_warped_l7_p95),
             opt(r.sweep.gpu_ms_median),
             r.wall_ms_median.to_string(),
             r.sweep.cpu_select_ms_median.to_string(),

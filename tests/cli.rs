@@ -65,7 +65,8 @@ fn run_full_against_its_own_reference_is_exact() {
         return;
     }
     let d = tempfile::tempdir().unwrap();
-    // `full` on an 8 K statue, 3 frames at 160 × 120, into `out`, one cache for both runs.
+    // `full` on an 8 K statue, 8 frames at 160 × 120 (lag 7 reached once), into `out`, one
+    // cache for both runs.
     let run = |out: &std::path::Path| {
         bin()
             .args([
@@ -75,7 +76,7 @@ fn run_full_against_its_own_reference_is_exact() {
                 "--scene",
                 "statue:8000",
                 "--frames",
-                "3",
+                "8",
             ])
             .args(["--width", "160", "--height", "120", "--out"])
             .arg(out)
@@ -91,9 +92,11 @@ fn run_full_against_its_own_reference_is_exact() {
         h.join(","),
         "frame,method,scene,path,target,eps_px,budget,points_drawn,chunks_drawn,gpu_ms,wall_ms,\
          cpu_select_ms,upload_bytes,splats_per_s,rss_bytes,gpu_cache_bytes,psnr_db,ssim,\
-         flip_mean,hole_ratio,extra_coverage,popping_flip,metrics_ms"
+         flip_mean,hole_ratio,extra_coverage,popping_flip,warped_flip_l1,warped_ref_flip_l1,\
+         popping_warped_l1,pop_events_l1,warp_valid_l1,warped_flip_l7,warped_ref_flip_l7,\
+         popping_warped_l7,pop_events_l7,warp_valid_l7,metrics_ms"
     );
-    assert_eq!(rows.len(), 3);
+    assert_eq!(rows.len(), 8);
     let col = |name: &str| h.iter().position(|c| c == name).unwrap();
     for r in &rows {
         assert_eq!(&r[col("method")], "full");
@@ -106,6 +109,25 @@ fn run_full_against_its_own_reference_is_exact() {
         match &r[col("frame")][..] {
             "0" => assert_eq!(&r[col("popping_flip")], ""),
             _ => assert_eq!(r[col("popping_flip")].parse::<f64>().unwrap(), 0.0),
+        }
+        // Warped at lags 1 and 7 (issue 38): the method's and the reference's terms are one
+        // image each, so their difference and the pop events are exactly 0; empty before the
+        // path has a frame that far back.
+        let frame: usize = r[col("frame")].parse().unwrap();
+        for lag in [1, 7] {
+            let cell = |c: &str| r[col(&format!("{c}_l{lag}"))].to_string();
+            if frame < lag {
+                assert_eq!(cell("popping_warped"), "", "frame {frame}, lag {lag}");
+                continue;
+            }
+            assert_eq!(cell("popping_warped").parse::<f64>().unwrap(), 0.0);
+            assert_eq!(cell("warped_flip"), cell("warped_ref_flip"));
+            assert_eq!(cell("pop_events"), "0");
+            let valid: f64 = cell("warp_valid").parse().unwrap();
+            assert!(
+                valid > 0.0 && valid < 1.0,
+                "frame {frame}, lag {lag}: {valid}"
+            );
         }
         assert!(r[col("wall_ms")].parse::<f64>().unwrap() > 0.0);
         assert!(r[col("metrics_ms")].parse::<f64>().unwrap() > 0.0);
@@ -120,7 +142,8 @@ fn run_full_against_its_own_reference_is_exact() {
     for f in ["timeline.png", "timeline.svg"] {
         assert!(out.join(f).exists(), "{f} missing");
     }
-    // One cached reference per distinct view; the same run again reads them (none is made
+    // One cached reference (image and depth) per distinct view; the same run again reads
+    // them (none is made
     // again: the files and their modification times stay as they were) and still agrees.
     let refs = || {
         let mut v: Vec<_> = std::fs::read_dir(d.path().join("cache/refs"))
@@ -134,7 +157,11 @@ fn run_full_against_its_own_reference_is_exact() {
         v
     };
     let before = refs();
-    assert_eq!(before.len(), 3, "one cached reference per distinct view");
+    assert_eq!(
+        before.len(),
+        16,
+        "one cached reference image and depth per distinct view"
+    );
     let again = d.path().join("again");
     run(&again);
     assert_eq!(refs(), before, "the second run made references again");

@@ -147,3 +147,105 @@ fn error_map(a: &mut Prepared, b: &Image) -> Result<Vec<f32>, MetricsError> {
     let fb = flip::FlipFeatures::new(b, Some(bg));
     Ok(flip::error_map(&a.flip[i].1, &fb))
 }
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::metrics::{PathMetrics, flip_mean};
+    use glam::Vec3;
+    use scenes::Camera;
+
+    const W: u32 = 64;
+    const H: u32 = 48;
+
+    /// A still camera in front of a wall that covers the frame at depth 5.
+    fn still() -> (View, DepthImage) {
+        let view = View {
+            camera: Camera {
+                position: Vec3::new(0.0, 5.0, 0.0),
+                target: Vec3::ZERO,
+                up: Vec3::Z,
+                fov_y: 0.8,
+                near: 0.1,
+                far: 100.0,
+            },
+            width: W,
+            height: H,
+        };
+        let depth = DepthImage {
+            width: W,
+            height: H,
+            depth: vec![5.0; (W * H) as usize],
+        };
+        (view, depth)
+    }
+
+    /// A textured frame; `swapped` recolours the 8 × 8 block at (20, 16) as a coarser level
+    /// of the same node would (one colour for the block).
+    fn frame(swapped: bool) -> Image {
+        let mut img = Image::new(W, H);
+        for y in 0..H {
+            for x in 0..W {
+                let k = ((y * W + x) * 4) as usize;
+                let block = swapped && (20..28).contains(&x) && (16..24).contains(&y);
+                let c = if block {
+                    [200, 120, 40, 255]
+                } else {
+                    [(x * 4) as u8, (y * 5) as u8, ((x ^ y) * 8) as u8, 255]
+                };
+                img.rgba[k..k + 4].copy_from_slice(&c);
+            }
+        }
+        img
+    }
+
+    #[test]
+    fn a_level_swapped_at_frame_k_spikes_lag_1_at_k_and_lag_7_on_k_to_k_plus_6() {
+        let (view, depth) = still();
+        let (k, frames) = (5, 16);
+        let (before, after) = (frame(false), frame(true));
+        // The size of the swap: FLIP between the two levels' images (every pixel is valid
+        // under a still camera, so the warped mean over valid pixels is the plain mean), and
+        // the pixels it pushes over the threshold.
+        let size = flip_mean(&before, &after).unwrap();
+        let map = {
+            let bg = metric_background(&before, &after);
+            flip::error_map(
+                &flip::FlipFeatures::new(&before, Some(bg)),
+                &flip::FlipFeatures::new(&after, Some(bg)),
+            )
+        };
+        let over = map.iter().filter(|&&e| e > POP_THRESHOLD).count() as u64;
+        // At least the swapped block's 64 pixels, at most the block grown by FLIP's spatial
+        // filters (a few pixels at 67 px per degree).
+        assert!(
+            (64..=16 * 16).contains(&over),
+            "{over} pixels over the threshold"
+        );
+        let mut m = PathMetrics::new();
+        for i in 0..frames {
+            let test = if i < k { before.clone() } else { after.clone() };
+            let f = m
+                .frame_warped(&view, depth.clone(), before.clone(), test)
+                .unwrap();
+            let [l1, l7] = f.warped;
+            // The reference never changes: its terms are 0, every pixel valid.
+            for l in [l1, l7].into_iter().flatten() {
+                assert_eq!((l.reference, l.valid), (0.0, 1.0), "frame {i}");
+            }
+            let spike = |l: Option<Lagged>, on: bool, lag: usize| {
+                let Some(l) = l else {
+                    assert!(i < lag, "frame {i}: lag {lag} missing");
+                    return;
+                };
+                if on {
+                    assert_eq!((l.popping(), l.pops), (size, over), "frame {i}, lag {lag}");
+                } else {
+                    assert_eq!((l.popping(), l.pops), (0.0, 0), "frame {i}, lag {lag}");
+                }
+            };
+            spike(l1, i == k, 1);
+            spike(l7, (k..k + 7).contains(&i), 7);
+        }
+    }
+}

@@ -78,6 +78,50 @@ fn at_most_fetch_per_frame_requests_and_progressive_refinement() {
 
 /// A budget below the root cloud (issue 13, item 6) is refused with the smallest budget that
 /// draws, for LPC and MWKD alike, instead of an empty frame; the root's size itself draws.
+/// A build of `cloud` by `kind` with `params`, in a temporary directory.
+fn built(kind: MethodKind, cloud: &PointCloud, params: &[&str]) -> tempfile::TempDir {
+    let tmp = tempfile::tempdir().unwrap();
+    kind.build(
+        cloud,
+        &Params::parse(params).unwrap(),
+        "test",
+        tmp.path(),
+        &scenes::NoProgress,
+    )
+    .unwrap();
+    tmp
+}
+
+#[test]
+fn figures_disagreeing_with_the_index_are_refused_at_open() {
+    let cloud = Generator::Statue.generate(20_000, 2).unwrap();
+    for (kind, params, info, samples) in [
+        (MethodKind::Lpc, vec!["m=1024"], "lpc.json", false),
+        (MethodKind::Mwkd, vec!["vbo=512"], "mwkd.json", true),
+    ] {
+        let tmp = built(kind, &cloud, &params);
+        let path = tmp.path().join(info);
+        let mut figures: serde_json::Value =
+            serde_json::from_str(&std::fs::read_to_string(&path).unwrap()).unwrap();
+        let nodes = figures["nodes"].as_u64().unwrap();
+        figures["nodes"] = (nodes + 1).into();
+        std::fs::write(&path, figures.to_string()).unwrap();
+        let e = MethodKind::open(tmp.path()).err().unwrap();
+        assert!(matches!(e, methods::MethodError::Corrupt { .. }), "{e}");
+        let e = e.to_string();
+        assert!(
+            e.contains(info)
+                && e.contains(&format!(
+                    "{} nodes / 20000 points disagree with the index ({nodes} nodes",
+                    nodes + 1
+                ))
+                && e.contains(", 20000 samples") == samples
+                && e.contains("and the manifest (20000 points)"),
+            "{e}"
+        );
+    }
+}
+
 #[test]
 fn budget_below_the_root_is_an_error_naming_the_least() {
     let cloud = Generator::Statue.generate(20_000, 2).unwrap();
@@ -85,15 +129,7 @@ fn budget_below_the_root_is_an_error_naming_the_least() {
         (MethodKind::Lpc, vec!["m=1024"], 1024u64),
         (MethodKind::Mwkd, vec!["vbo=512"], 512),
     ] {
-        let tmp = tempfile::tempdir().unwrap();
-        kind.build(
-            &cloud,
-            &Params::parse(&params).unwrap(),
-            "test",
-            tmp.path(),
-            &scenes::NoProgress,
-        )
-        .unwrap();
+        let tmp = built(kind, &cloud, &params);
         let mut m = MethodKind::open(tmp.path()).unwrap();
         let v = view(&cloud, 3.0);
         for b in [1, root - 1] {

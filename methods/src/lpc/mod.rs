@@ -48,7 +48,7 @@ use std::time::Instant;
 
 use scenes::{Attributes, PointCloud, Progress, View};
 
-use crate::store::access::{DataAccess, Loader, LoaderOptions, RepoAt};
+use crate::store::access::{BuildFigures, DataAccess, Loader, LoaderOptions, RepoAt, open_figures};
 use crate::{
     BuildStats, ChunkId, DrawItem, DrawList, Feedback, LodMethod, Manifest, MethodError,
     MethodStats, OcclusionCandidate, OcclusionPass, Params, SplatBatch, Target,
@@ -229,6 +229,15 @@ pub struct Info {
     pub points: u64,
 }
 
+impl BuildFigures for Info {
+    fn nodes(&self) -> u64 {
+        self.nodes
+    }
+    fn points(&self) -> u64 {
+        self.points
+    }
+}
+
 /// Builds an LPC into `dir` (see [`build::build`]).
 pub fn build(
     cloud: &PointCloud,
@@ -289,19 +298,11 @@ impl Lpc {
     /// Opens the index and figures of `dir` with the repository at `repo`, local or served
     /// over HTTP (a remote build: `dir` holds copies of its small files).
     pub fn open_at(dir: &Path, manifest: Manifest, repo: &RepoAt) -> Result<Self, MethodError> {
-        let params = LpcParams::from_params(&manifest.params)?;
+        let p = LpcParams::from_params(&manifest.params)?;
         let nodes = index::read(&dir.join(INDEX_FILE))?;
-        let access = Loader::at(
-            repo,
-            nodes.iter().map(|n| n.chunk).collect(),
-            "cloud",
-            Arc::new(cloud::decode),
-            LoaderOptions {
-                core_bytes: params.core_mb << 20,
-                delay_frames: params.delay_frames,
-                in_flight: repo.in_flight(params.in_flight),
-            },
-        )?;
+        let refs = nodes.iter().map(|n| n.chunk).collect();
+        let options = LoaderOptions::new(p.core_mb, p.delay_frames, p.in_flight, repo);
+        let access = Loader::at(repo, refs, "cloud", Arc::new(cloud::decode), options)?;
         Self::with_access(dir, manifest, nodes, Box::new(access))
     }
 
@@ -314,22 +315,13 @@ impl Lpc {
         access: Box<dyn DataAccess>,
     ) -> Result<Self, MethodError> {
         let params = LpcParams::from_params(&manifest.params)?;
-        let info: Info = crate::method::read_json(&dir.join(INFO_FILE))?;
-        if info.nodes != nodes.len() as u64 || info.points != manifest.points {
-            return Err(MethodError::corrupt(
-                dir.join(INFO_FILE),
-                format!(
-                    "{} nodes / {} points disagree with the index ({}) and manifest ({})",
-                    info.nodes,
-                    info.points,
-                    nodes.len(),
-                    manifest.points
-                ),
-            ));
-        }
-        // The root is the coarsest representation: without it there is nothing to draw, so
-        // it is read (and verified) now.
-        access.get(0)?;
+        let info: Info = open_figures(
+            &dir.join(INFO_FILE),
+            nodes.len(),
+            None,
+            manifest.points,
+            access.as_ref(),
+        )?;
         Ok(Self {
             traversal: Traversal::with_enlarge(nodes.len(), params.enlarge),
             nodes,

@@ -32,7 +32,7 @@ use std::sync::Arc;
 
 use scenes::{Attributes, PointCloud, Progress, View};
 
-use crate::store::access::{DataAccess, Loader, LoaderOptions, RepoAt};
+use crate::store::access::{BuildFigures, DataAccess, Loader, LoaderOptions, RepoAt, open_figures};
 use crate::{
     BuildStats, ChunkId, DrawItem, DrawList, Feedback, LodMethod, Manifest, MethodError,
     MethodStats, OcclusionCandidate, OcclusionPass, Params, SplatBatch, SplatSize, Target,
@@ -74,6 +74,15 @@ pub struct Info {
 
 /// Build figures read at `open`.
 pub const INFO_FILE: &str = "mwkd.json";
+
+impl BuildFigures for Info {
+    fn nodes(&self) -> u64 {
+        self.nodes
+    }
+    fn points(&self) -> u64 {
+        self.points
+    }
+}
 
 /// What MWKD stores: the scene's normals and colours if it has them, and always a radius
 /// per splat (representatives have their own, and every splat is drawn at its projected
@@ -272,19 +281,11 @@ impl Mwkd {
     /// Opens the index and figures of `dir` with the repository at `repo`, local or served
     /// over HTTP (a remote build: `dir` holds copies of its small files).
     pub fn open_at(dir: &Path, manifest: Manifest, repo: &RepoAt) -> Result<Self, MethodError> {
-        let params = MwkdParams::from_params(&manifest.params)?;
+        let p = MwkdParams::from_params(&manifest.params)?;
         let nodes = index::read(&dir.join(INDEX_FILE))?;
-        let access = Loader::at(
-            repo,
-            nodes.iter().map(|n| n.chunk).collect(),
-            "node",
-            Arc::new(codec::decode),
-            LoaderOptions {
-                core_bytes: params.core_mb << 20,
-                delay_frames: params.delay_frames,
-                in_flight: repo.in_flight(params.in_flight),
-            },
-        )?;
+        let refs = nodes.iter().map(|n| n.chunk).collect();
+        let options = LoaderOptions::new(p.core_mb, p.delay_frames, p.in_flight, repo);
+        let access = Loader::at(repo, refs, "node", Arc::new(codec::decode), options)?;
         Self::with_access(dir, manifest, nodes, Box::new(access))
     }
 
@@ -297,27 +298,14 @@ impl Mwkd {
         access: Box<dyn DataAccess>,
     ) -> Result<Self, MethodError> {
         let params = MwkdParams::from_params(&manifest.params)?;
-        let info: Info = crate::method::read_json(&dir.join(INFO_FILE))?;
-        if info.nodes != nodes.len() as u64
-            || info.points != manifest.points
-            || nodes[0].subtree_points != info.points
-        {
-            return Err(MethodError::corrupt(
-                dir.join(INFO_FILE),
-                format!(
-                    "{} nodes / {} points disagree with the index ({} nodes, {} samples) and \
-                     the manifest ({} points)",
-                    info.nodes,
-                    info.points,
-                    nodes.len(),
-                    nodes[0].subtree_points,
-                    manifest.points
-                ),
-            ));
-        }
-        // The root is the coarsest representation and the stand-in of last resort: read
-        // (and verified) now.
-        access.get(0)?;
+        // `open_figures` reads the root now: here it is also the stand-in of last resort.
+        let info: Info = open_figures(
+            &dir.join(INFO_FILE),
+            nodes.len(),
+            Some(nodes[0].subtree_points),
+            manifest.points,
+            access.as_ref(),
+        )?;
         Ok(Self {
             parents: index::parents(&nodes),
             prev_mark: vec![0; nodes.len()],

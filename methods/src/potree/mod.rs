@@ -200,16 +200,13 @@ impl Potree {
             spans,
             read: Default::default(),
         };
-        let in_flight = RepoAt::Local(dir.join(format::OCTREE_FILE)).in_flight(params.in_flight);
-        let access = Loader::spawn(
-            Arc::new(source),
-            decoder,
-            LoaderOptions {
-                core_bytes: params.core_mb << 20,
-                delay_frames: params.delay_frames,
-                in_flight,
-            },
+        let options = LoaderOptions::new(
+            params.core_mb,
+            params.delay_frames,
+            params.in_flight,
+            &RepoAt::Local(dir.join(format::OCTREE_FILE)),
         );
+        let access = Loader::spawn(Arc::new(source), decoder, options);
         // The root is what every frame draws first: read (and checked) now.
         if hierarchy.nodes()[0].points > 0 {
             access.get(0)?;

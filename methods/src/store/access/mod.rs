@@ -138,6 +138,47 @@ pub fn check_in_flight(method: &str, in_flight: Option<u32>) -> Result<(), Metho
     }
 }
 
+/// What a chunked build's figures (LPC's `lpc.json`, MWKD's `mwkd.json`) say of its size,
+/// checked at `open` against its index and manifest ([`open_figures`]).
+pub trait BuildFigures: serde::de::DeserializeOwned {
+    /// Nodes (chunks) in the index.
+    fn nodes(&self) -> u64;
+    /// Input points.
+    fn points(&self) -> u64;
+}
+
+/// Opens a chunked build's figures (LPC, MWKD): reads them from `path`, checks their node
+/// and point counts against the index — `index_nodes` nodes and, where the index records it
+/// (MWKD), the `root_samples` under its root — and the manifest's `manifest_points`, then
+/// reads the root chunk through `access` now: it is the coarsest representation, without it
+/// there is nothing to draw, and reading it verifies it.
+pub fn open_figures<F: BuildFigures>(
+    path: &std::path::Path,
+    index_nodes: usize,
+    root_samples: Option<u64>,
+    manifest_points: u64,
+    access: &dyn DataAccess,
+) -> Result<F, MethodError> {
+    let info: F = crate::method::read_json(path)?;
+    if info.nodes() != index_nodes as u64
+        || info.points() != manifest_points
+        || root_samples.is_some_and(|s| s != info.points())
+    {
+        return Err(MethodError::corrupt(
+            path,
+            format!(
+                "{} nodes / {} points disagree with the index ({index_nodes} nodes{}) and the \
+                 manifest ({manifest_points} points)",
+                info.nodes(),
+                info.points(),
+                root_samples.map_or(String::new(), |s| format!(", {s} samples")),
+            ),
+        ));
+    }
+    access.get(0)?;
+    Ok(info)
+}
+
 /// The data-access layer seen by a method. Implementations are internally synchronised:
 /// every call takes `&self`.
 pub trait DataAccess: Send + Sync {

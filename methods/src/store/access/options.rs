@@ -16,6 +16,24 @@ pub struct LoaderOptions {
     pub in_flight: u32,
 }
 
+impl LoaderOptions {
+    /// The options a method's runtime parameters give (LPC, MWKD, Potree): `core_mb` MiB of
+    /// core, `delay_frames`, and `in_flight` requests, else as many as suit the repository
+    /// at `repo` ([`super::RepoAt::in_flight`]).
+    pub fn new(
+        core_mb: u64,
+        delay_frames: u32,
+        in_flight: Option<u32>,
+        repo: &super::RepoAt,
+    ) -> Self {
+        Self {
+            core_bytes: core_mb << 20,
+            delay_frames,
+            in_flight: repo.in_flight(in_flight),
+        }
+    }
+}
+
 /// How a loader retries a chunk whose fetch or decode failed: a network may fail for a
 /// moment (a reset connection, a server restarting), a local file does not heal.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]

@@ -22,6 +22,9 @@
 //! | 2 × count    | normals: the 8-bit `u` plane, then the `v` plane, each byte-delta coded |
 //! | 3 × count    | colours: the `r`, `g`, `b` planes, each byte-delta coded            |
 //!
+//! The first four fields (8 bytes) are the preamble MWKD's nodes share
+//! ([`crate::store::chunk_header`]).
+//!
 //! A position is `min + q · step` per axis (computed in `f64`, then rounded to `f32`).
 //! The Morton code interleaves bit `i` of `q_x, q_y, q_z` at bits `3i, 3i+1, 3i+2`.
 //! [`decode`] checks every field and the exact length and answers
@@ -32,14 +35,17 @@ use std::sync::OnceLock;
 use glam::Vec3;
 use scenes::Attributes;
 
+use crate::store::chunk_header::{Format, Preamble, le_u32};
 use crate::{MethodError, SplatBatch, octnormal};
 
 /// Bytes of the fixed header.
 pub const HEADER_BYTES: usize = 36;
-const MAGIC: &[u8; 2] = b"LC";
-const VERSION: u8 = 1;
-const FLAG_NORMALS: u8 = 1;
-const FLAG_COLORS: u8 = 2;
+/// Magic `LC`, version 1 ([`crate::store::chunk_header`]: magic, version, flags, count).
+const FORMAT: Format = Format {
+    magic: *b"LC",
+    version: 1,
+    header_bytes: HEADER_BYTES,
+};
 /// Most bits per axis.
 pub const MAX_BITS: u32 = 32;
 /// The quantisation step is at most this fraction of the input spacing, so the error
@@ -213,12 +219,12 @@ pub fn encode_in(
         .collect();
     keyed.sort_unstable();
     let mut out = Vec::with_capacity(HEADER_BYTES + n * 9);
-    out.extend_from_slice(MAGIC);
-    out.push(VERSION);
-    let flags =
-        if attrs.normals { FLAG_NORMALS } else { 0 } | if attrs.colors { FLAG_COLORS } else { 0 };
-    out.push(flags);
-    out.extend_from_slice(&(n as u32).to_le_bytes());
+    let preamble = Preamble {
+        count: n as u32,
+        normals: attrs.normals,
+        colors: attrs.colors,
+    };
+    FORMAT.write(&preamble, &mut out);
     out.extend_from_slice(&[bits[0], bits[1], bits[2], 0]);
     for v in min.iter().chain(&step) {
         out.extend_from_slice(&v.to_le_bytes());
@@ -252,26 +258,16 @@ pub fn encode_in(
 /// positions, normals in [`octnormal`] form and colours as the cloud has them, no radii.
 pub fn decode(id: u32, bytes: &[u8]) -> Result<SplatBatch, MethodError> {
     let bad = |msg: String| MethodError::corrupt(super::REPO_FILE, format!("cloud {id}: {msg}"));
-    if bytes.len() < HEADER_BYTES {
-        return Err(bad(format!(
-            "{} bytes, shorter than the header",
-            bytes.len()
-        )));
+    let preamble = FORMAT.parse(bytes).map_err(bad)?;
+    // The zero byte after the bits per axis counts as flags (as it always has).
+    if bytes[11] != 0 {
+        return Err(bad(format!("unknown flags {:#x}", preamble.flags())));
     }
-    if &bytes[..2] != MAGIC || bytes[2] != VERSION {
-        return Err(bad("bad magic or version".into()));
-    }
-    let flags = bytes[3];
-    if flags & !(FLAG_NORMALS | FLAG_COLORS) != 0 || bytes[11] != 0 {
-        return Err(bad(format!("unknown flags {flags:#x}")));
-    }
-    let word =
-        |at: usize| u32::from_le_bytes([bytes[at], bytes[at + 1], bytes[at + 2], bytes[at + 3]]);
-    let n = word(4) as usize;
+    let n = preamble.count as usize;
     let bits = [bytes[8], bytes[9], bytes[10]];
-    let min = [0, 1, 2].map(|a| f32::from_bits(word(12 + 4 * a)));
-    let step = [0, 1, 2].map(|a| f32::from_bits(word(24 + 4 * a)));
-    let (has_n, has_c) = (flags & FLAG_NORMALS != 0, flags & FLAG_COLORS != 0);
+    let min = [0, 1, 2].map(|a| f32::from_bits(le_u32(bytes, 12 + 4 * a)));
+    let step = [0, 1, 2].map(|a| f32::from_bits(le_u32(bytes, 24 + 4 * a)));
+    let (has_n, has_c) = (preamble.normals, preamble.colors);
     let per_sample = 1 + 2 * has_n as usize + 3 * has_c as usize;
     if n == 0
         || n.checked_mul(per_sample)

@@ -24,6 +24,9 @@
 //! | 2 n    | normals (flag bit 0): plane of high bytes, then plane of low bytes          |
 //! | 3 n    | colours (flag bit 1): the `r`, `g`, `b` planes                             |
 //!
+//! The first four fields (8 bytes) are the preamble LPC's clouds share
+//! ([`crate::store::chunk_header`]).
+//!
 //! Splitting every 16-bit value into a high-byte and a low-byte plane puts the slowly
 //! varying high bytes of nearby points next to each other, where LZO finds repetition.
 //! Size: exactly [`HEADER_BYTES`] + `n · (7 + 2·normals + 3·colours)` bytes.
@@ -52,16 +55,19 @@
 
 use glam::Vec3;
 
+use crate::store::chunk_header::{Format, Preamble, le_u32};
 use crate::{MethodError, SplatBatch, draw::pack_color, octnormal};
 
 /// File named in [`MethodError::Corrupt`] (the repository the nodes are stored in).
 pub const REPO_FILE: &str = "repo.bin";
 /// Bytes of the fixed header.
 pub const HEADER_BYTES: usize = 40;
-const MAGIC: &[u8; 2] = b"MW";
-const VERSION: u8 = 1;
-const FLAG_NORMALS: u8 = 1;
-const FLAG_COLORS: u8 = 2;
+/// Magic `MW`, version 1 ([`crate::store::chunk_header`]: magic, version, flags, count).
+const FORMAT: Format = Format {
+    magic: *b"MW",
+    version: 1,
+    header_bytes: HEADER_BYTES,
+};
 /// Largest 16-bit position code.
 pub const POSITION_LEVELS: u32 = 65_535;
 /// Largest 8-bit radius code.
@@ -107,12 +113,12 @@ impl NodeHeader {
             .checked_add(HEADER_BYTES)
     }
     fn write(&self, out: &mut Vec<u8>) {
-        out.extend_from_slice(MAGIC);
-        out.push(VERSION);
-        out.push(
-            if self.normals { FLAG_NORMALS } else { 0 } | if self.colors { FLAG_COLORS } else { 0 },
-        );
-        out.extend_from_slice(&self.count.to_le_bytes());
+        let preamble = Preamble {
+            count: self.count,
+            normals: self.normals,
+            colors: self.colors,
+        };
+        FORMAT.write(&preamble, out);
         for v in self
             .min
             .iter()
@@ -126,27 +132,13 @@ impl NodeHeader {
     /// name the node).
     pub fn parse(id: u32, bytes: &[u8]) -> Result<Self, MethodError> {
         let bad = |msg: String| corrupt(id, msg);
-        if bytes.len() < HEADER_BYTES {
-            return Err(bad(format!(
-                "{} bytes, shorter than the {HEADER_BYTES}-byte header",
-                bytes.len()
-            )));
-        }
-        if &bytes[..2] != MAGIC || bytes[2] != VERSION {
-            return Err(bad("bad magic or version".into()));
-        }
-        let flags = bytes[3];
-        if flags & !(FLAG_NORMALS | FLAG_COLORS) != 0 {
-            return Err(bad(format!("unknown flags {flags:#x}")));
-        }
-        let word = |at: usize| {
-            u32::from_le_bytes([bytes[at], bytes[at + 1], bytes[at + 2], bytes[at + 3]])
-        };
-        let float = |at: usize| f32::from_bits(word(at));
+        let preamble = FORMAT.parse(bytes).map_err(bad)?;
+        let flags = preamble.flags();
+        let float = |at: usize| f32::from_bits(le_u32(bytes, at));
         let h = Self {
-            count: word(4),
-            normals: flags & FLAG_NORMALS != 0,
-            colors: flags & FLAG_COLORS != 0,
+            count: preamble.count,
+            normals: preamble.normals,
+            colors: preamble.colors,
             min: [0, 1, 2].map(|a| float(8 + 4 * a)),
             max: [0, 1, 2].map(|a| float(20 + 4 * a)),
             radius_min: float(32),

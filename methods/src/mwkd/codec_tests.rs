@@ -1,6 +1,7 @@
 //! Unit tests of `codec.rs`.
 #![allow(clippy::unwrap_used)]
 use super::*;
+use crate::store::chunk_header::FLAG_NORMALS;
 use scenes::rng::Pcg32;
 
 /// Angle between two vectors (atan2 of |a×b| and a·b: exact for small angles).

@@ -10,8 +10,10 @@
 //!
 //! [`access`] is the data-access layer on top: a trait with "request asynchronously", "is it
 //! available now" and "get it", and a local implementation that decodes on a loader thread.
+//! [`chunk_header`] is the preamble both methods' chunk codecs start with.
 
 pub mod access;
+pub mod chunk_header;
 pub mod records;
 pub mod remote;
 pub mod source;

@@ -248,6 +248,8 @@ struct SpecRun<'s> {
     spec_hash: &'s str,
 }
 
+/// Runs one spec: its measures ([`run_measures`]), then its rows, sweeps, figures and
+/// verdict; prints its line and returns its table and the seconds of its resumed measures.
 fn run_spec(
     run: &SpecRun<'_>,
     opts: &Options,
@@ -255,152 +257,23 @@ fn run_spec(
     multi: &MultiProgress,
     figures_dir: &Path,
 ) -> anyhow::Result<(TableResult, f64)> {
-    let (spec, later) = (run.spec, run.later);
+    let spec = run.spec;
     let t = Instant::now();
-    let mut resumed_seconds = 0.0;
-    let uses = spec.measure_uses();
-    let needed: Vec<&spec::Measure> = spec
-        .measures
-        .iter()
-        .filter(|m| uses.contains_key(m.id.as_str()))
-        .collect();
-    let bar = multi.add(ProgressBar::new(needed.len() as u64));
-    if let Ok(style) =
-        ProgressStyle::with_template("{prefix:>28} [{bar:40}] {pos}/{len} measures {msg}")
-    {
-        bar.set_style(style.progress_chars("=> "));
-    }
-    bar.set_prefix(spec.id.clone());
-    let needs_gpu_rows = spec.rows.iter().any(|r| r.needs_gpu || r.judge_on_gpu);
-    let real_gpu = needs_gpu_rows && ctx.has_real_gpu().unwrap_or(false);
-    // What a checkpoint of this spec's measures must match ([`resume`]): the same for all.
-    let identity = resume::Identity::now(
-        opts.profile,
-        run.spec_hash,
-        ctx.gpu().ok().flatten().map(|g| g.adapter.clone()),
-    );
-    let mut results: BTreeMap<String, MeasureResult> = BTreeMap::new();
-    let mut lines = Vec::new();
-    for (j, m) in needed.iter().enumerate() {
-        bar.set_message(m.id.clone());
-        let gpu_only = uses.get(m.id.as_str()).copied().unwrap_or(false);
-        let checkpoint = resume::path(&opts.out, &spec.id, &m.id);
-        let mut resumed = None;
-        let mut r = if gpu_only && !real_gpu {
-            MeasureResult {
-                skipped_for_gpu: true,
-                ..MeasureResult::default()
-            }
-        } else if let Some(done) = opts
-            .resume
-            .then(|| resume::load(&checkpoint, &identity))
-            .and_then(|loaded| {
-                // Why a checkpoint that exists was not taken (a missing one needs no word).
-                loaded
-                    .map_err(|why| {
-                        if checkpoint.exists() {
-                            multi.suspend(|| {
-                                eprintln!(
-                                    "{}.{}: not resumed, measuring again: {why}",
-                                    spec.id, m.id
-                                )
-                            });
-                        }
-                    })
-                    .ok()
-            })
-        {
-            resumed_seconds += done.result.seconds;
-            resumed = Some(done.date);
-            done.result
-        } else {
-            resume::forget(&checkpoint)?;
-            let r = ctx.measure(spec, m);
-            if r.error.is_none() {
-                resume::save(&checkpoint, &identity, &r)?;
-            }
-            r
-        };
-        if opts.profile == Profile::Paper {
-            // The papers' sizes do not all fit the disk at once: a build goes as soon as no
-            // measure still to run (here or in a later spec) needs it.
-            let rest = needed[j + 1..].iter().map(|m| (spec, *m)).chain(
-                later
-                    .iter()
-                    .flat_map(|s| s.measures.iter().map(move |m| (s, m))),
-            );
-            let freed = ctx
-                .prune_builds(rest)
-                .with_context(|| format!("pruning the builds after {}.{}", spec.id, m.id))?;
-            if freed > 0 && r.error.is_none() {
-                r.made
-                    .push(format!("build deleted after: {}", exec::gigabytes(freed)));
-            }
-        }
-        lines.push(MeasureLine {
-            id: m.id.clone(),
-            what: report::describe(spec, m, &opts.root),
-            status: match (&r.error, r.skipped_for_gpu) {
-                (Some(e), _) => format!("failed: {e}"),
-                (None, true) => "needs a GPU (not run)".into(),
-                (None, false) => {
-                    let mut notes = r.made.clone();
-                    if let Some(date) = &resumed {
-                        notes.insert(0, format!("resumed: measured {date} by an earlier run"));
-                    }
-                    if notes.is_empty() {
-                        "ok".into()
-                    } else {
-                        format!("ok; {}", notes.join("; "))
-                    }
-                }
-            },
-            seconds: r.seconds,
-        });
-        results.insert(m.id.clone(), r);
-        bar.inc(1);
-    }
+    let Measured {
+        results,
+        lines,
+        resumed_seconds,
+        real_gpu,
+        bar,
+    } = run_measures(run, opts, ctx, multi)?;
     let env = Results { by_id: &results };
     let rows: Vec<RowResult> = spec
         .rows
         .iter()
         .map(|r| evaluate::evaluate(r, &env, real_gpu))
         .collect();
-    let mut sweeps = Vec::new();
-    for m in spec
-        .measures
-        .iter()
-        .filter(|m| m.kind == spec::MeasureKind::Sweep)
-    {
-        if let Some(r) = results
-            .get(&m.id)
-            .filter(|r| r.error.is_none() && !r.sweep.is_empty())
-        {
-            sweeps.push((m.id.clone(), report::label(spec, m), r.sweep.clone()));
-        }
-    }
-    let mut figures = Vec::new();
-    let mut figure_error = None;
-    for f in &spec.figures {
-        let dirs: Vec<PathBuf> = f
-            .sweeps
-            .iter()
-            .filter_map(|s| results.get(s).and_then(|r| r.dir.clone()))
-            .collect();
-        if dirs.len() != f.sweeps.len() {
-            figure_error = Some(format!("figure '{}': a sweep it plots did not run", f.name));
-            continue;
-        }
-        let stem = format!("{}-{}", spec.id, f.name);
-        match plot_figure(&dirs, figures_dir, &stem) {
-            Ok(()) => figures.push((
-                f.title.clone(),
-                format!("{stem}.png"),
-                format!("{stem}.svg"),
-            )),
-            Err(e) => figure_error = Some(format!("figure '{}': {e:#}", f.name)),
-        }
-    }
+    let sweeps = spec_sweeps(spec, &results);
+    let (figures, figure_error) = plot_figures(spec, &results, figures_dir);
     let mut verdict = Verdict::of_table(rows.iter().map(|r| &r.verdict));
     if let (Some(e), false) = (figure_error, matches!(verdict, Verdict::Failed(_))) {
         verdict = Verdict::Failed(e);
@@ -432,6 +305,239 @@ fn run_spec(
         figures,
     };
     Ok((table, resumed_seconds))
+}
+
+/// What a spec's measures gave ([`run_measures`]).
+struct Measured {
+    /// By measure id.
+    results: BTreeMap<String, MeasureResult>,
+    /// As the report lists them.
+    lines: Vec<MeasureLine>,
+    /// Seconds the resumed measures took when they were measured.
+    resumed_seconds: f64,
+    /// A real GPU is present and some row wants one.
+    real_gpu: bool,
+    /// The spec's progress bar, still shown.
+    bar: ProgressBar,
+}
+
+/// Runs, in order, the measures of `run.spec` that its rows use: each is skipped if it
+/// serves GPU rows only and there is no real GPU, taken from its checkpoint with
+/// `opts.resume`, else measured ([`measure_or_resume`]); in the paper profile, the builds no
+/// later measure needs go after each ([`prune_after`]).
+fn run_measures(
+    run: &SpecRun<'_>,
+    opts: &Options,
+    ctx: &mut Context<'_>,
+    multi: &MultiProgress,
+) -> anyhow::Result<Measured> {
+    let spec = run.spec;
+    let uses = spec.measure_uses();
+    let needed: Vec<&spec::Measure> = spec
+        .measures
+        .iter()
+        .filter(|m| uses.contains_key(m.id.as_str()))
+        .collect();
+    let bar = measures_bar(multi, spec, needed.len());
+    let needs_gpu_rows = spec.rows.iter().any(|r| r.needs_gpu || r.judge_on_gpu);
+    let real_gpu = needs_gpu_rows && ctx.has_real_gpu().unwrap_or(false);
+    // What a checkpoint of this spec's measures must match ([`resume`]): the same for all.
+    let identity = resume::Identity::now(
+        opts.profile,
+        run.spec_hash,
+        ctx.gpu().ok().flatten().map(|g| g.adapter.clone()),
+    );
+    let mut out = Measured {
+        results: BTreeMap::new(),
+        lines: Vec::new(),
+        resumed_seconds: 0.0,
+        real_gpu,
+        bar,
+    };
+    for (j, m) in needed.iter().enumerate() {
+        out.bar.set_message(m.id.clone());
+        let gpu_only = uses.get(m.id.as_str()).copied().unwrap_or(false);
+        let (mut r, resumed) = if gpu_only && !real_gpu {
+            let skipped = MeasureResult {
+                skipped_for_gpu: true,
+                ..MeasureResult::default()
+            };
+            (skipped, None)
+        } else {
+            measure_or_resume(opts, ctx, multi, spec, m, &identity)?
+        };
+        if resumed.is_some() {
+            out.resumed_seconds += r.seconds;
+        }
+        if opts.profile == Profile::Paper {
+            prune_after(ctx, run, &needed[j + 1..], m, &mut r)?;
+        }
+        out.lines
+            .push(measure_line(spec, m, &r, resumed.as_deref(), &opts.root));
+        out.results.insert(m.id.clone(), r);
+        out.bar.inc(1);
+    }
+    Ok(out)
+}
+
+/// A spec's progress bar over its `len` measures.
+fn measures_bar(multi: &MultiProgress, spec: &Spec, len: usize) -> ProgressBar {
+    let bar = multi.add(ProgressBar::new(len as u64));
+    if let Ok(style) =
+        ProgressStyle::with_template("{prefix:>28} [{bar:40}] {pos}/{len} measures {msg}")
+    {
+        bar.set_style(style.progress_chars("=> "));
+    }
+    bar.set_prefix(spec.id.clone());
+    bar
+}
+
+/// Measure `m` of `spec`: from its checkpoint when `opts.resume` and the checkpoint matches
+/// `identity` (with the date it was measured), else measured now and checkpointed if it
+/// succeeded. A checkpoint that exists but is not taken is said why.
+fn measure_or_resume(
+    opts: &Options,
+    ctx: &mut Context<'_>,
+    multi: &MultiProgress,
+    spec: &Spec,
+    m: &spec::Measure,
+    identity: &resume::Identity,
+) -> anyhow::Result<(MeasureResult, Option<String>)> {
+    let checkpoint = resume::path(&opts.out, &spec.id, &m.id);
+    if let Some(done) = opts
+        .resume
+        .then(|| resume::load(&checkpoint, identity))
+        .and_then(|loaded| {
+            // Why a checkpoint that exists was not taken (a missing one needs no word).
+            loaded
+                .map_err(|why| {
+                    if checkpoint.exists() {
+                        multi.suspend(|| {
+                            eprintln!("{}.{}: not resumed, measuring again: {why}", spec.id, m.id)
+                        });
+                    }
+                })
+                .ok()
+        })
+    {
+        return Ok((done.result, Some(done.date)));
+    }
+    resume::forget(&checkpoint)?;
+    let r = ctx.measure(spec, m);
+    if r.error.is_none() {
+        resume::save(&checkpoint, identity, &r)?;
+    }
+    Ok((r, None))
+}
+
+/// The papers' sizes do not all fit the disk at once: a build goes as soon as no measure
+/// still to run (`rest` of this spec, or one of a later spec) needs it. A successful `r`
+/// (measure `m`) notes what was deleted.
+fn prune_after(
+    ctx: &mut Context<'_>,
+    run: &SpecRun<'_>,
+    rest: &[&spec::Measure],
+    m: &spec::Measure,
+    r: &mut MeasureResult,
+) -> anyhow::Result<()> {
+    let spec = run.spec;
+    let rest = rest.iter().map(|m| (spec, *m)).chain(
+        run.later
+            .iter()
+            .flat_map(|s| s.measures.iter().map(move |m| (s, m))),
+    );
+    let freed = ctx
+        .prune_builds(rest)
+        .with_context(|| format!("pruning the builds after {}.{}", spec.id, m.id))?;
+    if freed > 0 && r.error.is_none() {
+        r.made
+            .push(format!("build deleted after: {}", exec::gigabytes(freed)));
+    }
+    Ok(())
+}
+
+/// Measure `m` as the report lists it: `ok` (with what it made, and when it was measured if
+/// `resumed`), `needs a GPU (not run)` or `failed: …`.
+fn measure_line(
+    spec: &Spec,
+    m: &spec::Measure,
+    r: &MeasureResult,
+    resumed: Option<&str>,
+    root: &Path,
+) -> MeasureLine {
+    MeasureLine {
+        id: m.id.clone(),
+        what: report::describe(spec, m, root),
+        status: match (&r.error, r.skipped_for_gpu) {
+            (Some(e), _) => format!("failed: {e}"),
+            (None, true) => "needs a GPU (not run)".into(),
+            (None, false) => {
+                let mut notes = r.made.clone();
+                if let Some(date) = resumed {
+                    notes.insert(0, format!("resumed: measured {date} by an earlier run"));
+                }
+                if notes.is_empty() {
+                    "ok".into()
+                } else {
+                    format!("ok; {}", notes.join("; "))
+                }
+            }
+        },
+        seconds: r.seconds,
+    }
+}
+
+/// The spec's sweeps that ran: measure id, label, per-target medians.
+fn spec_sweeps(
+    spec: &Spec,
+    results: &BTreeMap<String, MeasureResult>,
+) -> Vec<(String, String, Vec<SweepLine>)> {
+    let mut sweeps = Vec::new();
+    for m in spec
+        .measures
+        .iter()
+        .filter(|m| m.kind == spec::MeasureKind::Sweep)
+    {
+        if let Some(r) = results
+            .get(&m.id)
+            .filter(|r| r.error.is_none() && !r.sweep.is_empty())
+        {
+            sweeps.push((m.id.clone(), report::label(spec, m), r.sweep.clone()));
+        }
+    }
+    sweeps
+}
+
+/// Plots the spec's figures into `figures_dir`: title, PNG and SVG file names of each
+/// plotted, and the last error (a sweep it plots did not run, or plotting failed).
+fn plot_figures(
+    spec: &Spec,
+    results: &BTreeMap<String, MeasureResult>,
+    figures_dir: &Path,
+) -> (Vec<(String, String, String)>, Option<String>) {
+    let mut figures = Vec::new();
+    let mut figure_error = None;
+    for f in &spec.figures {
+        let dirs: Vec<PathBuf> = f
+            .sweeps
+            .iter()
+            .filter_map(|s| results.get(s).and_then(|r| r.dir.clone()))
+            .collect();
+        if dirs.len() != f.sweeps.len() {
+            figure_error = Some(format!("figure '{}': a sweep it plots did not run", f.name));
+            continue;
+        }
+        let stem = format!("{}-{}", spec.id, f.name);
+        match plot_figure(&dirs, figures_dir, &stem) {
+            Ok(()) => figures.push((
+                f.title.clone(),
+                format!("{stem}.png"),
+                format!("{stem}.svg"),
+            )),
+            Err(e) => figure_error = Some(format!("figure '{}': {e:#}", f.name)),
+        }
+    }
+    (figures, figure_error)
 }
 
 /// What a part of a reproduction run by an emitted job records (`reproduce-part.json`): the

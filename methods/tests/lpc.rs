@@ -282,3 +282,32 @@ fn requests_per_frame_follow_the_measured_rate() {
         assert_eq!(issued(&l), want.min(l.fetch.len()), "{runtime:?}");
     }
 }
+
+/// An index without nodes given to `with_access` is a corrupt build named as such, never a
+/// panic (it read the root's sample count from `nodes[0]`).
+#[test]
+fn an_empty_index_is_refused_by_with_access() {
+    use methods::store::access::{Loader, LoaderOptions};
+    let cloud = Generator::Statue.generate(20_000, 2).unwrap();
+    let tmp = built(MethodKind::Mwkd, &cloud, &["vbo=512"]);
+    let dir = tmp.path();
+    let manifest = methods::Manifest::read(dir).unwrap();
+    let nodes = methods::mwkd::index::read(&dir.join(methods::mwkd::INDEX_FILE)).unwrap();
+    let access = Loader::local(
+        &dir.join(methods::mwkd::codec::REPO_FILE),
+        nodes.iter().map(|n| n.chunk).collect(),
+        "node",
+        Arc::new(methods::mwkd::codec::decode),
+        LoaderOptions {
+            core_bytes: 64 << 20,
+            delay_frames: 0,
+            in_flight: 1,
+        },
+    )
+    .unwrap();
+    let e = methods::mwkd::Mwkd::with_access(dir, manifest, Vec::new(), Box::new(access))
+        .err()
+        .unwrap();
+    assert!(matches!(e, methods::MethodError::Corrupt { .. }), "{e}");
+    assert!(e.to_string().contains("no nodes"), "{e}");
+}

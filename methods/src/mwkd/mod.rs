@@ -298,11 +298,14 @@ impl Mwkd {
         access: Box<dyn DataAccess>,
     ) -> Result<Self, MethodError> {
         let params = MwkdParams::from_params(&manifest.params)?;
+        let Some(root) = nodes.first() else {
+            return Err(MethodError::corrupt(dir.join(INDEX_FILE), "no nodes"));
+        };
         // `open_figures` reads the root now: here it is also the stand-in of last resort.
         let info: Info = open_figures(
             &dir.join(INFO_FILE),
             nodes.len(),
-            Some(nodes[0].subtree_points),
+            Some(root.subtree_points),
             manifest.points,
             access.as_ref(),
         )?;

@@ -27,8 +27,12 @@ use crate::image::Image;
 pub const LAGS: [usize; 2] = [1, 7];
 
 /// A per-pixel FLIP error above which a pixel's change between two warped frames is a pop
-/// event (when the reference's change there is not above it): 0.25.
-pub const POP_THRESHOLD: f32 = 0.25;
+/// event (when the reference's change there is not above it): 0.3, the per-pixel gate of the
+/// golden-image tests (`harness/tests/common`), set where a rasteriser's rounding does not
+/// reach: a camera moved a quarter of a pixel puts 0.7 % of the covered pixels above it, a
+/// wrong splat kernel 4.7–28 % (measured on llvmpipe). A pixel above it changed by more than
+/// sub-pixel motion and rounding explain.
+pub const POP_THRESHOLD: f32 = 0.3;
 
 /// Warped popping at one lag.
 #[derive(Debug, Clone, Copy, PartialEq, Default)]

@@ -535,7 +535,7 @@ fn a_missing_scene_file_fails_before_the_adapter_line() {
 /// A frame whose images are estimated to exceed the memory available is refused before the
 /// adapter is opened, naming the size flags, the estimate and the limit; a frame that fits
 /// is not; `--skip-memory-check` runs anyway. The limit is injected with
-/// `SPLATBENCH_MEMORY_LIMIT_MB` (64×64 with metrics: 180 B × 4,096 px = 0.74 MB).
+/// `SPLATBENCH_MEMORY_LIMIT_MB` (64×64 with metrics: 360 B × 4,096 px = 1.5 MB).
 #[test]
 fn a_frame_too_large_for_memory_is_refused_with_the_estimate() {
     let tmp = tempfile::tempdir().unwrap();
@@ -563,7 +563,7 @@ fn a_frame_too_large_for_memory_is_refused_with_the_estimate() {
     let err = String::from_utf8_lossy(&refused.stderr);
     assert_eq!(refused.status.code(), Some(1), "{err}");
     assert!(
-        err.contains("--width 64 --height 64: the frame's images need an estimated 0.7 MB")
+        err.contains("--width 64 --height 64: the frame's images need an estimated 1.5 MB")
             && err.contains("more than the 0.0 MB available (SPLATBENCH_MEMORY_LIMIT_MB)")
             && err.contains("--skip-memory-check"),
         "{err}"
@@ -582,7 +582,7 @@ fn a_frame_too_large_for_memory_is_refused_with_the_estimate() {
     if !have_gpu("a_frame_too_large_for_memory_is_refused_with_the_estimate") {
         return;
     }
-    for (limit, extra) in [("1", &[][..]), ("0", &["--skip-memory-check"][..])] {
+    for (limit, extra) in [("2", &[][..]), ("0", &["--skip-memory-check"][..])] {
         let ok = run(limit, extra);
         assert!(
             ok.status.success(),

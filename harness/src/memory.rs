@@ -8,10 +8,14 @@
 //! statue:20000:1 --frames 2 --width S --height S`, lavapipe on a 2-core machine, where the
 //! render targets live in host memory too): with image metrics 151–155 bytes per pixel
 //! (square kernel), 164 (`--raster compute`), 172 (`--kernel gaussian`: its accumulation
-//! target); with `--no-metrics` about 7. The estimate takes [`METRICS_BYTES_PER_PIXEL`] =
-//! 180 and [`PLAIN_BYTES_PER_PIXEL`] = 16, the largest measured plus 5 % and twice the
-//! measured respectively: the colour, depth and accumulation targets, their readbacks, the
-//! reference image and FLIP's feature planes of both images. It leaves out the scene and the
+//! target); with `--no-metrics` about 7. The warped popping metric (issue 38) keeps the
+//! last 7 frames' reference depth, reference and test images (84 bytes per pixel) and FLIP's
+//! planes of the warped frames: with it, 9 frames (lag 7 reached) of 1024² and 2048², 326
+//! bytes per pixel (square) and 341 (gaussian), measured 2026-12-07. The estimate takes
+//! [`METRICS_BYTES_PER_PIXEL`] = 360 and [`PLAIN_BYTES_PER_PIXEL`] = 16, the largest
+//! measured plus 5 % and twice the measured respectively: the colour, depth and
+//! accumulation targets, their readbacks, the reference image and depth, FLIP's feature
+//! planes of both images and of the warped ones, and the popping history. It leaves out the scene and the
 //! method's own memory (their sizes are the method's `core_mb`, `gpu_cache_mb` and the
 //! scene's columns), so it refuses only what the frame alone cannot hold.
 //!
@@ -24,7 +28,7 @@ use std::sync::atomic::{AtomicBool, Ordering};
 use crate::render::RenderSettings;
 
 /// Bytes per pixel a run with image metrics holds (see the module docs).
-pub const METRICS_BYTES_PER_PIXEL: u64 = 180;
+pub const METRICS_BYTES_PER_PIXEL: u64 = 360;
 /// Bytes per pixel a run without image metrics holds (see the module docs).
 pub const PLAIN_BYTES_PER_PIXEL: u64 = 16;
 /// The environment variable that caps the memory a run may count on, MiB.
@@ -139,7 +143,7 @@ mod tests {
             height: 16384,
             ..Default::default()
         };
-        assert_eq!(frame_bytes(&r, true), 16384 * 16384 * 180);
+        assert_eq!(frame_bytes(&r, true), 16384 * 16384 * 360);
         assert_eq!(frame_bytes(&r, false), 16384 * 16384 * 16);
     }
 }

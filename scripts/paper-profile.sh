@@ -5,9 +5,10 @@
 # parts must come from one commit to merge. So it runs from a git worktree frozen at COMMIT,
 # one part at a time at nice 10 with `--resume`, and its finished measures (checkpoints and
 # run directories: a few hundred KB, never the builds or scenes) are saved into the
-# repository under paper/progress/COMMIT/, from where a later machine restores them and goes
-# on at the first unfinished measure. When all 12 parts' `reproduce-part.json` say
-# `"complete": true`, `merge` writes report-paper.md from them.
+# repository under paper/progress/COMMIT/ (by the driver every 10 minutes, and by `save`),
+# from where a later machine restores them and goes on at the first unfinished measure.
+# When all 12 parts' `reproduce-part.json` say `"complete": true`, `merge` writes
+# report-paper.md from them.
 #
 #   scripts/paper-profile.sh start COMMIT   # worktree + release build + restore + driver
 #   scripts/paper-profile.sh save COMMIT    # copy finished measures into paper/progress/
@@ -77,6 +78,10 @@ start)
 #!/usr/bin/env bash
 cd "$wt" || exit 1
 export SPLATBENCH_CACHE="$WORK/cache"
+# Every 10 minutes the finished measures go into paper/progress/ (outside /tmp, which a
+# machine restart empties), so at most one measure is lost when the machine goes away.
+( while sleep 600; do "$ROOT/scripts/paper-profile.sh" save "$commit" > /dev/null 2>&1; done ) &
+saver=\$!
 for arg in ${ORDER[*]}; do
   k=\${arg%%:*}; del=; [ "\$arg" != "\$k" ] && del=\${arg#*:}
   grep -qs '"complete": true' "$parts/part-\$(printf %03d \$k)/reproduce-part.json" && continue
@@ -87,6 +92,8 @@ for arg in ${ORDER[*]}; do
   echo "\$(date -u +%FT%TZ) part \$k rc=\$rc" >> "$WORK/drive.log"
   [ \$rc -eq 0 ] && [ -n "\$del" ] && rm -fv "$WORK/cache/\$del" >> "$WORK/drive.log"
 done
+"$ROOT/scripts/paper-profile.sh" save "$commit" > /dev/null 2>&1
+kill \$saver
 echo "\$(date -u +%FT%TZ) driver end" >> "$WORK/drive.log"
 EOF
   chmod +x "$WORK/drive.sh"

@@ -119,6 +119,26 @@ fn hole_bound(method: MethodKind, params: &[&str], scene: &str, path: &str) -> H
             "Potree's level-spacing point size (1.7 s, narrower than the 2 s a Poisson-disk \
              sample needs) on the statue orbit",
         ),
+        // CLOD keeps a point only when its spacing is at least the target spacing (ε px at the
+        // screen's centre, up to ε/0.3 at its edge with the paper's foveation), and its rule
+        // has no floor: where even the root's spacing (cube side / 128) projects below that,
+        // nothing is drawn. At 256² that is most of the terrain and the statue's periphery.
+        MethodKind::Clod if terrain => HoleBound::ratchet(
+            0.778,
+            "CLOD's rule without a floor: the terrain's root spacing projects below the \
+             foveated target spacing on most of a 256² frame",
+        ),
+        MethodKind::Clod if !near => HoleBound::ratchet(
+            0.354,
+            "CLOD's rule without a floor: the statue's root spacing projects below the \
+             foveated target spacing towards the edges of a 256² frame",
+        ),
+        MethodKind::Clod => HoleBound::derived(
+            0.01,
+            "close up every level's spacing projects above ε and CLOD's points are 4√2·0.8 ≈ \
+             4.5 target spacings across: the surface is covered (the 1 % the other methods' \
+             issues ask)",
+        ),
         _ => HoleBound::derived(
             0.01,
             "splats sized to cover the samples' own spacing (the method's issue asks 1 %)",

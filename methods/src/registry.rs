@@ -9,7 +9,8 @@ use crate::store::access::RepoAt;
 use crate::store::remote::RemoteOpener;
 use crate::strays::{self, Strays};
 use crate::{
-    BuildStats, LodMethod, Manifest, MethodError, Params, full, lpc, mwkd, potree, qsplat, spt,
+    BuildStats, LodMethod, Manifest, MethodError, Params, clod, full, lpc, mwkd, potree, qsplat,
+    spt,
 };
 
 /// Every registered method.
@@ -28,6 +29,9 @@ pub enum MethodKind {
     Mwkd,
     /// Potree 2.0's octree (Schütz, Ohrhallinger, Wimmer 2020): today's practice.
     Potree,
+    /// Continuous LOD (Schütz, Krösl, Wimmer 2019): a flattened layered point cloud filtered
+    /// point by point every frame.
+    Clod,
 }
 
 impl MethodKind {
@@ -39,6 +43,7 @@ impl MethodKind {
         MethodKind::Lpc,
         MethodKind::Mwkd,
         MethodKind::Potree,
+        MethodKind::Clod,
     ];
 
     /// The registry name (`--method` value, `method.json`).
@@ -50,6 +55,7 @@ impl MethodKind {
             MethodKind::Lpc => lpc::NAME,
             MethodKind::Mwkd => mwkd::NAME,
             MethodKind::Potree => potree::NAME,
+            MethodKind::Clod => clod::NAME,
         }
     }
 
@@ -74,6 +80,9 @@ impl MethodKind {
             MethodKind::Potree => {
                 "Potree 2.0: nested octree of spacing-halving subsamples, point budget by projected node size"
             }
+            MethodKind::Clod => {
+                "continuous LOD (2019): Potree's levels flattened, every point filtered per frame on the GPU by its randomised level"
+            }
         }
     }
 
@@ -94,6 +103,7 @@ impl MethodKind {
             MethodKind::Lpc => lpc::LpcParams::from_params(params).map(drop),
             MethodKind::Mwkd => mwkd::MwkdParams::from_params(params).map(drop),
             MethodKind::Potree => potree::PotreeParams::from_params(params).map(drop),
+            MethodKind::Clod => clod::ClodParams::from_params(params).map(drop),
         }
     }
 
@@ -131,6 +141,7 @@ impl MethodKind {
             MethodKind::Lpc => lpc::build(cloud, params, scene, dir, progress),
             MethodKind::Mwkd => mwkd::build(cloud, params, scene, dir, progress),
             MethodKind::Potree => potree::build(cloud, params, scene, dir, progress),
+            MethodKind::Clod => clod::build(cloud, params, scene, dir, progress),
         }
     }
 
@@ -146,6 +157,7 @@ impl MethodKind {
             MethodKind::Lpc => serde_json::to_value(lpc::LpcParams::default()),
             MethodKind::Mwkd => serde_json::to_value(mwkd::MwkdParams::default()),
             MethodKind::Potree => serde_json::to_value(potree::PotreeParams::default()),
+            MethodKind::Clod => serde_json::to_value(clod::ClodParams::default()),
         };
         let mut out = std::collections::BTreeMap::new();
         if let Ok(serde_json::Value::Object(map)) = value {
@@ -175,6 +187,7 @@ impl MethodKind {
     ) -> Option<crate::KnownEffect> {
         match self {
             MethodKind::Lpc => lpc::known_effect(params, observed),
+            MethodKind::Clod => clod::known_effect(params, observed),
             MethodKind::Full
             | MethodKind::Qsplat
             | MethodKind::Spt
@@ -192,7 +205,15 @@ impl MethodKind {
             MethodKind::Lpc => lpc::RUNTIME_PARAMS,
             MethodKind::Mwkd => mwkd::RUNTIME_PARAMS,
             MethodKind::Potree => potree::RUNTIME_PARAMS,
+            MethodKind::Clod => clod::RUNTIME_PARAMS,
         }
+    }
+
+    /// True for the methods that send every point every frame and select on the GPU (CLOD:
+    /// its paper filters all points each frame, the cost it accepts); a budget then bounds
+    /// the points that pass the filter ([`LodMethod::drawn_points`]), not the points sent.
+    pub fn filters_every_point(self) -> bool {
+        self == MethodKind::Clod
     }
 
     /// True for the methods that refine a view by loading chunks of several levels (LPC's
@@ -201,7 +222,7 @@ impl MethodKind {
     /// (`tests/refinement.rs`).
     pub fn draws_layers(self) -> bool {
         match self {
-            MethodKind::Full | MethodKind::Qsplat | MethodKind::Spt => false,
+            MethodKind::Full | MethodKind::Qsplat | MethodKind::Spt | MethodKind::Clod => false,
             MethodKind::Lpc | MethodKind::Mwkd | MethodKind::Potree => true,
         }
     }
@@ -283,7 +304,11 @@ impl MethodKind {
         match self {
             MethodKind::Lpc => Some(&[lpc::INDEX_FILE, lpc::INFO_FILE]),
             MethodKind::Mwkd => Some(&[mwkd::INDEX_FILE, mwkd::INFO_FILE]),
-            MethodKind::Full | MethodKind::Qsplat | MethodKind::Spt | MethodKind::Potree => None,
+            MethodKind::Full
+            | MethodKind::Qsplat
+            | MethodKind::Spt
+            | MethodKind::Potree
+            | MethodKind::Clod => None,
         }
     }
 
@@ -383,6 +408,7 @@ impl MethodKind {
                 None => mwkd::Mwkd::open(dir, manifest)?,
             }),
             MethodKind::Potree => Box::new(potree::Potree::open(dir, manifest)?),
+            MethodKind::Clod => Box::new(clod::Clod::open(dir, manifest)?),
         };
 
         match rule {
@@ -445,7 +471,7 @@ mod tests {
         let e = "QSplat".parse::<MethodKind>().unwrap_err().to_string();
         assert_eq!(
             e,
-            "unknown method 'QSplat' (known: full, qsplat, spt, lpc, mwkd, potree)"
+            "unknown method 'QSplat' (known: full, qsplat, spt, lpc, mwkd, potree, clod)"
         );
         let e = "disc".parse::<crate::SplatShape>().unwrap_err().to_string();
         assert_eq!(

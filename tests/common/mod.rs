@@ -147,3 +147,16 @@ pub fn config(
         reference_raster: None,
     }
 }
+
+/// Reads `column` of every row of `dir/frames.csv`.
+pub fn column(dir: &std::path::Path, column: &str) -> Vec<f64> {
+    let mut r = csv::Reader::from_path(dir.join("frames.csv")).unwrap();
+    let h = r.headers().unwrap().clone();
+    let col = h
+        .iter()
+        .position(|c| c == column)
+        .unwrap_or_else(|| panic!("no column {column}"));
+    r.records()
+        .map(|row| row.unwrap()[col].parse().unwrap())
+        .collect()
+}

@@ -167,6 +167,17 @@ impl MethodKind {
                     serde_json::Value::String(s) => {
                         out.insert(k, s);
                     }
+                    // An `f32` parameter arrives widened to `f64` (0.7 → 0.699999988079071):
+                    // written as the `f32` it is, so a default reads as it was set and a grid
+                    // value `0.7` is recognised as it.
+                    serde_json::Value::Number(n)
+                        if n.as_f64().is_some_and(|f| {
+                            !(n.is_i64() || n.is_u64()) && f64::from(f as f32) == f
+                        }) =>
+                    {
+                        let f = n.as_f64().unwrap_or_default() as f32;
+                        out.insert(k, format!("{f:?}"));
+                    }
                     other => {
                         out.insert(k, other.to_string());
                     }
@@ -443,6 +454,13 @@ mod tests {
         assert_eq!(lpc["m"], "2048");
         assert_eq!(lpc["spacing_rule"], "mean");
         assert!(!lpc.contains_key("spacing"), "absent defaults are left out");
+        // f32 parameters read as set (not widened: 0.699999988079071), integral ones keep
+        // their ".0" as serde writes an f64.
+        let clod = MethodKind::Clod.defaults();
+        assert_eq!(
+            (clod["fovea"].as_str(), clod["point_size"].as_str()),
+            ("0.7", "1.0")
+        );
         let mwkd = MethodKind::Mwkd.defaults();
         assert_eq!(
             (mwkd["fanout"].as_str(), mwkd["vbo"].as_str()),

@@ -21,6 +21,7 @@ pub mod cull;
 pub mod draw;
 pub mod error;
 pub mod full;
+pub mod jsonfile;
 pub mod leaf;
 pub mod lpc;
 pub mod method;

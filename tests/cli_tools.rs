@@ -210,7 +210,8 @@ fn sweep_budgets_and_tolerances_then_plot_sweep() {
         h.join(","),
         "method,params,scene,path,target,value,frames,points_drawn_median,splats_per_s_median,\
          gpu_ms_median,cpu_select_ms_median,flip_mean_median,flip_mean_max,hole_ratio_median,\
-         hole_ratio_max,psnr_db_median,popping_flip_median,rss_bytes_max"
+         hole_ratio_max,psnr_db_median,popping_flip_median,popping_warped_l1_median,\
+         popping_warped_l1_p95,popping_warped_l7_median,popping_warped_l7_p95,rss_bytes_max"
     );
     assert_eq!(rows.len(), 2);
     let col = |name: &str| h.iter().position(|c| c == name).unwrap();

@@ -27,21 +27,30 @@ fn run_csv(method: &str, target: &str, frames: u32, scale: f64, with_metrics: bo
         let wall = 2.0 + 0.3 * t + scale * 1e-5;
         let metrics = if with_metrics {
             let flip = 0.3 / (1.0 + t);
-            // No popping for frame 0 (no previous frame).
+            // No popping for frame 0 (no previous frame), no lag-7 popping before frame 7.
             let popping = if f == 0 {
                 String::new()
             } else {
                 format!("{:.4}", 0.02 * scale.log10())
             };
+            let warped = |lag: u32| {
+                if f < lag {
+                    String::new()
+                } else {
+                    format!("{:.4}", 0.01 * scale.log10() * f64::from(lag))
+                }
+            };
             format!(
-                "{:.3},{:.4},{flip:.5},{:.4},{:.4},{popping}",
+                "{:.3},{:.4},{flip:.5},{:.4},{:.4},{popping},{},{}",
                 20.0 + t,
                 0.8 + 0.01 * t,
                 flip * 0.5,
-                0.01
+                0.01,
+                warped(1),
+                warped(7)
             )
         } else {
-            ",,,,,".to_owned()
+            ",,,,,,,".to_owned()
         };
         writeln!(
             csv,

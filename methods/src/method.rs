@@ -245,6 +245,21 @@ impl Manifest {
     pub fn read(dir: &Path) -> Result<Self, MethodError> {
         read_json(&dir.join(Self::FILE))
     }
+
+    /// Refuses a build of another format version than `version` (what this code reads), as a
+    /// corrupt `dir/method.json` naming both.
+    pub fn expect_version(&self, dir: &Path, version: u32) -> Result<(), MethodError> {
+        if self.format_version == version {
+            return Ok(());
+        }
+        Err(MethodError::corrupt(
+            dir.join(Self::FILE),
+            format!(
+                "format_version {} (this build reads {version})",
+                self.format_version
+            ),
+        ))
+    }
 }
 
 /// Refuses a point budget smaller than the root a method refines from (`what` with `root`

@@ -281,15 +281,7 @@ pub struct Clod {
 impl Clod {
     /// Opens the build in `dir` (runtime parameters merged into `manifest.params`).
     pub fn open(dir: &Path, manifest: Manifest) -> Result<Self, MethodError> {
-        if manifest.format_version != FORMAT_VERSION {
-            return Err(MethodError::corrupt(
-                dir.join(Manifest::FILE),
-                format!(
-                    "format_version {} (this build reads {FORMAT_VERSION})",
-                    manifest.format_version
-                ),
-            ));
-        }
+        manifest.expect_version(dir, FORMAT_VERSION)?;
         let params = ClodParams::from_params(&manifest.params)?;
         let info: Info = crate::method::read_json(&dir.join(INFO_FILE))?;
         let path = dir.join(POINTS_FILE);

@@ -117,15 +117,7 @@ pub struct Full {
 impl Full {
     /// Opens a build directory (the column file is memory-mapped).
     pub fn open(dir: &Path, manifest: Manifest) -> Result<Self, MethodError> {
-        if manifest.format_version != FORMAT_VERSION {
-            return Err(MethodError::corrupt(
-                dir.join(Manifest::FILE),
-                format!(
-                    "format_version {} (this build reads {FORMAT_VERSION})",
-                    manifest.format_version
-                ),
-            ));
-        }
+        manifest.expect_version(dir, FORMAT_VERSION)?;
         let path = dir.join(POINTS_FILE);
         let cloud = scenes::colfile::open(&path)?;
         if cloud.len() as u64 != manifest.points || cloud.radii().is_none() {

@@ -274,15 +274,7 @@ pub struct Qsplat {
 impl Qsplat {
     /// Opens a build directory (the tree file is memory-mapped and validated).
     pub fn open(dir: &Path, manifest: Manifest) -> Result<Self, MethodError> {
-        if manifest.format_version != FORMAT_VERSION {
-            return Err(MethodError::corrupt(
-                dir.join(Manifest::FILE),
-                format!(
-                    "format_version {} (this build reads {FORMAT_VERSION})",
-                    manifest.format_version
-                ),
-            ));
-        }
+        manifest.expect_version(dir, FORMAT_VERSION)?;
         let params = QsplatParams::from_params(&manifest.params)?;
         let file = format::QsFile::open(&dir.join(TREE_FILE))?;
         if file.header.leaves != manifest.points {

@@ -211,15 +211,7 @@ pub struct Selection {
 impl Spt {
     /// Opens a build directory; refuses a model larger than `gpu_limit_mb`.
     pub fn open(dir: &Path, manifest: Manifest) -> Result<Self, MethodError> {
-        if manifest.format_version != FORMAT_VERSION {
-            return Err(MethodError::corrupt(
-                dir.join(Manifest::FILE),
-                format!(
-                    "format_version {} (this build reads {FORMAT_VERSION})",
-                    manifest.format_version
-                ),
-            ));
-        }
+        manifest.expect_version(dir, FORMAT_VERSION)?;
         let params = SptParams::parse(&manifest.params, manifest.attributes)?;
         let index_path = dir.join(INDEX_FILE);
         let text =

@@ -79,6 +79,9 @@ fn coverage_differs(a: &harness::image::Image, b: &harness::image::Image) -> Vec
         .collect()
 }
 
+/// Exact pass counts hold on lavapipe (IEEE f32, no contraction into fused multiply-adds):
+/// an adapter that fuses or rounds division and square roots differently may decide a point
+/// within an ulp of the boundary the other way.
 #[test]
 fn clod_gpu_pass_count_and_coverage_equal_the_cpu_mirror() {
     let Some(gpu) = gpu_for_test("clod_gpu_pass_count_and_coverage_equal_the_cpu_mirror") else {
@@ -162,8 +165,56 @@ fn the_shader_constants_are_the_mirrors() {
         ("CLOD_SIZE_FACTOR", s::SIZE_FACTOR),
         ("CLOD_MIN_PX", s::MIN_PX),
         ("CLOD_MAX_PX", s::MAX_PX),
+        ("CLOD_FINAL", s::FINAL),
+        ("CLOD_POINT_MIN_PX", s::POINT_MIN_PX),
     ] {
         let line = format!("const {name}: f32 = {v:?};");
         assert!(harness::render::SPLAT_WGSL.contains(&line), "{line}");
     }
+}
+
+/// A draw item with CLOD's sizes but another test (or none) is an error naming it, on the GPU
+/// and in the CPU mirror, never a silent 1 px or 0 px size.
+#[test]
+fn clod_sizes_without_clods_test_are_refused() {
+    let cloud = Generator::Statue.generate(2_000, 9).unwrap();
+    let tmp = tempfile::tempdir().unwrap();
+    MethodKind::Clod
+        .build(
+            &cloud,
+            &Params::default(),
+            "t",
+            tmp.path(),
+            &scenes::NoProgress,
+        )
+        .unwrap();
+    let mut m = Clod::open(tmp.path(), Manifest::read(tmp.path()).unwrap()).unwrap();
+    let v = view(&cloud, 64, 64, 0);
+    let mut list = m
+        .frame(&v, Target::Tolerance(0.5), &Feedback::default())
+        .unwrap();
+    for item in &mut list.items {
+        if let methods::DrawItem::Sequential { test, .. } = item {
+            *test = methods::IntervalTest {
+                mode: 0,
+                scale: 1.0,
+                overlap: 0.0,
+            }
+            .into();
+        }
+    }
+    let e = cpu::rasterize(&v, &list, &m, Kernel::Square).unwrap_err();
+    assert!(
+        e.to_string().contains("CLOD's sizes without CLOD's test"),
+        "{e}"
+    );
+    let Some(gpu) = gpu_for_test("clod_sizes_without_clods_test_are_refused") else {
+        return;
+    };
+    let mut r = Renderer::new(&gpu, settings(64, 64, Kernel::Square)).unwrap();
+    let e = r.draw(&v, &list, &m, false).unwrap_err();
+    assert!(
+        format!("{e:#}").contains("CLOD's sizes without CLOD's test"),
+        "{e:#}"
+    );
 }

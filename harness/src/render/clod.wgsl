@@ -5,14 +5,17 @@
 // lod.x = the point's spacing s = spacing0 / 2^(level + u). Target spacing at the point:
 // t = scale · distance / max(1 − fovea·|ndc|, CLOD_FOVEA_FLOOR); kept when s ≥ t, in front of
 // the eye and within |ndc| ≤ CLOD_EXTENT. Size: CLOD_SIZE_FACTOR · point_size · t · k / w,
-// clamped to CLOD_MIN_PX..CLOD_MAX_PX, faded to 0 as t rises from CLOD_BLEND·s to s.
+// clamped to CLOD_MIN_PX..CLOD_MAX_PX, faded as t rises from CLOD_BLEND·s to s, times
+// CLOD_FINAL, never below OpenGL's smallest point size CLOD_POINT_MIN_PX.
 
 const CLOD_FOVEA_FLOOR: f32 = 0.3;
 const CLOD_EXTENT: f32 = 2.0;
 const CLOD_BLEND: f32 = 0.8;
-const CLOD_SIZE_FACTOR: f32 = 4.5254836;
+const CLOD_SIZE_FACTOR: f32 = 5.656854;
 const CLOD_MIN_PX: f32 = 1.0;
 const CLOD_MAX_PX: f32 = 80.0;
+const CLOD_FINAL: f32 = 0.8;
+const CLOD_POINT_MIN_PX: f32 = 1.0;
 
 // The target spacing at p (clip = view_proj · p), or -1 when the filter drops p whatever its
 // spacing (behind the eye, outside the extended frustum).
@@ -39,5 +42,5 @@ fn clod_pass(p: vec3<f32>, spacing: f32, clip: vec4<f32>, eye: vec3<f32>, scale:
 fn clod_size_px(spacing: f32, t: f32, w: f32, k: f32, point_size: f32) -> f32 {
     let full = clamp(CLOD_SIZE_FACTOR * point_size * t * k / w, CLOD_MIN_PX, CLOD_MAX_PX);
     let fade = 1.0 - clamp((t - CLOD_BLEND * spacing) / (spacing - CLOD_BLEND * spacing), 0.0, 1.0);
-    return full * fade;
+    return max(full * fade * CLOD_FINAL, CLOD_POINT_MIN_PX);
 }

@@ -241,6 +241,9 @@ fn footprints<'a>(
             (DrawItem::Stream { batch, .. }, None) => (batch, 0, batch.len(), None),
             (item, None) => anyhow::bail!("unexpected draw item {item:?}"),
         };
+        if matches!(size, SplatSize::Clod { .. }) && !matches!(test, Some(SplatTest::Clod(_))) {
+            anyhow::bail!("a draw item asks for CLOD's sizes without CLOD's test");
+        }
         points += count as u64;
         for i in first..first + count {
             if let Some(t) = &test

@@ -102,6 +102,9 @@ impl Renderer<'_> {
             if matches!(size, SplatSize::Radius { .. }) && !g.attrs.radii {
                 bail!("draw item {i} asks for per-splat radii but its splats carry none");
             }
+            if matches!(size, SplatSize::Clod { .. }) && !matches!(test, Some(SplatTest::Clod(_))) {
+                bail!("draw item {i} asks for CLOD's sizes without CLOD's test");
+            }
             stats.points += count as u64;
             for part in &g.parts {
                 // Splats `first .. first + count` of the batch: this part's share of them,
@@ -153,7 +156,7 @@ impl Renderer<'_> {
                     .with_context(|| format!("chunk {} vanished from the cache", c.id))?;
                 if c.test.is_some() && !g.lod {
                     bail!(
-                        "draw item {i} has an interval test but chunk {} carries no lod column",
+                        "draw item {i} has a per-splat test but chunk {} carries no lod column",
                         c.id
                     );
                 }

@@ -331,7 +331,10 @@ impl Clod {
         })
     }
 
-    /// The smallest scale (ε/k) at which at most `budget` points pass the filter for `view`.
+    /// The scale (ε/k) of a budget: the smallest at which at most `budget` points pass the
+    /// filter for `view`; when every point in the extended frustum fits, the largest at which
+    /// all of them pass at full size (`BLEND` × the smallest limit: the coarsest target that
+    /// still draws everything, where scale 0 would draw every point at 1 px).
     pub fn budget_scale(&self, view: &View, budget: u64) -> f32 {
         let vp = view.view_proj();
         let eye = view.camera.position;
@@ -347,18 +350,28 @@ impl Clod {
             })
             .collect();
         if limits.len() as u64 <= budget {
-            return 0.0;
+            let least = limits.iter().copied().fold(f32::INFINITY, f32::min);
+            return if least.is_finite() {
+                select::BLEND * least
+            } else {
+                0.0
+            };
         }
         // The (budget + 1)-th largest limit: just above it, at most `budget` limits remain.
         let b = budget as usize;
         let (_, v, _) = limits.select_nth_unstable_by(b, |a, b| b.total_cmp(a));
-        let mut scale = v.next_up();
+        if !v.is_finite() {
+            // More than `budget` points at the eye itself: no scale excludes them.
+            return f32::MAX;
+        }
         // The filter compares spacing with the target spacing, not limits with the scale:
-        // rounding may keep a few more; raise the scale until the filter itself agrees.
-        let mut step = scale * f32::EPSILON;
-        while self.count_kept(view, scale) > budget {
-            scale += step;
-            step *= 2.0;
+        // rounding may keep a few more; raise the scale by f32 steps (doubling) until the
+        // filter itself agrees, or the scale is the largest finite one.
+        let mut scale = v.next_up();
+        let mut step = 1u32;
+        while self.count_kept(view, scale) > budget && scale < f32::MAX {
+            scale = f32::from_bits(scale.to_bits().saturating_add(step)).min(f32::MAX);
+            step = step.saturating_mul(2);
         }
         scale
     }

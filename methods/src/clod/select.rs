@@ -16,8 +16,11 @@
 //! `|ndc|` the point's distance from the centre in normalised device coordinates). A point is
 //! kept when `s ≥ t`, it lies in front of the eye and within the *extended frustum*
 //! `|ndc.x|, |ndc.y| ≤ EXTENT`. Its size in pixels fades in as `t` falls from `s` to
-//! `BLEND · s`: `0.8 · u_b · clamp(SIZE_FACTOR · point_size · t · k / w, MIN_PX, MAX_PX)`, with
-//! `u_b = 1 − clamp((t − BLEND·s) / (s − BLEND·s), 0, 1)` and `w` the view depth.
+//! `BLEND · s`: `max(FINAL · u_b · clamp(SIZE_FACTOR · point_size · t · k / w, MIN_PX, MAX_PX),
+//! POINT_MIN_PX)`, with `u_b = 1 − clamp((t − BLEND·s) / (s − BLEND·s), 0, 1)` and `w` the view
+//! depth — the vertex shader's order: clamp, fade, × 0.8, then OpenGL's smallest point size
+//! (a point's size below it is drawn at it, so a fading point shrinks to one pixel, never to
+//! nothing).
 
 use glam::{Mat4, Vec3, Vec4};
 
@@ -31,14 +34,19 @@ pub const EXTENT: f32 = 2.0;
 /// Where a point's size reaches its full value: at a target spacing of `BLEND` × its own
 /// spacing (`fullAt = 0.8 · pointSpacing`; zero at `t = s`).
 pub const BLEND: f32 = 0.8;
-/// The point size before the fade, per unit of target spacing at unit projection: the
-/// shader's `2 · ws · pointSize` world diagonal projected (`2√2` in pixels of a square
-/// viewport, hence `4√2`), times its final `0.8`.
-pub const SIZE_FACTOR: f32 = 4.0 * std::f32::consts::SQRT_2 * 0.8;
+/// The point size before the clamp, per unit of target spacing at unit projection: the
+/// shader's `2 · ws · pointSize` world diagonal projected and measured in NDC units times the
+/// screen's height (twice its pixels: `2√2` per unit on a square viewport, hence `4√2`).
+pub const SIZE_FACTOR: f32 = 4.0 * std::f32::consts::SQRT_2;
 /// The size clamp before the fade, pixels (`minPixels`, `maxPixels`).
 pub const MIN_PX: f32 = 1.0;
 /// See [`MIN_PX`].
 pub const MAX_PX: f32 = 80.0;
+/// The shader's last factor on the faded size (`gl_PointSize *= 0.8`).
+pub const FINAL: f32 = 0.8;
+/// OpenGL's smallest point size (`ALIASED_POINT_SIZE_RANGE` starts at 1 on the hardware of
+/// the paper): `gl_PointSize` below it is drawn at it.
+pub const POINT_MIN_PX: f32 = 1.0;
 
 /// The target spacing at `p` for a view whose `view_proj` maps `p` to `clip`, or `None`
 /// when the filter drops `p` whatever its spacing (behind the eye, outside the extended
@@ -72,7 +80,7 @@ pub fn keeps(p: Vec3, spacing: f32, view_proj: &Mat4, eye: Vec3, scale: f32, fov
 pub fn size_px(spacing: f32, t: f32, w: f32, k: f32, point_size: f32) -> f32 {
     let full = (SIZE_FACTOR * point_size * t * k / w).clamp(MIN_PX, MAX_PX);
     let fade = 1.0 - ((t - BLEND * spacing) / (spacing - BLEND * spacing)).clamp(0.0, 1.0);
-    full * fade
+    (full * fade * FINAL).max(POINT_MIN_PX)
 }
 
 /// The largest `scale` (ε/k) at which the point is still kept, or `None` when no scale keeps

@@ -37,6 +37,7 @@ pub mod spt;
 pub mod store;
 pub mod strays;
 pub mod unit_knn;
+pub mod voxel;
 
 pub use draw::{
     Cached, ChunkId, DrawItem, DrawList, Feedback, IntervalTest, OcclusionCandidate, OcclusionPass,

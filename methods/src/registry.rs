@@ -10,6 +10,7 @@ use crate::store::remote::RemoteOpener;
 use crate::strays::{self, Strays};
 use crate::{
     BuildStats, LodMethod, Manifest, MethodError, Params, full, lpc, mwkd, potree, qsplat, spt,
+    voxel,
 };
 
 /// Every registered method.
@@ -28,6 +29,9 @@ pub enum MethodKind {
     Mwkd,
     /// Potree 2.0's octree (Schütz, Ohrhallinger, Wimmer 2020): today's practice.
     Potree,
+    /// Colour-filtered voxel LOD (Schütz, Kerbl, Klaus, Wimmer 2023): 128³ voxels of mean
+    /// colour in inner nodes, the original points in leaves.
+    Voxel,
 }
 
 impl MethodKind {
@@ -39,6 +43,7 @@ impl MethodKind {
         MethodKind::Lpc,
         MethodKind::Mwkd,
         MethodKind::Potree,
+        MethodKind::Voxel,
     ];
 
     /// The registry name (`--method` value, `method.json`).
@@ -50,6 +55,7 @@ impl MethodKind {
             MethodKind::Lpc => lpc::NAME,
             MethodKind::Mwkd => mwkd::NAME,
             MethodKind::Potree => potree::NAME,
+            MethodKind::Voxel => voxel::NAME,
         }
     }
 
@@ -74,6 +80,9 @@ impl MethodKind {
             MethodKind::Potree => {
                 "Potree 2.0: nested octree of spacing-halving subsamples, point budget by projected node size"
             }
+            MethodKind::Voxel => {
+                "colour-filtered voxel LOD (2023): 128³ mean-colour voxels per inner node, original points in leaves, children replace"
+            }
         }
     }
 
@@ -94,6 +103,7 @@ impl MethodKind {
             MethodKind::Lpc => lpc::LpcParams::from_params(params).map(drop),
             MethodKind::Mwkd => mwkd::MwkdParams::from_params(params).map(drop),
             MethodKind::Potree => potree::PotreeParams::from_params(params).map(drop),
+            MethodKind::Voxel => voxel::VoxelParams::from_params(params).map(drop),
         }
     }
 
@@ -131,6 +141,7 @@ impl MethodKind {
             MethodKind::Lpc => lpc::build(cloud, params, scene, dir, progress),
             MethodKind::Mwkd => mwkd::build(cloud, params, scene, dir, progress),
             MethodKind::Potree => potree::build(cloud, params, scene, dir, progress),
+            MethodKind::Voxel => voxel::build(cloud, params, scene, dir, progress),
         }
     }
 
@@ -146,6 +157,7 @@ impl MethodKind {
             MethodKind::Lpc => serde_json::to_value(lpc::LpcParams::default()),
             MethodKind::Mwkd => serde_json::to_value(mwkd::MwkdParams::default()),
             MethodKind::Potree => serde_json::to_value(potree::PotreeParams::default()),
+            MethodKind::Voxel => serde_json::to_value(voxel::VoxelParams::default()),
         };
         let mut out = std::collections::BTreeMap::new();
         if let Ok(serde_json::Value::Object(map)) = value {
@@ -179,7 +191,8 @@ impl MethodKind {
             | MethodKind::Qsplat
             | MethodKind::Spt
             | MethodKind::Mwkd
-            | MethodKind::Potree => None,
+            | MethodKind::Potree
+            | MethodKind::Voxel => None,
         }
     }
 
@@ -192,17 +205,18 @@ impl MethodKind {
             MethodKind::Lpc => lpc::RUNTIME_PARAMS,
             MethodKind::Mwkd => mwkd::RUNTIME_PARAMS,
             MethodKind::Potree => potree::RUNTIME_PARAMS,
+            MethodKind::Voxel => voxel::RUNTIME_PARAMS,
         }
     }
 
     /// True for the methods that refine a view by loading chunks of several levels (LPC's
-    /// clouds and Potree's nodes, whose union is drawn; MWKD's nodes, a cut of them), frame
-    /// after frame as they arrive. Such a method must not get worse as it refines
+    /// clouds and Potree's nodes, whose union is drawn; MWKD's nodes, a cut of them; voxel's
+    /// nodes, each where no drawn child replaces it), frame after frame as they arrive. Such a method must not get worse as it refines
     /// (`tests/refinement.rs`).
     pub fn draws_layers(self) -> bool {
         match self {
             MethodKind::Full | MethodKind::Qsplat | MethodKind::Spt => false,
-            MethodKind::Lpc | MethodKind::Mwkd | MethodKind::Potree => true,
+            MethodKind::Lpc | MethodKind::Mwkd | MethodKind::Potree | MethodKind::Voxel => true,
         }
     }
 
@@ -283,7 +297,11 @@ impl MethodKind {
         match self {
             MethodKind::Lpc => Some(&[lpc::INDEX_FILE, lpc::INFO_FILE]),
             MethodKind::Mwkd => Some(&[mwkd::INDEX_FILE, mwkd::INFO_FILE]),
-            MethodKind::Full | MethodKind::Qsplat | MethodKind::Spt | MethodKind::Potree => None,
+            MethodKind::Full
+            | MethodKind::Qsplat
+            | MethodKind::Spt
+            | MethodKind::Potree
+            | MethodKind::Voxel => None,
         }
     }
 
@@ -383,6 +401,7 @@ impl MethodKind {
                 None => mwkd::Mwkd::open(dir, manifest)?,
             }),
             MethodKind::Potree => Box::new(potree::Potree::open(dir, manifest)?),
+            MethodKind::Voxel => Box::new(voxel::open(dir, manifest)?),
         };
 
         match rule {
@@ -445,7 +464,7 @@ mod tests {
         let e = "QSplat".parse::<MethodKind>().unwrap_err().to_string();
         assert_eq!(
             e,
-            "unknown method 'QSplat' (known: full, qsplat, spt, lpc, mwkd, potree)"
+            "unknown method 'QSplat' (known: full, qsplat, spt, lpc, mwkd, potree, voxel)"
         );
         let e = "disc".parse::<crate::SplatShape>().unwrap_err().to_string();
         assert_eq!(

@@ -121,31 +121,24 @@ fn one_sample_per_occupied_voxel_with_the_exact_mean_colour() {
             voxels += recs.len();
             let mut seen = std::collections::BTreeSet::new();
             for (q, c) in recs {
-                let (count, rgb, sum_q) = if position == "centre" {
-                    let key = cell_key(quant.morton(*q), depth);
-                    assert!(seen.insert(key), "{position}: cell {key} twice");
-                    cells[&key]
-                } else {
-                    // The mean lies in its cell: find the cell whose rounded mean it is.
-                    let key = cell_key(quant.morton(*q), depth);
-                    assert!(seen.insert(key), "{position}: cell {key} twice");
-                    let (n, rgb, s) = cells[&key];
-                    let mean = s.map(|v| ((v + n as i64 / 2) / n as i64) as i32);
-                    assert_eq!(*q, mean, "{position}: node {level}/{path:o}");
-                    (n, rgb, s)
-                };
-                let _ = sum_q;
+                let key = cell_key(quant.morton(*q), depth);
+                assert!(seen.insert(key), "{position}: cell {key} twice");
+                let (count, rgb, sum_q) = cells[&key];
                 let mean = rgb.map(|v| ((v + count / 2) / count) as u8);
                 assert_eq!(c.unwrap(), mean, "{position}: node {level}/{path:o}");
-                if position == "centre" {
+                let want = if position == "centre" {
                     // The cell's centre, quantised.
-                    let key = cell_key(quant.morton(*q), depth);
-                    let axis = |shift: u32| methods::morton::compact21(key >> shift);
+                    let axis = |shift: u32| f64::from(methods::morton::compact21(key >> shift));
                     let cell = quant.size / f64::from(1u32 << depth);
-                    let c = DVec3::new(f64::from(axis(2)), f64::from(axis(1)), f64::from(axis(0)));
-                    let centre = quant.min + (c + DVec3::splat(0.5)) * cell;
-                    assert_eq!(*q, quant.quantise(centre));
-                }
+                    let c = DVec3::new(axis(2), axis(1), axis(0));
+                    quant.quantise(quant.min + (c + DVec3::splat(0.5)) * cell)
+                } else {
+                    // The rounded mean of the points' integer positions (it lies in its cell,
+                    // so the cell found from it is the voxel's).
+                    let n = count as i64;
+                    sum_q.map(|v| ((v + n / 2) / n) as i32)
+                };
+                assert_eq!(*q, want, "{position}: node {level}/{path:o}");
             }
         }
         assert!(inner >= 5, "{position}: {inner} inner nodes");
@@ -175,7 +168,7 @@ fn only_the_attributes_the_scene_has_are_stored() {
     assert_eq!(layout.rgb, None);
     assert_eq!(layout.normal.is_some(), cloud.normals().is_some());
     let m = MethodKind::open(tmp.path()).unwrap();
-    assert_eq!(m.attributes().colors, false);
+    assert!(!m.attributes().colors);
 }
 
 fn files(dir: &Path) -> Vec<Vec<u8>> {

@@ -23,18 +23,6 @@ pub fn build(
     dir: &Path,
     progress: &dyn Progress,
 ) -> Result<BuildStats, MethodError> {
-    build_with(cloud, params, scene, dir, None, progress)
-}
-
-/// [`build`] with a hook called with the units' spill files (tests damage them).
-pub fn build_with(
-    cloud: &PointCloud,
-    params: &Params,
-    scene: &str,
-    dir: &Path,
-    hook: Option<crate::spill::SpillHook<'_>>,
-    progress: &dyn Progress,
-) -> Result<BuildStats, MethodError> {
     let p = VoxelParams::from_params(params)?;
     let format = Format {
         name: NAME,
@@ -61,7 +49,7 @@ pub fn build_with(
         params,
         scene,
         dir,
-        hook,
+        hook: None,
     };
     build_format(input, &format, fill, extra, progress)
 }

@@ -72,18 +72,12 @@ impl Voxel {
     /// Adds `o`'s sums (same cell).
     fn add(&mut self, o: &Voxel) {
         self.count += o.count;
-        for k in 0..3 {
-            self.q[k] += o.q[k];
-        }
+        self.q.iter_mut().zip(o.q).for_each(|(a, b)| *a += b);
         if let (Some(a), Some(b)) = (self.rgb.as_mut(), o.rgb) {
-            for k in 0..3 {
-                a[k] += b[k];
-            }
+            a.iter_mut().zip(b).for_each(|(a, b)| *a += b);
         }
         if let (Some((a, fa)), Some((b, fb))) = (self.normal.as_mut(), o.normal) {
-            for k in 0..3 {
-                a[k] += b[k];
-            }
+            a.iter_mut().zip(b).for_each(|(a, b)| *a += b);
             if fb.0 < fa.0 {
                 *fa = fb;
             }

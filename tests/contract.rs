@@ -268,14 +268,14 @@ fn contract_for(kind: MethodKind, cloud: &PointCloud) {
         // 2 + 3. Budgets.
         let mut last = 0;
         for b in [1u64, 100, 1_000, 5_000, 15_000, 50_000] {
-            // LPC, MWKD and Potree draw whole clouds / nodes: a budget below their root is refused,
-            // naming the least that draws (issue 13, item 6), never an empty frame.
+            // LPC, MWKD, Potree and voxel draw whole clouds / nodes: a budget below their root is
+            // refused, naming the least that draws (issue 13, item 6), never an empty frame.
             if let Err(e) = m.frame(view, Target::Budget(b), &Feedback::default()) {
                 let e = e.to_string();
                 assert!(
                     matches!(
                         kind,
-                        MethodKind::Lpc | MethodKind::Mwkd | MethodKind::Potree
+                        MethodKind::Lpc | MethodKind::Mwkd | MethodKind::Potree | MethodKind::Voxel
                     ) && e.contains("smaller than its root")
                         && e.contains("or more"),
                     "{kind} view {vi}: budget {b}: {e}"
@@ -317,7 +317,21 @@ fn contract_for(kind: MethodKind, cloud: &PointCloud) {
             Target::Tolerance(0.5),
             // Above MWKD's root node (8,192 by default), the least it draws.
             Target::Budget(15_000),
+            // Every sample: above any root (voxel's root is one leaf of N samples, its
+            // leaves holding up to 50,000).
+            Target::Budget(N as u64),
         ] {
+            // A budget below a whole-node method's root is refused (2 above): by both builds
+            // alike.
+            if let Err(e) = m.frame(&view, t, &Feedback::default()) {
+                let e2 = m2.frame(&view, t, &Feedback::default()).unwrap_err();
+                assert!(
+                    kind.draws_layers() && e.to_string().contains("smaller than its root"),
+                    "{kind}: {t:?}: {e}"
+                );
+                assert_eq!(e.to_string(), e2.to_string(), "{kind}: {t:?}");
+                continue;
+            }
             let a = frame(m.as_mut(), &view, t);
             let b = frame(m2.as_mut(), &view, t);
             // Counters compare bit for bit: NaN ("not measured") equals itself.

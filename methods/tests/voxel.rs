@@ -62,9 +62,12 @@ fn read_back(dir: &Path) -> (Metadata, Vec<NodeRecs>) {
     (meta, nodes)
 }
 
+/// An input point as the build quantises it: Morton code, integer position, colour.
+type Quantised = (u64, [i32; 3], Option<[u8; 3]>);
+
 /// The input points' Morton codes, integer positions and colours, as the build quantises
 /// them.
-fn quantised(cloud: &PointCloud) -> (Quant, Vec<(u64, [i32; 3], Option<[u8; 3]>)>) {
+fn quantised(cloud: &PointCloud) -> (Quant, Vec<Quantised>) {
     let quant = Quant::of(cloud);
     let pts = cloud
         .positions()
@@ -112,10 +115,11 @@ fn one_sample_per_occupied_voxel_with_the_exact_mean_colour() {
                 }
                 let e = cells.entry(cell_key(*code, depth)).or_default();
                 e.0 += 1;
-                for k in 0..3 {
-                    e.1[k] += u64::from(c.unwrap()[k]);
+                let rgb = c.unwrap();
+                (0..3).for_each(|k| {
+                    e.1[k] += u64::from(rgb[k]);
                     e.2[k] += i64::from(q[k]);
-                }
+                });
             }
             assert_eq!(recs.len(), cells.len(), "{position}: node {level}/{path:o}");
             voxels += recs.len();

@@ -50,9 +50,19 @@ pub struct Voxel {
     pub q: [i64; 3],
     /// Sum of their 8-bit colours, if the scene has colours.
     pub rgb: Option<[u64; 3]>,
-    /// Sum of their normals, and the normal of the first of them (lowest Morton rank) for
-    /// a sum that cancels, if the scene has normals.
-    pub normal: Option<([f64; 3], (u32, [f32; 3]))>,
+    /// Sum of their normals, if the scene has normals.
+    pub normal: Option<NormalSum>,
+}
+
+/// The normals of a voxel's points: their sum, and the first one's for a sum that cancels.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct NormalSum {
+    /// Sum of the normals.
+    pub sum: [f64; 3],
+    /// Morton rank of the first point (the lowest).
+    pub first_rank: u32,
+    /// Its normal.
+    pub first: [f32; 3],
 }
 
 impl Voxel {
@@ -65,7 +75,11 @@ impl Voxel {
             count: 1,
             q: q.map(i64::from),
             rgb: cloud.colors().map(|c| c[i].map(u64::from)),
-            normal: cloud.normals().map(|n| (n[i].map(f64::from), (id, n[i]))),
+            normal: cloud.normals().map(|n| NormalSum {
+                sum: n[i].map(f64::from),
+                first_rank: id,
+                first: n[i],
+            }),
         }
     }
 
@@ -76,10 +90,10 @@ impl Voxel {
         if let (Some(a), Some(b)) = (self.rgb.as_mut(), o.rgb) {
             a.iter_mut().zip(b).for_each(|(a, b)| *a += b);
         }
-        if let (Some((a, fa)), Some((b, fb))) = (self.normal.as_mut(), o.normal) {
-            a.iter_mut().zip(b).for_each(|(a, b)| *a += b);
-            if fb.0 < fa.0 {
-                *fa = fb;
+        if let (Some(a), Some(b)) = (self.normal.as_mut(), o.normal) {
+            a.sum.iter_mut().zip(b.sum).for_each(|(a, b)| *a += b);
+            if b.first_rank < a.first_rank {
+                (a.first_rank, a.first) = (b.first_rank, b.first);
             }
         }
     }
@@ -93,13 +107,13 @@ impl Voxel {
 
     /// The mean normal, normalised; the first point's if the sum cancels.
     pub fn mean_normal(&self) -> Option<[f32; 3]> {
-        self.normal.map(|(sum, (_, first))| {
-            let v = DVec3::from(sum);
+        self.normal.map(|n| {
+            let v = DVec3::from(n.sum);
             let len = v.length();
             if len.is_finite() && len > 1e-9 * self.count as f64 {
                 (v / len).as_vec3().to_array()
             } else {
-                first
+                n.first
             }
         })
     }

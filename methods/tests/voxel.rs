@@ -6,15 +6,16 @@
 //! children and converges on the input points.
 #![allow(clippy::unwrap_used)]
 
+mod common;
+
 use std::collections::BTreeMap;
 use std::path::Path;
 
 use glam::DVec3;
-use methods::potree::Potree;
-use methods::potree::format::{Decoding, Metadata};
+use methods::potree::format::Metadata;
 use methods::potree::octree::Quant;
+use methods::voxel::MODE;
 use methods::voxel::grid::{cell_depth, cell_key};
-use methods::voxel::{MODE, VoxelParams};
 use methods::{Feedback, LodMethod, MethodKind, Params, Target};
 use scenes::generators::Generator;
 use scenes::{PointCloud, View};
@@ -28,39 +29,6 @@ fn build(cloud: &PointCloud, params: &[&str], dir: &Path) -> methods::BuildStats
 
 /// A record read back: integer position and 8-bit colour.
 type Rec = ([i32; 3], Option<[u8; 3]>);
-/// A node read back: level, octant digits, leaf, records.
-type NodeRecs = (u32, u64, bool, Vec<Rec>);
-
-/// Every record of a build, by node.
-fn read_back(dir: &Path) -> (Metadata, Vec<NodeRecs>) {
-    let meta = Metadata::read(dir).unwrap();
-    let layout = meta.layout(&dir.join("metadata.json")).unwrap();
-    let dec = Decoding {
-        layout,
-        scale: DVec3::from(meta.scale),
-        offset: DVec3::from(meta.offset),
-        origin: DVec3::ZERO,
-    };
-    let info: methods::potree::Info =
-        serde_json::from_str(&std::fs::read_to_string(dir.join("voxel.json")).unwrap()).unwrap();
-    let params = VoxelParams::default().potree();
-    let mut p = Potree::open_as(dir, DVec3::from(info.origin), &params, MODE).unwrap();
-    p.expand_all().unwrap();
-    let octree = std::fs::read(dir.join("octree.bin")).unwrap();
-    let spans = p.hierarchy().spans();
-    let spans = spans.read().unwrap();
-    let nodes = spans
-        .iter()
-        .map(|s| {
-            let bytes = &octree[s.offset as usize..(s.offset + s.size) as usize];
-            let recs = (0..s.points as usize)
-                .map(|i| (dec.raw_position(bytes, i), dec.color(bytes, i)))
-                .collect();
-            (s.level, s.path, s.leaf, recs)
-        })
-        .collect();
-    (meta, nodes)
-}
 
 /// An input point as the build quantises it: Morton code, integer position, colour.
 type Quantised = (u64, [i32; 3], Option<[u8; 3]>);
@@ -95,13 +63,14 @@ fn one_sample_per_occupied_voxel_with_the_exact_mean_colour() {
         let tmp = tempfile::tempdir().unwrap();
         let p = format!("position={position}");
         let stats = build(&cloud, &["max_leaf=1500", &p], tmp.path());
-        let (meta, nodes) = read_back(tmp.path());
+        let (meta, nodes) = common::read_back(tmp.path(), "voxel.json", MODE);
         assert_eq!(meta.points, 20_000);
         let mut leaf_points = Vec::new();
         let mut voxels = 0;
         let mut inner = 0;
-        for (level, path, leaf, recs) in &nodes {
-            if *leaf {
+        for (span, recs) in &nodes {
+            let (level, path) = (&span.level, &span.path);
+            if span.leaf {
                 leaf_points.extend(recs.iter().copied());
                 continue;
             }

@@ -144,7 +144,14 @@ pub fn build_format<'a, F: octree::Fill>(
         dir,
         hook,
     };
-    let built = ooc::build_files(cloud, quant, format.max_leaf, &fill, meta, budget, progress)?;
+    let tree = ooc::Tree {
+        cloud,
+        quant,
+        max_leaf: format.max_leaf,
+        fill: &fill,
+        meta,
+    };
+    let built = ooc::build_files(tree, budget, progress)?;
     let (written, units, largest) = (built.written, built.units, built.largest_unit);
     let nodes = written.nodes;
     crate::method::write_json(

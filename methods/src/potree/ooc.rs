@@ -90,23 +90,34 @@ pub struct Built {
     pub largest_unit: u64,
 }
 
-/// Builds the octree of `cloud` (nodes of at most `max_leaf` points, inner nodes filled by
-/// `fill`) into the Potree files in `budget.dir`: in core when the cloud fits
-/// `budget.mem_bytes` ([`unit_capacity`]), else in units of at most that many points. Both
-/// give the same files byte for byte.
+/// What an octree build in the Potree format is made of.
+pub struct Tree<'a, F> {
+    /// The points.
+    pub cloud: &'a PointCloud,
+    /// Their cube and quantisation.
+    pub quant: Quant,
+    /// Leaf capacity: a node of more points is split.
+    pub max_leaf: u32,
+    /// What fills the inner nodes.
+    pub fill: &'a F,
+    /// The metadata (hierarchy sizes filled in by the files' writer).
+    pub meta: crate::potree::format::Metadata,
+}
+
+/// Builds `tree`'s octree (nodes of at most `max_leaf` points, inner nodes filled by `fill`)
+/// into the Potree files in `budget.dir`: in core when the cloud fits `budget.mem_bytes`
+/// ([`unit_capacity`]), else in units of at most that many points. Both give the same files
+/// byte for byte.
 pub fn build_files<F: Fill>(
-    cloud: &PointCloud,
-    quant: Quant,
-    max_leaf: u32,
-    fill: &F,
-    meta: crate::potree::format::Metadata,
+    tree: Tree<'_, F>,
     budget: Budget<'_>,
     progress: &dyn Progress,
 ) -> Result<Built, MethodError> {
-    let n = cloud.len();
+    let n = tree.cloud.len();
     if n as u64 > unit_capacity(budget.mem_bytes) {
-        return build(cloud, quant, max_leaf, fill, meta, budget, progress);
+        return build(tree, budget, progress);
     }
+    let (cloud, quant, fill) = (tree.cloud, tree.quant, tree.fill);
     let name = fill.name();
     progress.start(&format!("{name}: sort"), n as u64);
     let origin = cloud.origin();
@@ -120,12 +131,12 @@ pub fn build_files<F: Fill>(
     progress.finish();
     progress.start(&format!("{name}: octree"), n as u64);
     let at = Node::at(0, 0, (quant.min, quant.min + DVec3::splat(quant.size)));
-    let mut root = octree::split(&sorted, 0..n, at, max_leaf as usize);
+    let mut root = octree::split(&sorted, 0..n, at, tree.max_leaf as usize);
     fill.fill(&mut root, &sorted);
     progress.finish();
     let mut descs = Vec::new();
     fill.describe(root, &mut descs);
-    let written = write::write_files(cloud, meta, &mut descs, &sorted, &mut [], budget.dir)?;
+    let written = write::write_files(cloud, tree.meta, &mut descs, &sorted, &mut [], budget.dir)?;
     Ok(Built {
         written,
         units: 1,
@@ -135,14 +146,17 @@ pub fn build_files<F: Fill>(
 
 /// [`build_files`] in units of at most `budget.mem_bytes / 64` points.
 fn build<F: Fill>(
-    cloud: &PointCloud,
-    quant: Quant,
-    max_leaf: u32,
-    fill: &F,
-    meta: crate::potree::format::Metadata,
+    tree: Tree<'_, F>,
     budget: Budget<'_>,
     progress: &dyn Progress,
 ) -> Result<Built, MethodError> {
+    let Tree {
+        cloud,
+        quant,
+        max_leaf,
+        fill,
+        meta,
+    } = tree;
     let n = cloud.len();
     let name = fill.name();
     let origin = cloud.origin();

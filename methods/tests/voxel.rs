@@ -144,6 +144,36 @@ fn only_the_attributes_the_scene_has_are_stored() {
     assert!(!m.attributes().colors);
 }
 
+/// A cloud that fits one leaf (20 k points, leaves of 50 k) still has its coarsest level: a
+/// root of voxels (one per occupied cell of its grid, fewer than the points) over leaves that
+/// hold every point once, each in its octant.
+#[test]
+fn a_cloud_of_one_leaf_still_gets_its_root_grid() {
+    let cloud = Generator::Statue.generate(20_000, 7).unwrap();
+    let tmp = tempfile::tempdir().unwrap();
+    let stats = build(&cloud, &[], tmp.path());
+    let (_, nodes) = common::read_back(tmp.path(), "voxel.json", MODE);
+    let (root, voxels) = &nodes[0];
+    assert!(!root.leaf && root.level == 0);
+    let (quant, pts) = quantised(&cloud);
+    let mut cells: Vec<u64> = pts.iter().map(|p| cell_key(p.0, cell_depth(0))).collect();
+    cells.sort_unstable();
+    cells.dedup();
+    assert_eq!(voxels.len(), cells.len());
+    assert!(voxels.len() < 20_000);
+    let leaves: Vec<_> = nodes[1..].iter().filter(|(s, _)| s.leaf).collect();
+    assert_eq!(
+        leaves.len(),
+        nodes.len() - 1,
+        "every child of the root is a leaf"
+    );
+    assert_eq!(leaves.iter().map(|(_, r)| r.len()).sum::<usize>(), 20_000);
+    for (s, recs) in leaves {
+        assert!(recs.iter().all(|(q, _)| quant.morton(*q) >> 60 == s.path));
+    }
+    assert_eq!(stats.levels, 2);
+}
+
 fn files(dir: &Path) -> Vec<Vec<u8>> {
     ["octree.bin", "hierarchy.bin", "metadata.json", "voxel.json"]
         .iter()

@@ -230,15 +230,18 @@ impl<E: Default> Node<E> {
 }
 
 /// Splits `range` (indices into `s`) into the octree under `node` (its level, path and box
-/// set).
+/// set): a node of more than `max_leaf` points is split, and the root whatever it holds if
+/// `split_root` ([`Fill::splits_root`]).
 pub fn split<E: Default + Send>(
     s: &Sorted,
     range: std::ops::Range<usize>,
     mut node: Node<E>,
     max_leaf: usize,
+    split_root: bool,
 ) -> Node<E> {
     let (level, path, min, max) = (node.level, node.path, node.min, node.max);
-    if range.len() <= max_leaf || level >= MAX_LEVEL {
+    let small = range.len() <= max_leaf && !(split_root && level == 0);
+    if small || level >= MAX_LEVEL {
         node.points = (s.base + range.start as u32..s.base + range.end as u32).collect();
         return node;
     }
@@ -265,7 +268,7 @@ pub fn split<E: Default + Send>(
                 max: cmax,
                 ..Default::default()
             };
-            (oct, split(s, r, child, max_leaf))
+            (oct, split(s, r, child, max_leaf, false))
         })
         .collect();
     for (oct, k) in kids {
@@ -283,6 +286,12 @@ pub trait Fill: Sync {
     type Extra: Default + Send + Sync + std::fmt::Debug;
     /// The method's name, for progress phases and spill folders.
     fn name(&self) -> &'static str;
+    /// True if the root is an inner node however few points the cloud has (`voxel`: its
+    /// coarsest level is always a grid of voxels); false: a cloud of at most `max_leaf`
+    /// points is one leaf (Potree).
+    fn splits_root(&self) -> bool {
+        false
+    }
     /// Fills every inner node of `node`'s tree bottom up from its children; nodes without
     /// children in this tree (leaves, or unit roots filled already) are left as they are.
     fn fill<P: Points>(&self, node: &mut Node<Self::Extra>, s: &P);

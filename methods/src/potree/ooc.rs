@@ -131,7 +131,8 @@ pub fn build_files<F: Fill>(
     progress.finish();
     progress.start(&format!("{name}: octree"), n as u64);
     let at = Node::at(0, 0, (quant.min, quant.min + DVec3::splat(quant.size)));
-    let mut root = octree::split(&sorted, 0..n, at, tree.max_leaf as usize);
+    let max_leaf = tree.max_leaf as usize;
+    let mut root = octree::split(&sorted, 0..n, at, max_leaf, fill.splits_root());
     fill.fill(&mut root, &sorted);
     progress.finish();
     let mut descs = Vec::new();
@@ -350,7 +351,14 @@ impl<F: Fill> UnitBuilder<'_, F> {
         out.largest = out.largest.max(keyed.len() as u64);
         let sorted = Sorted::new(cloud, self.quant, base, keyed);
         let at = Node::at(u.level, u.path, self.root_box);
-        let mut root = octree::split(&sorted, 0..sorted.len(), at, self.max_leaf as usize);
+        let max_leaf = self.max_leaf as usize;
+        let mut root = octree::split(
+            &sorted,
+            0..sorted.len(),
+            at,
+            max_leaf,
+            self.fill.splits_root(),
+        );
         self.fill.fill(&mut root, &sorted);
         // Every node below the root, breadth first, encoded into the unit's file.
         root.outer_mask = root.child_mask();

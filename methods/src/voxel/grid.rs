@@ -163,6 +163,13 @@ impl Fill for VoxelFill<'_> {
         super::NAME
     }
 
+    /// The paper's coarsest level is a 128³ grid of voxels: a cloud that fits one leaf still
+    /// gets its root grid over the leaves of its octants (else such a cloud would have no
+    /// level of detail at all, its root every sample).
+    fn splits_root(&self) -> bool {
+        true
+    }
+
     fn fill<P: Points>(&self, node: &mut Node<Vec<Voxel>>, s: &P) {
         node.children
             .par_iter_mut()

@@ -8,8 +8,31 @@ use super::NAME;
 use crate::potree::{LoadMode, PotreeParams};
 use crate::{MethodError, Params};
 
-/// Parameters read at `open` only (the same as `potree`'s).
-pub const RUNTIME_PARAMS: &[&str] = crate::potree::RUNTIME_PARAMS;
+/// Parameters read at `open` only (`potree`'s, and `sizing`).
+pub const RUNTIME_PARAMS: &[&str] = &[
+    "min_node_px",
+    "point_size",
+    "min_px",
+    "core_mb",
+    "delay_frames",
+    "in_flight",
+    "load",
+    "sizing",
+];
+
+/// How large a voxel's splat is (`--param sizing=`; leaves are sized by their own spacing
+/// either way).
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Default, serde::Deserialize, serde::Serialize)]
+#[serde(rename_all = "lowercase")]
+pub enum Sizing {
+    /// Its cell's corners, and across the gaps where its node's samples are sparser than
+    /// its cells (`super::radii`): no holes where the data is sparse.
+    #[default]
+    Spacing,
+    /// Its cell's corners only (`√3·s` across): the paper's pixel-sized voxels taken
+    /// literally, with holes where the data is sparser than the cells.
+    Cell,
+}
 
 /// Where an inner node's voxel sample lies (`--param position=`).
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Default, serde::Deserialize, serde::Serialize)]
@@ -45,6 +68,8 @@ pub struct VoxelParams {
     pub point_size: f32,
     /// Smallest splat drawn, pixels (1: the paper's pixel-sized voxels and points).
     pub min_px: f32,
+    /// How large a voxel's splat is.
+    pub sizing: Sizing,
     /// Decoded nodes kept in core, MiB.
     pub core_mb: u64,
     /// Frames between a request and the moment its node counts as loaded.
@@ -69,6 +94,7 @@ impl Default for VoxelParams {
             min_node_px: MIN_NODE_PX,
             point_size: 1.0,
             min_px: 1.0,
+            sizing: Sizing::Spacing,
             core_mb: 256,
             delay_frames: 0,
             in_flight: None,

@@ -234,11 +234,12 @@ fn interval_test_gpu_count_equals_cpu_mirror() {
             .collect(),
     );
     let m = IntervalMock { batch };
-    let test = methods::IntervalTest {
+    let test: methods::SplatTest = methods::IntervalTest {
         mode: 0,
         scale: 1.0,
         overlap: 0.05 * r,
-    };
+    }
+    .into();
     let mut renderer = Renderer::new(&gpu, settings(160, 120, Kernel::Square)).unwrap();
     for frame in 0..4 {
         let v = view(&cloud, 160, 120, frame);
@@ -257,7 +258,7 @@ fn interval_test_gpu_count_equals_cpu_mirror() {
             };
             let (stats, img) = renderer.draw(&v, &list, &m, true).unwrap();
             let cpu_count = (0..prefix as usize)
-                .filter(|&i| cpu::interval_passes(&m.batch, i, &test, v.camera.position))
+                .filter(|&i| cpu::splat_passes(&m.batch, i, &test, v.camera.position))
                 .count() as u64;
             assert_eq!(stats.points, prefix as u64);
             assert_eq!(

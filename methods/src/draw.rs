@@ -27,6 +27,13 @@ pub enum SplatSize {
         /// Smallest size drawn, in pixels.
         min_px: f32,
     },
+    /// Per splat, from a [`SplatTest::Clod`] test's target spacing and the splat's own
+    /// spacing (`lod[0]`), fading in near its cut-off ([`crate::clod::select::size_px`]);
+    /// only with that test.
+    Clod {
+        /// Multiplier (CLOD's `pointSize`).
+        point_size: f32,
+    },
 }
 
 /// The splats a chunk decodes to, or a stream generated this frame. Columns mirror the
@@ -144,15 +151,15 @@ pub enum DrawItem {
         /// Splat size.
         size: SplatSize,
     },
-    /// The first `prefix` splats of cached chunk `id`, each kept or culled by an interval
-    /// test in the vertex stage (Sequential Point Trees).
+    /// The first `prefix` splats of cached chunk `id`, each kept or culled by a per-splat
+    /// test in the vertex stage (Sequential Point Trees' interval test, CLOD's filter).
     Sequential {
         /// The chunk (uploaded once, kept in the GPU cache).
         id: ChunkId,
         /// How many splats of it are sent.
         prefix: u32,
         /// The per-splat test.
-        test: IntervalTest,
+        test: SplatTest,
         /// Splat size of the splats that pass.
         size: SplatSize,
     },
@@ -174,8 +181,8 @@ pub struct Cached {
     pub first: u32,
     /// Splats sent from `first` on.
     pub count: u32,
-    /// The vertex-stage interval test, if any.
-    pub test: Option<IntervalTest>,
+    /// The vertex-stage test, if any.
+    pub test: Option<SplatTest>,
 }
 
 /// SPT's per-splat interval test, evaluated in the vertex stage and mirrored on the CPU by
@@ -199,6 +206,56 @@ impl IntervalTest {
     #[inline]
     pub fn passes(&self, p: glam::Vec3, n: glam::Vec3, lod: [f32; 4], eye: glam::Vec3) -> bool {
         crate::spt::select::interval_pass(p, n, lod, eye, self)
+    }
+}
+
+/// CLOD's per-point filter ([`crate::clod::select`]): a point is kept when its spacing
+/// (`lod[0]`) is at least the target spacing at its distance.
+#[derive(Debug, Clone, Copy, PartialEq, serde::Serialize)]
+pub struct ClodTest {
+    /// `ε / k`: the target spacing per unit of distance at the screen's centre.
+    pub scale: f32,
+    /// Foveation: the target spacing is divided by `max(1 − fovea·|ndc|, 0.3)`.
+    pub fovea: f32,
+    /// The view's `view_proj` (column-major), the one the renderer draws with: `|ndc|` and
+    /// the extended frustum come from it.
+    pub view_proj: [[f32; 4]; 4],
+}
+
+impl ClodTest {
+    /// The CPU mirror of the GPU's filter ([`crate::clod::select::keeps`]).
+    #[inline]
+    pub fn passes(&self, p: glam::Vec3, lod: [f32; 4], eye: glam::Vec3) -> bool {
+        let vp = glam::Mat4::from_cols_array_2d(&self.view_proj);
+        crate::clod::select::keeps(p, lod[0], &vp, eye, self.scale, self.fovea)
+    }
+}
+
+/// A per-splat test of [`DrawItem::Sequential`] items, evaluated on the GPU (vertex stage,
+/// compute rasteriser, counting pass) and mirrored on the CPU by [`SplatTest::passes`].
+#[derive(Debug, Clone, Copy, PartialEq, serde::Serialize)]
+pub enum SplatTest {
+    /// Sequential Point Trees' interval test.
+    Interval(IntervalTest),
+    /// CLOD's filter.
+    Clod(ClodTest),
+}
+
+impl SplatTest {
+    /// The CPU mirror: true if the splat at `p` with normal `n` and LOD data `lod` passes
+    /// for an eye at `eye`.
+    #[inline]
+    pub fn passes(&self, p: glam::Vec3, n: glam::Vec3, lod: [f32; 4], eye: glam::Vec3) -> bool {
+        match self {
+            SplatTest::Interval(t) => t.passes(p, n, lod, eye),
+            SplatTest::Clod(t) => t.passes(p, lod, eye),
+        }
+    }
+}
+
+impl From<IntervalTest> for SplatTest {
+    fn from(t: IntervalTest) -> Self {
+        SplatTest::Interval(t)
     }
 }
 

@@ -13,13 +13,15 @@
 //! - [`store`]: the LZO chunk store with per-chunk checksums and the data-access layer
 //!   (loader thread) shared by the out-of-core methods.
 //! - one module per method: [`full`] (no LOD, the reference), then the four papers' methods
-//!   ([`qsplat`], [`spt`], [`lpc`], [`mwkd`]), and [`potree`], today's practice (Potree 2.0).
+//!   ([`qsplat`], [`spt`], [`lpc`], [`mwkd`]), [`potree`], today's practice (Potree 2.0), and [`clod`], continuous LOD (2019).
 
 pub mod cellmap;
+pub mod clod;
 pub mod cull;
 pub mod draw;
 pub mod error;
 pub mod full;
+pub mod jsonfile;
 pub mod leaf;
 pub mod lpc;
 pub mod method;
@@ -40,8 +42,8 @@ pub mod unit_knn;
 pub mod voxel;
 
 pub use draw::{
-    Cached, ChunkId, DrawItem, DrawList, Feedback, IntervalTest, OcclusionCandidate, OcclusionPass,
-    SplatBatch, SplatShape, SplatSize, Target,
+    Cached, ChunkId, ClodTest, DrawItem, DrawList, Feedback, IntervalTest, OcclusionCandidate,
+    OcclusionPass, SplatBatch, SplatShape, SplatSize, SplatTest, Target,
 };
 pub use error::{MethodError, UnknownName};
 pub use method::{BuildStats, KnownEffect, LodMethod, Manifest, MethodStats, Observed};

@@ -9,6 +9,7 @@ use std::sync::Arc;
 
 use scenes::{Attributes, View};
 
+pub use crate::jsonfile::{read_json, write_json};
 use crate::{ChunkId, DrawList, Feedback, MethodError, SplatBatch, Target};
 
 /// An opened multiresolution representation.
@@ -244,23 +245,6 @@ impl Manifest {
     pub fn read(dir: &Path) -> Result<Self, MethodError> {
         read_json(&dir.join(Self::FILE))
     }
-}
-
-/// Writes `value` as pretty JSON to `path` through a temporary file and a rename, so a reader
-/// never sees a half-written file.
-pub fn write_json<T: serde::Serialize>(path: &Path, value: &T) -> Result<(), MethodError> {
-    let text = serde_json::to_string_pretty(value)
-        .map_err(|e| MethodError::io(path, std::io::Error::other(e)))?;
-    let tmp = path.with_extension("json.tmp");
-    std::fs::write(&tmp, text).map_err(|e| MethodError::io(&tmp, e))?;
-    std::fs::rename(&tmp, path).map_err(|e| MethodError::io(path, e))
-}
-
-/// Reads JSON from `path`; a missing file is an I/O error, bad contents are `Corrupt`, both
-/// naming the file.
-pub fn read_json<T: serde::de::DeserializeOwned>(path: &Path) -> Result<T, MethodError> {
-    let text = std::fs::read_to_string(path).map_err(|e| MethodError::io(path, e))?;
-    serde_json::from_str(&text).map_err(|e| MethodError::corrupt(path, e.to_string()))
 }
 
 /// Refuses a point budget smaller than the root a method refines from (`what` with `root`

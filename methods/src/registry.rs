@@ -9,8 +9,8 @@ use crate::store::access::RepoAt;
 use crate::store::remote::RemoteOpener;
 use crate::strays::{self, Strays};
 use crate::{
-    BuildStats, LodMethod, Manifest, MethodError, Params, full, lpc, mwkd, potree, qsplat, spt,
-    voxel,
+    BuildStats, LodMethod, Manifest, MethodError, Params, clod, full, lpc, mwkd, potree, qsplat,
+    spt, voxel,
 };
 
 /// Every registered method.
@@ -32,6 +32,9 @@ pub enum MethodKind {
     /// Colour-filtered voxel LOD (Schütz, Kerbl, Klaus, Wimmer 2023): 128³ voxels of mean
     /// colour in inner nodes, the original points in leaves.
     Voxel,
+    /// Continuous LOD (Schütz, Krösl, Wimmer 2019): a flattened layered point cloud filtered
+    /// point by point every frame.
+    Clod,
 }
 
 impl MethodKind {
@@ -44,6 +47,7 @@ impl MethodKind {
         MethodKind::Mwkd,
         MethodKind::Potree,
         MethodKind::Voxel,
+        MethodKind::Clod,
     ];
 
     /// The registry name (`--method` value, `method.json`).
@@ -56,6 +60,7 @@ impl MethodKind {
             MethodKind::Mwkd => mwkd::NAME,
             MethodKind::Potree => potree::NAME,
             MethodKind::Voxel => voxel::NAME,
+            MethodKind::Clod => clod::NAME,
         }
     }
 
@@ -83,6 +88,9 @@ impl MethodKind {
             MethodKind::Voxel => {
                 "colour-filtered voxel LOD (2023): 128³ mean-colour voxels per inner node, original points in leaves, children replace"
             }
+            MethodKind::Clod => {
+                "continuous LOD (2019): Potree's levels flattened, every point filtered per frame on the GPU by its randomised level"
+            }
         }
     }
 
@@ -104,6 +112,7 @@ impl MethodKind {
             MethodKind::Mwkd => mwkd::MwkdParams::from_params(params).map(drop),
             MethodKind::Potree => potree::PotreeParams::from_params(params).map(drop),
             MethodKind::Voxel => voxel::VoxelParams::from_params(params).map(drop),
+            MethodKind::Clod => clod::ClodParams::from_params(params).map(drop),
         }
     }
 
@@ -142,6 +151,7 @@ impl MethodKind {
             MethodKind::Mwkd => mwkd::build(cloud, params, scene, dir, progress),
             MethodKind::Potree => potree::build(cloud, params, scene, dir, progress),
             MethodKind::Voxel => voxel::build(cloud, params, scene, dir, progress),
+            MethodKind::Clod => clod::build(cloud, params, scene, dir, progress),
         }
     }
 
@@ -158,6 +168,7 @@ impl MethodKind {
             MethodKind::Mwkd => serde_json::to_value(mwkd::MwkdParams::default()),
             MethodKind::Potree => serde_json::to_value(potree::PotreeParams::default()),
             MethodKind::Voxel => serde_json::to_value(voxel::VoxelParams::default()),
+            MethodKind::Clod => serde_json::to_value(clod::ClodParams::default()),
         };
         let mut out = std::collections::BTreeMap::new();
         if let Ok(serde_json::Value::Object(map)) = value {
@@ -166,6 +177,17 @@ impl MethodKind {
                     serde_json::Value::Null => {}
                     serde_json::Value::String(s) => {
                         out.insert(k, s);
+                    }
+                    // An `f32` parameter arrives widened to `f64` (0.7 → 0.699999988079071):
+                    // written as the `f32` it is, so a default reads as it was set and a grid
+                    // value `0.7` is recognised as it.
+                    serde_json::Value::Number(n)
+                        if n.as_f64().is_some_and(|f| {
+                            !(n.is_i64() || n.is_u64()) && f64::from(f as f32) == f
+                        }) =>
+                    {
+                        let f = n.as_f64().unwrap_or_default() as f32;
+                        out.insert(k, format!("{f:?}"));
                     }
                     other => {
                         out.insert(k, other.to_string());
@@ -187,6 +209,7 @@ impl MethodKind {
     ) -> Option<crate::KnownEffect> {
         match self {
             MethodKind::Lpc => lpc::known_effect(params, observed),
+            MethodKind::Clod => clod::known_effect(params, observed),
             MethodKind::Full
             | MethodKind::Qsplat
             | MethodKind::Spt
@@ -206,7 +229,15 @@ impl MethodKind {
             MethodKind::Mwkd => mwkd::RUNTIME_PARAMS,
             MethodKind::Potree => potree::RUNTIME_PARAMS,
             MethodKind::Voxel => voxel::RUNTIME_PARAMS,
+            MethodKind::Clod => clod::RUNTIME_PARAMS,
         }
+    }
+
+    /// True for the methods that send every point every frame and select on the GPU (CLOD:
+    /// its paper filters all points each frame, the cost it accepts); a budget then bounds
+    /// the points that pass the filter ([`LodMethod::drawn_points`]), not the points sent.
+    pub fn filters_every_point(self) -> bool {
+        self == MethodKind::Clod
     }
 
     /// True for the methods that refine a view by loading chunks of several levels (LPC's
@@ -215,7 +246,7 @@ impl MethodKind {
     /// (`tests/refinement.rs`).
     pub fn draws_layers(self) -> bool {
         match self {
-            MethodKind::Full | MethodKind::Qsplat | MethodKind::Spt => false,
+            MethodKind::Full | MethodKind::Qsplat | MethodKind::Spt | MethodKind::Clod => false,
             MethodKind::Lpc | MethodKind::Mwkd | MethodKind::Potree | MethodKind::Voxel => true,
         }
     }
@@ -301,7 +332,8 @@ impl MethodKind {
             | MethodKind::Qsplat
             | MethodKind::Spt
             | MethodKind::Potree
-            | MethodKind::Voxel => None,
+            | MethodKind::Voxel
+            | MethodKind::Clod => None,
         }
     }
 
@@ -402,6 +434,7 @@ impl MethodKind {
             }),
             MethodKind::Potree => Box::new(potree::Potree::open(dir, manifest)?),
             MethodKind::Voxel => Box::new(voxel::open(dir, manifest)?),
+            MethodKind::Clod => Box::new(clod::Clod::open(dir, manifest)?),
         };
 
         match rule {
@@ -436,6 +469,13 @@ mod tests {
         assert_eq!(lpc["m"], "2048");
         assert_eq!(lpc["spacing_rule"], "mean");
         assert!(!lpc.contains_key("spacing"), "absent defaults are left out");
+        // f32 parameters read as set (not widened: 0.699999988079071), integral ones keep
+        // their ".0" as serde writes an f64.
+        let clod = MethodKind::Clod.defaults();
+        assert_eq!(
+            (clod["fovea"].as_str(), clod["point_size"].as_str()),
+            ("0.7", "1.0")
+        );
         let mwkd = MethodKind::Mwkd.defaults();
         assert_eq!(
             (mwkd["fanout"].as_str(), mwkd["vbo"].as_str()),
@@ -464,7 +504,7 @@ mod tests {
         let e = "QSplat".parse::<MethodKind>().unwrap_err().to_string();
         assert_eq!(
             e,
-            "unknown method 'QSplat' (known: full, qsplat, spt, lpc, mwkd, potree, voxel)"
+            "unknown method 'QSplat' (known: full, qsplat, spt, lpc, mwkd, potree, voxel, clod)"
         );
         let e = "disc".parse::<crate::SplatShape>().unwrap_err().to_string();
         assert_eq!(

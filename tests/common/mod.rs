@@ -147,3 +147,46 @@ pub fn config(
         reference_raster: None,
     }
 }
+
+/// Reads `column` of every row of `dir/frames.csv`.
+pub fn column(dir: &std::path::Path, column: &str) -> Vec<f64> {
+    let mut r = csv::Reader::from_path(dir.join("frames.csv")).unwrap();
+    let h = r.headers().unwrap().clone();
+    let col = h
+        .iter()
+        .position(|c| c == column)
+        .unwrap_or_else(|| panic!("no column {column}"));
+    r.records()
+        .map(|row| row.unwrap()[col].parse().unwrap())
+        .collect()
+}
+
+/// The repository's root (the root package's manifest directory).
+pub fn root() -> std::path::PathBuf {
+    std::path::PathBuf::from(env!("CARGO_MANIFEST_DIR"))
+}
+
+/// A minimal valid reproduction spec (`id = "t"`, one scene, one build measure, one row) that
+/// the reproduce tests edit.
+pub const SPEC_GOOD: &str = r#"
+id = "t"
+paper = "P"
+title = "T"
+source = "S"
+
+[scenes.s]
+generator = "statue"
+points = { quick = 2000, full = 3000 }
+
+[[measure]]
+id = "b"
+kind = "build"
+method = "qsplat"
+scene = "s"
+
+[[row]]
+what = "w"
+paper = 4
+ours = "b.bytes_per_node"
+rule = "exact"
+"#;

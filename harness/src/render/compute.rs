@@ -32,10 +32,12 @@ use super::*;
 /// resolutions and tolerances of the papers' tables splats are a few pixels wide.
 pub const MAX_FOOTPRINT_PX: f32 = 64.0;
 
-/// The rasterising shader: `interval.wgsl` + `splat.wgsl` (bindings, test, size, shading) +
+/// The rasterising shader: `interval.wgsl` + `clod.wgsl` + `splat.wgsl` (bindings, tests, size, shading) +
 /// `compute.wgsl`.
 pub const COMPUTE_WGSL: &str = concat!(
     include_str!("interval.wgsl"),
+    "\n",
+    include_str!("clod.wgsl"),
     "\n",
     include_str!("splat.wgsl"),
     "\n",

@@ -1,6 +1,6 @@
 // The compute rasteriser (render::compute): one invocation per splat writes a square of
 // pixels into a visibility buffer with 64-bit atomics, the approach of Schütz, Kerbl and
-// Wimmer (2021). Appended to interval.wgsl + splat.wgsl, whose bindings and helpers it uses
+// Wimmer (2021). Appended to interval.wgsl + clod.wgsl + splat.wgsl, whose bindings and helpers it uses
 // (splat_position, splat_passes, splat_size_px, splat_linear, dispatch_index).
 //
 // Key of a fragment: (depth bits << 32) | sRGB8 colour (pack4x8unorm, alpha 1). The depth is
@@ -32,7 +32,7 @@ fn cs_raster(@builtin(global_invocation_id) gid: vec3<u32>, @builtin(num_workgro
     if (z < 0.0 || z > 1.0) {
         return; // outside the near/far range, as the quads are clipped
     }
-    let half = min(splat_size_px(ii, clip.w), MAX_FOOTPRINT_PX) * 0.5;
+    let half = min(splat_size_px(ii, p, clip), MAX_FOOTPRINT_PX) * 0.5;
     let cx = (clip.x / clip.w * 0.5 + 0.5) * frame.viewport.x;
     let cy = (0.5 - clip.y / clip.w * 0.5) * frame.viewport.y;
     // Pixels whose centre lies in [c - half, c + half), the quads' top-left rule.

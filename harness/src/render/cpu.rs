@@ -13,7 +13,7 @@
 //! query and documents its rasterisation rule.
 
 use glam::Vec3;
-use methods::{DrawItem, DrawList, IntervalTest, LodMethod, SplatBatch, SplatSize};
+use methods::{ClodTest, DrawItem, DrawList, LodMethod, SplatBatch, SplatSize, SplatTest};
 
 use scenes::View;
 
@@ -22,6 +22,7 @@ use super::{AMBIENT, BASE_COLOR, Kernel, Raster, Shade};
 use crate::image::Image;
 
 /// Pixel size of splat `i` of `batch` drawn with `size` at clip-space `w` (the view depth).
+/// [`SplatSize::Clod`] depends on its test: [`clod_px`]; here (no test) it is 0.
 #[inline]
 pub fn splat_px(size: SplatSize, radius: Option<f32>, w: f32, proj_scale: f32) -> f32 {
     match size {
@@ -29,7 +30,25 @@ pub fn splat_px(size: SplatSize, radius: Option<f32>, w: f32, proj_scale: f32) -
         SplatSize::Radius { scale, min_px } => {
             min_px.max(2.0 * radius.unwrap_or(0.0) * scale * proj_scale / w)
         }
+        SplatSize::Clod { .. } => 0.0,
     }
+}
+
+/// Pixel size of a point of spacing `spacing` at `p` (`clip` = view_proj · p) drawn with
+/// [`SplatSize::Clod`] under `test` (`splat_size_px`'s mode 2 in `splat.wgsl`).
+#[inline]
+pub fn clod_px(
+    test: &ClodTest,
+    point_size: f32,
+    spacing: f32,
+    p: Vec3,
+    clip: glam::Vec4,
+    eye: Vec3,
+    proj_scale: f32,
+) -> f32 {
+    use methods::clod::select;
+    let t = select::target_spacing(p, clip, eye, test.scale, test.fovea).unwrap_or(-1.0);
+    select::size_px(spacing, t, clip.w, proj_scale, point_size)
 }
 
 /// sRGB-encoded (0–1) → linear, as `splat.wgsl`'s `srgb_to_linear`.
@@ -123,7 +142,7 @@ impl Footprint {
 }
 
 /// The vertex stage's LOD test for splat `i` (`splat_passes` in `splat.wgsl`).
-pub fn interval_passes(batch: &SplatBatch, i: usize, test: &IntervalTest, eye: Vec3) -> bool {
+pub fn splat_passes(batch: &SplatBatch, i: usize, test: &SplatTest, eye: Vec3) -> bool {
     let n = batch
         .normals
         .as_ref()
@@ -225,7 +244,7 @@ fn footprints<'a>(
         points += count as u64;
         for i in first..first + count {
             if let Some(t) = &test
-                && !interval_passes(batch, i, t, eye)
+                && !splat_passes(batch, i, t, eye)
             {
                 continue;
             }
@@ -234,7 +253,13 @@ fn footprints<'a>(
             if clip.w <= 0.0 {
                 continue;
             }
-            let s = splat_px(size, batch.radii.as_ref().map(|r| r[i]), clip.w, k);
+            let s = match (size, test) {
+                (SplatSize::Clod { point_size }, Some(SplatTest::Clod(t))) => {
+                    let spacing = batch.lod.as_ref().map_or(0.0, |l| l[i][0]);
+                    clod_px(&t, point_size, spacing, p, clip, eye, k)
+                }
+                _ => splat_px(size, batch.radii.as_ref().map(|r| r[i]), clip.w, k),
+            };
             let l = (eye - p).normalize();
             let ellipse = match (&batch.normals, kernel) {
                 (Some(n), Kernel::Ellipse) => {

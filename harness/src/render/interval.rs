@@ -1,6 +1,6 @@
-//! SPT's interval test on the GPU (METHODS.md, SPT): before a phase's render pass, a compute
-//! pass (`interval.wgsl`, the same `splat_passes` test as the vertex stage) counts, per
-//! interval-tested draw, the splats that pass; the counts are copied to a readback buffer and
+//! The per-splat tests on the GPU (SPT's interval test, METHODS.md; CLOD's filter): before a
+//! phase's render pass, a compute pass (`interval.wgsl` and `clod.wgsl`, the same
+//! `splat_passes` test as the vertex stage) counts, per tested draw, the splats that pass; the counts are copied to a readback buffer and
 //! become `FrameStats::gpu_passed`. Outside the render-pass timestamps.
 
 use super::*;

@@ -52,7 +52,7 @@
 //! One room per responsibility, all behind [`Renderer::draw`] (this file: settings, the
 //! renderer's resources and the frame's phases): `setup.rs` (the fixed resources
 //! [`Renderer::new`] makes: targets, layouts, uniform buffers, timestamp queries), `splats.rs` (one phase of splat draws: the render
-//! passes per kernel, or the compute rasteriser's passes), `interval.rs` (SPT's interval-counting compute pass, `interval.wgsl`),
+//! passes per kernel, or the compute rasteriser's passes), `interval.rs` (the counting compute pass of the per-splat tests: SPT's `interval.wgsl`, CLOD's `clod.wgsl`),
 //! `pipelines.rs` (pipelines and targets; WGSL in `splat.wgsl` and `normalize.wgsl`),
 //! `queries.rs` and `occlusion.rs` (the occlusion-query pass, `occlusion.wgsl`, and its
 //! icosahedra), `upload.rs` (chunk cache and stream uploads), `uniforms.rs` (frame/draw
@@ -80,7 +80,7 @@ use std::time::Instant;
 
 use anyhow::{Context as _, bail};
 use methods::{
-    ChunkId, DrawItem, DrawList, IntervalTest, LodMethod, OcclusionPass, SplatBatch, SplatSize,
+    ChunkId, DrawItem, DrawList, LodMethod, OcclusionPass, SplatBatch, SplatSize, SplatTest,
 };
 use scenes::{Attributes, View};
 use wgpu::util::DeviceExt as _;
@@ -249,9 +249,12 @@ struct GaussTargets {
     normalize_bg: wgpu::BindGroup,
 }
 
-/// The splat shader: the interval test (`interval.wgsl`) followed by `splat.wgsl`.
+/// The splat shader: the per-splat tests (SPT's `interval.wgsl`, CLOD's `clod.wgsl`) followed by
+/// `splat.wgsl`.
 pub const SPLAT_WGSL: &str = concat!(
     include_str!("interval.wgsl"),
+    "\n",
+    include_str!("clod.wgsl"),
     "\n",
     include_str!("splat.wgsl")
 );
@@ -261,9 +264,9 @@ pub const SPLAT_WGSL: &str = concat!(
 /// part of one. All of them draw images: their sources key the cached references
 /// ([`image_shaders_hash`]).
 pub const SHADER_MODULES: &[(&str, &str)] = &[
-    ("interval.wgsl + splat.wgsl", SPLAT_WGSL),
+    ("interval.wgsl + clod.wgsl + splat.wgsl", SPLAT_WGSL),
     (
-        "interval.wgsl + splat.wgsl + compute.wgsl",
+        "interval.wgsl + clod.wgsl + splat.wgsl + compute.wgsl",
         compute::COMPUTE_WGSL,
     ),
     ("resolve.wgsl", compute::RESOLVE_WGSL),

@@ -14,7 +14,7 @@ pub(super) struct SplatLayouts {
     pub(super) bgl1: wgpu::BindGroupLayout,
     /// Groups 0 and 1: the splat pipelines' layout.
     pub(super) layout: wgpu::PipelineLayout,
-    /// `interval.wgsl` + `splat.wgsl` ([`SPLAT_WGSL`]).
+    /// `interval.wgsl` + `clod.wgsl` + `splat.wgsl` ([`SPLAT_WGSL`]).
     pub(super) module: wgpu::ShaderModule,
     /// Group 2 of the counting pass: its counters (read-write storage).
     pub(super) bgl2: wgpu::BindGroupLayout,

@@ -23,14 +23,14 @@ struct Frame {
 
 struct Draw {
     size_px: f32,      // offset 0: mode 0, splat size in pixels
-    radius_scale: f32, // offset 4: mode 1, multiplier on the stored radius
+    radius_scale: f32, // offset 4: mode 1, multiplier on the stored radius; mode 2, CLOD's point size
     min_px: f32,       // offset 8: mode 1, smallest size in pixels
-    mode: u32,         // offset 12: 0 = pixels, 1 = per-splat radius
+    mode: u32,         // offset 12: 0 = pixels, 1 = per-splat radius, 2 = CLOD's (clod.wgsl)
     flags: u32,        // offset 16: bit 0 normals, bit 1 colours, bit 2 radii, bit 3 lod
-    test_kind: u32,    // offset 20: 0 = none, 1 = SPT interval test (interval.wgsl)
-    test_mode: u32,    // offset 24
-    test_scale: f32,   // offset 28
-    test_overlap: f32, // offset 32
+    test_kind: u32,    // offset 20: 0 = none, 1 = SPT interval test (interval.wgsl), 2 = CLOD filter (clod.wgsl)
+    test_mode: u32,    // offset 24: SPT's error mode
+    test_scale: f32,   // offset 28: SPT's and CLOD's ε/k
+    test_overlap: f32, // offset 32: SPT's overlap; CLOD's fovea
     count: u32,        // offset 36: splats sent (counting pass)
     slot: u32,         // offset 40: counter slot of this draw (counting pass)
     first: u32,        // offset 44: first splat sent of this part
@@ -96,10 +96,15 @@ fn splat_position(ii: u32) -> vec3<f32> {
     return vec3<f32>(positions[3u * ii], positions[3u * ii + 1u], positions[3u * ii + 2u]);
 }
 
-// The draw's per-splat LOD test (SPT); true when the draw has none.
+// The draw's per-splat LOD test (SPT's, CLOD's); true when the draw has none.
 fn splat_passes(ii: u32) -> bool {
     if (draw.test_kind == 0u) {
         return true;
+    }
+    if (draw.test_kind == 2u) {
+        let p = splat_position(ii);
+        let clip = frame.view_proj * vec4<f32>(p, 1.0);
+        return clod_pass(p, lods[ii].x, clip, frame.eye, draw.test_scale, draw.test_overlap);
     }
     var n = vec3<f32>(0.0, 0.0, 1.0);
     if ((draw.flags & 1u) != 0u) {
@@ -123,10 +128,15 @@ fn cs_count(@builtin(global_invocation_id) gid: vec3<u32>, @builtin(num_workgrou
     }
 }
 
-// The splat's size in pixels at clip-space w (mirrored by render::cpu::splat_px).
-fn splat_size_px(ii: u32, w: f32) -> f32 {
+// The size in pixels of splat ii at p, clip = view_proj · p (mirrored by render::cpu::splat_px
+// and, for CLOD's, render::cpu::clod_px).
+fn splat_size_px(ii: u32, p: vec3<f32>, clip: vec4<f32>) -> f32 {
     if (draw.mode == 1u) {
-        return max(draw.min_px, 2.0 * radii[ii] * draw.radius_scale * frame.proj_scale / w);
+        return max(draw.min_px, 2.0 * radii[ii] * draw.radius_scale * frame.proj_scale / clip.w);
+    }
+    if (draw.mode == 2u) {
+        let t = clod_target(p, clip, frame.eye, draw.test_scale, draw.test_overlap);
+        return clod_size_px(lods[ii].x, t, clip.w, frame.proj_scale, draw.radius_scale);
     }
     return draw.size_px;
 }
@@ -172,7 +182,7 @@ fn splat_vertex(vi: u32, ii: u32, ellipse: bool, depth_push: bool, support: f32)
         out.linear = vec4<f32>(0.0);
         return out;
     }
-    let size = splat_size_px(ii, clip.w);
+    let size = splat_size_px(ii, p, clip);
     let has_normal = (draw.flags & 1u) != 0u;
     var n = vec3<f32>(0.0, 0.0, 1.0);
     if (has_normal) {

@@ -35,7 +35,7 @@ struct PhaseDraws<'a> {
 
 /// A draw item's batch, first splat, splats sent, interval test and level tint
 /// ([`Renderer::item_batch`]).
-type ItemBatch<'a> = (&'a GpuBatch, u32, u32, Option<IntervalTest>, [f32; 4]);
+type ItemBatch<'a> = (&'a GpuBatch, u32, u32, Option<SplatTest>, [f32; 4]);
 
 impl Renderer<'_> {
     /// Records one phase of splat draws into `enc`: the interval-counting compute pass (if any

@@ -81,13 +81,13 @@ pub struct DrawUniform {
     pub mode: u32,
     /// offset 16
     pub flags: u32,
-    /// offset 20: 0 = none, 1 = SPT interval test
+    /// offset 20: 0 = none, 1 = SPT interval test, 2 = CLOD's filter
     pub test_kind: u32,
-    /// offset 24
+    /// offset 24: SPT's error mode
     pub test_mode: u32,
-    /// offset 28
+    /// offset 28: SPT's and CLOD's `ε / k`
     pub test_scale: f32,
-    /// offset 32
+    /// offset 32: SPT's overlap; CLOD's fovea
     pub test_overlap: f32,
     /// offset 36: splats sent (counting pass)
     pub count: u32,
@@ -124,8 +124,8 @@ pub fn level_tint(level: u32) -> [f32; 4] {
 }
 
 impl DrawUniform {
-    /// The uniform for a splat size, the attributes present and an optional interval test.
-    pub fn new(size: SplatSize, attrs: Attributes, lod: bool, test: Option<IntervalTest>) -> Self {
+    /// The uniform for a splat size, the attributes present and an optional per-splat test.
+    pub fn new(size: SplatSize, attrs: Attributes, lod: bool, test: Option<SplatTest>) -> Self {
         let flags = attrs.normals as u32
             | (attrs.colors as u32) << 1
             | (attrs.radii as u32) << 2
@@ -133,6 +133,12 @@ impl DrawUniform {
         let (size_px, radius_scale, min_px, mode) = match size {
             SplatSize::Pixels(px) => (px, 0.0, 0.0, 0),
             SplatSize::Radius { scale, min_px } => (0.0, scale, min_px, 1),
+            SplatSize::Clod { point_size } => (0.0, point_size, 0.0, 2),
+        };
+        let (test_kind, test_mode, test_scale, test_overlap) = match test {
+            None => (0, 0, 0.0, 0.0),
+            Some(SplatTest::Interval(t)) => (1, t.mode, t.scale, t.overlap),
+            Some(SplatTest::Clod(t)) => (2, 0, t.scale, t.fovea),
         };
         Self {
             size_px,
@@ -140,10 +146,10 @@ impl DrawUniform {
             min_px,
             mode,
             flags,
-            test_kind: test.is_some() as u32,
-            test_mode: test.map_or(0, |t| t.mode),
-            test_scale: test.map_or(0.0, |t| t.scale),
-            test_overlap: test.map_or(0.0, |t| t.overlap),
+            test_kind,
+            test_mode,
+            test_scale,
+            test_overlap,
             count: 0,
             slot: 0,
             first: 0,

@@ -53,7 +53,7 @@ use scenes::{Attributes, View};
 
 use crate::{
     ChunkId, DrawItem, DrawList, Feedback, IntervalTest, LodMethod, Manifest, MethodError,
-    MethodStats, Params, SplatBatch, SplatSize, Target,
+    MethodStats, Params, SplatBatch, SplatSize, SplatTest, Target,
 };
 use build::NO_PARENT;
 pub(crate) use inner::InnerNodes;
@@ -402,7 +402,10 @@ impl Spt {
         let mut out = Vec::new();
         for item in &list.items {
             if let DrawItem::Sequential {
-                id, prefix, test, ..
+                id,
+                prefix,
+                test: SplatTest::Interval(test),
+                ..
             } = item
                 && let Some(c) = self.index.chunks.get(*id as usize)
             {
@@ -605,7 +608,7 @@ impl LodMethod for Spt {
                 items.push(DrawItem::Sequential {
                     id: id as ChunkId,
                     prefix: prefix as u32,
-                    test: sel.test,
+                    test: sel.test.into(),
                     size,
                 });
             }

@@ -3,6 +3,8 @@
 
 use glam::Vec3;
 use methods::{DrawList, Feedback, LodMethod, Target};
+use scenes::generators::Generator;
+use scenes::paths::PathSpec;
 use scenes::{Camera, PointCloud, View};
 
 /// A 320 × 240 view of `cloud` from `dist` bounding radii away, looking at its centre.
@@ -194,4 +196,29 @@ pub fn read_back(
         })
         .collect();
     (meta, nodes)
+}
+
+/// The statue SPT's tests use (seed 7).
+pub fn spt_statue(n: usize) -> PointCloud {
+    Generator::Statue.generate(n, 7).unwrap()
+}
+
+/// Four orbit and three zoom views at 640 × 480, SPT's tests' views.
+pub fn spt_views(cloud: &PointCloud) -> Vec<View> {
+    let b = cloud.bounds();
+    let mut v: Vec<View> = (0..4)
+        .map(|i| View {
+            camera: PathSpec::parse("orbit").unwrap().camera(i, 4, &b),
+            width: 640,
+            height: 480,
+        })
+        .collect();
+    for i in [3, 7, 9] {
+        v.push(View {
+            camera: PathSpec::parse("zoom").unwrap().camera(i, 10, &b),
+            width: 640,
+            height: 480,
+        });
+    }
+    v
 }

@@ -159,7 +159,7 @@ pub fn open_figures<F: BuildFigures>(
     manifest_points: u64,
     access: &dyn DataAccess,
 ) -> Result<F, MethodError> {
-    let info: F = crate::method::read_json(path)?;
+    let info: F = crate::jsonfile::read_json(path)?;
     if info.nodes() != index_nodes as u64
         || info.points() != manifest_points
         || root_samples.is_some_and(|s| s != info.points())

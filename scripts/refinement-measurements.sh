@@ -19,7 +19,7 @@ mkdir -p "$out"
   echo "| scene | method | first: points / FLIP / holes | converged: points / FLIP / holes |"
   echo "|---|---|---|---|"
   for scene in "statue:$n:1" "statue:$n:1:even"; do
-    for m in "lpc" "lpc enlarge=cloud" "potree" "potree point_size=2" "mwkd" "qsplat"; do
+    for m in "lpc" "lpc enlarge=cloud" "potree" "potree point_size=2" "voxel" "mwkd" "qsplat"; do
       set -- $m
       method=$1; shift
       params=(); for p in "$@"; do params+=(--param "$p"); done

@@ -304,14 +304,14 @@ fn contract_for(kind: MethodKind, cloud: &PointCloud) {
         // 2 + 3. Budgets.
         let mut last = 0;
         for b in [1u64, 100, 1_000, 5_000, 15_000, 50_000] {
-            // LPC, MWKD and Potree draw whole clouds / nodes: a budget below their root is refused,
-            // naming the least that draws (issue 13, item 6), never an empty frame.
+            // LPC, MWKD, Potree and voxel draw whole clouds / nodes: a budget below their root is
+            // refused, naming the least that draws (issue 13, item 6), never an empty frame.
             if let Err(e) = m.frame(view, Target::Budget(b), &Feedback::default()) {
                 let e = e.to_string();
                 assert!(
                     matches!(
                         kind,
-                        MethodKind::Lpc | MethodKind::Mwkd | MethodKind::Potree
+                        MethodKind::Lpc | MethodKind::Mwkd | MethodKind::Potree | MethodKind::Voxel
                     ) && e.contains("smaller than its root")
                         && e.contains("or more"),
                     "{kind} view {vi}: budget {b}: {e}"

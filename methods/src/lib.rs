@@ -39,6 +39,7 @@ pub mod spt;
 pub mod store;
 pub mod strays;
 pub mod unit_knn;
+pub mod voxel;
 
 pub use draw::{
     Cached, ChunkId, ClodTest, DrawItem, DrawList, Feedback, IntervalTest, OcclusionCandidate,

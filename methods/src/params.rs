@@ -148,8 +148,8 @@ mod tests {
                     .unwrap_or_else(|e| panic!("{} {key}=2³⁰: {e}", kind.name()));
             }
         }
-        // mem_mb of qsplat, spt, lpc, mwkd, potree; core_mb of lpc, mwkd, potree; spt's
-        // gpu_limit_mb.
-        assert_eq!(seen, 9);
+        // mem_mb of qsplat, spt, lpc, mwkd, potree, voxel; core_mb of lpc, mwkd, potree,
+        // voxel; spt's gpu_limit_mb.
+        assert_eq!(seen, 11);
     }
 }

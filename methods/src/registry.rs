@@ -10,7 +10,7 @@ use crate::store::remote::RemoteOpener;
 use crate::strays::{self, Strays};
 use crate::{
     BuildStats, LodMethod, Manifest, MethodError, Params, clod, full, lpc, mwkd, potree, qsplat,
-    spt,
+    spt, voxel,
 };
 
 /// Every registered method.
@@ -29,6 +29,9 @@ pub enum MethodKind {
     Mwkd,
     /// Potree 2.0's octree (Schütz, Ohrhallinger, Wimmer 2020): today's practice.
     Potree,
+    /// Colour-filtered voxel LOD (Schütz, Kerbl, Klaus, Wimmer 2023): 128³ voxels of mean
+    /// colour in inner nodes, the original points in leaves.
+    Voxel,
     /// Continuous LOD (Schütz, Krösl, Wimmer 2019): a flattened layered point cloud filtered
     /// point by point every frame.
     Clod,
@@ -43,6 +46,7 @@ impl MethodKind {
         MethodKind::Lpc,
         MethodKind::Mwkd,
         MethodKind::Potree,
+        MethodKind::Voxel,
         MethodKind::Clod,
     ];
 
@@ -55,6 +59,7 @@ impl MethodKind {
             MethodKind::Lpc => lpc::NAME,
             MethodKind::Mwkd => mwkd::NAME,
             MethodKind::Potree => potree::NAME,
+            MethodKind::Voxel => voxel::NAME,
             MethodKind::Clod => clod::NAME,
         }
     }
@@ -80,6 +85,9 @@ impl MethodKind {
             MethodKind::Potree => {
                 "Potree 2.0: nested octree of spacing-halving subsamples, point budget by projected node size"
             }
+            MethodKind::Voxel => {
+                "colour-filtered voxel LOD (2023): 128³ mean-colour voxels per inner node, original points in leaves, children replace"
+            }
             MethodKind::Clod => {
                 "continuous LOD (2019): Potree's levels flattened, every point filtered per frame on the GPU by its randomised level"
             }
@@ -103,6 +111,7 @@ impl MethodKind {
             MethodKind::Lpc => lpc::LpcParams::from_params(params).map(drop),
             MethodKind::Mwkd => mwkd::MwkdParams::from_params(params).map(drop),
             MethodKind::Potree => potree::PotreeParams::from_params(params).map(drop),
+            MethodKind::Voxel => voxel::VoxelParams::from_params(params).map(drop),
             MethodKind::Clod => clod::ClodParams::from_params(params).map(drop),
         }
     }
@@ -141,6 +150,7 @@ impl MethodKind {
             MethodKind::Lpc => lpc::build(cloud, params, scene, dir, progress),
             MethodKind::Mwkd => mwkd::build(cloud, params, scene, dir, progress),
             MethodKind::Potree => potree::build(cloud, params, scene, dir, progress),
+            MethodKind::Voxel => voxel::build(cloud, params, scene, dir, progress),
             MethodKind::Clod => clod::build(cloud, params, scene, dir, progress),
         }
     }
@@ -157,6 +167,7 @@ impl MethodKind {
             MethodKind::Lpc => serde_json::to_value(lpc::LpcParams::default()),
             MethodKind::Mwkd => serde_json::to_value(mwkd::MwkdParams::default()),
             MethodKind::Potree => serde_json::to_value(potree::PotreeParams::default()),
+            MethodKind::Voxel => serde_json::to_value(voxel::VoxelParams::default()),
             MethodKind::Clod => serde_json::to_value(clod::ClodParams::default()),
         };
         let mut out = std::collections::BTreeMap::new();
@@ -203,7 +214,8 @@ impl MethodKind {
             | MethodKind::Qsplat
             | MethodKind::Spt
             | MethodKind::Mwkd
-            | MethodKind::Potree => None,
+            | MethodKind::Potree
+            | MethodKind::Voxel => None,
         }
     }
 
@@ -216,6 +228,7 @@ impl MethodKind {
             MethodKind::Lpc => lpc::RUNTIME_PARAMS,
             MethodKind::Mwkd => mwkd::RUNTIME_PARAMS,
             MethodKind::Potree => potree::RUNTIME_PARAMS,
+            MethodKind::Voxel => voxel::RUNTIME_PARAMS,
             MethodKind::Clod => clod::RUNTIME_PARAMS,
         }
     }
@@ -228,13 +241,13 @@ impl MethodKind {
     }
 
     /// True for the methods that refine a view by loading chunks of several levels (LPC's
-    /// clouds and Potree's nodes, whose union is drawn; MWKD's nodes, a cut of them), frame
-    /// after frame as they arrive. Such a method must not get worse as it refines
+    /// clouds and Potree's nodes, whose union is drawn; MWKD's nodes, a cut of them; voxel's
+    /// nodes, each where no drawn child replaces it), frame after frame as they arrive. Such a method must not get worse as it refines
     /// (`tests/refinement.rs`).
     pub fn draws_layers(self) -> bool {
         match self {
             MethodKind::Full | MethodKind::Qsplat | MethodKind::Spt | MethodKind::Clod => false,
-            MethodKind::Lpc | MethodKind::Mwkd | MethodKind::Potree => true,
+            MethodKind::Lpc | MethodKind::Mwkd | MethodKind::Potree | MethodKind::Voxel => true,
         }
     }
 
@@ -319,6 +332,7 @@ impl MethodKind {
             | MethodKind::Qsplat
             | MethodKind::Spt
             | MethodKind::Potree
+            | MethodKind::Voxel
             | MethodKind::Clod => None,
         }
     }
@@ -419,6 +433,7 @@ impl MethodKind {
                 None => mwkd::Mwkd::open(dir, manifest)?,
             }),
             MethodKind::Potree => Box::new(potree::Potree::open(dir, manifest)?),
+            MethodKind::Voxel => Box::new(voxel::open(dir, manifest)?),
             MethodKind::Clod => Box::new(clod::Clod::open(dir, manifest)?),
         };
 
@@ -489,7 +504,7 @@ mod tests {
         let e = "QSplat".parse::<MethodKind>().unwrap_err().to_string();
         assert_eq!(
             e,
-            "unknown method 'QSplat' (known: full, qsplat, spt, lpc, mwkd, potree, clod)"
+            "unknown method 'QSplat' (known: full, qsplat, spt, lpc, mwkd, potree, voxel, clod)"
         );
         let e = "disc".parse::<crate::SplatShape>().unwrap_err().to_string();
         assert_eq!(

@@ -2,11 +2,13 @@
 //! builder), its errors on damaged files, and our builder read back by the reader.
 #![allow(clippy::unwrap_used)]
 
+mod common;
+
 use std::collections::BTreeMap;
 use std::path::Path;
 
 use glam::DVec3;
-use methods::potree::format::{Decoding, Metadata, NodeKind, Record};
+use methods::potree::format::{Metadata, NodeKind, Record};
 use methods::potree::{Potree, PotreeParams};
 use methods::{LodMethod, MethodKind, Params};
 use scenes::generators::Generator;
@@ -276,32 +278,10 @@ type NodePoints = (u32, bool, Vec<([i32; 3], Option<[u8; 3]>)>);
 
 /// Every point of a build, by node: (level, inner, quantised positions and colours).
 fn read_back(dir: &Path) -> (Metadata, Vec<NodePoints>) {
-    let meta = Metadata::read(dir).unwrap();
-    let layout = meta.layout(&dir.join("metadata.json")).unwrap();
-    let dec = Decoding {
-        layout,
-        scale: DVec3::from(meta.scale),
-        offset: DVec3::from(meta.offset),
-        origin: DVec3::ZERO,
-    };
-    let info: methods::potree::Info =
-        serde_json::from_str(&std::fs::read_to_string(dir.join("potree.json")).unwrap()).unwrap();
-    let mut p = Potree::open_dir(dir, DVec3::from(info.origin), &PotreeParams::default()).unwrap();
-    p.expand_all().unwrap();
-    let octree = std::fs::read(dir.join("octree.bin")).unwrap();
-    let spans = p.hierarchy().spans();
-    let spans = spans.read().unwrap();
-    let tree = p.hierarchy().nodes();
-    let nodes = spans
-        .iter()
-        .zip(tree)
-        .map(|(s, n)| {
-            let bytes = &octree[s.offset as usize..(s.offset + s.size) as usize];
-            let pts = (0..s.points as usize)
-                .map(|i| (dec.raw_position(bytes, i), dec.color(bytes, i)))
-                .collect();
-            (s.level, n.kind == NodeKind::Inner, pts)
-        })
+    let (meta, nodes) = common::read_back(dir, "potree.json", methods::potree::Mode::POTREE);
+    let nodes = nodes
+        .into_iter()
+        .map(|(s, pts)| (s.level, !s.leaf, pts))
         .collect();
     (meta, nodes)
 }

@@ -180,7 +180,7 @@ pub fn build(
         .collect();
     let sorted = Sorted::new(cloud, quant, 0, keyed);
     let at = Node::at(0, 0, (quant.min, quant.min + DVec3::splat(quant.size)));
-    let mut root = octree::split(&sorted, 0..n, at, p.max_leaf as usize);
+    let mut root = octree::split(&sorted, 0..n, at, p.max_leaf as usize, false);
     let spacing = quant.size / 128.0;
     let tree = PotreeParams {
         sampling: Sampling::Poisson,

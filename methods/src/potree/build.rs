@@ -21,10 +21,9 @@
 
 use std::path::Path;
 
-use rayon::prelude::*;
 use scenes::{PointCloud, Progress};
 
-use super::octree::{self, Node, Quant, Sorted};
+use super::octree::{self, Quant};
 use super::{FORMAT_VERSION, INFO_FILE, Info, NAME, PotreeParams, ooc, write};
 use crate::{BuildStats, Manifest, MethodError, Params};
 
@@ -49,69 +48,125 @@ pub fn build_with(
     hook: Option<crate::spill::SpillHook<'_>>,
     progress: &dyn Progress,
 ) -> Result<BuildStats, MethodError> {
-    let t0 = std::time::Instant::now();
     let p = PotreeParams::from_params(params)?;
+    let format = Format {
+        name: NAME,
+        format_version: FORMAT_VERSION,
+        info_file: INFO_FILE,
+        max_leaf: p.max_leaf,
+        step: p.step,
+        mem_mb: p.mem_mb,
+    };
+    let mut extra = serde_json::Map::new();
+    extra.insert(
+        "sampling".into(),
+        serde_json::to_value(p.sampling).unwrap_or_default(),
+    );
+    let fill = |quant: &Quant, _bytes_per_point: usize| octree::Subsample {
+        spacing: quant.size / 128.0,
+        params: &p,
+    };
+    let input = Input {
+        cloud,
+        params,
+        scene,
+        dir,
+        hook,
+    };
+    build_format(input, &format, fill, extra, progress)
+}
+
+/// What a build in the Potree format is given.
+pub struct Input<'a> {
+    /// The scene's points.
+    pub cloud: &'a PointCloud,
+    /// The parameters as given (recorded in the manifest).
+    pub params: &'a Params,
+    /// The scene's description.
+    pub scene: &'a str,
+    /// The build directory.
+    pub dir: &'a Path,
+    /// Called with the units' spill files (tests damage them).
+    pub hook: Option<crate::spill::SpillHook<'a>>,
+}
+
+/// How a method in the Potree format (`potree`, `voxel`) builds: its names and the
+/// parameters the shared build reads.
+pub struct Format {
+    /// Registry name.
+    pub name: &'static str,
+    /// Version of the method's own files.
+    pub format_version: u32,
+    /// Its info file (an [`Info`]).
+    pub info_file: &'static str,
+    /// Leaf capacity.
+    pub max_leaf: u32,
+    /// Levels per hierarchy chunk.
+    pub step: u32,
+    /// Build memory, MiB.
+    pub mem_mb: u64,
+}
+
+/// The shared build of the methods in the Potree format: the cube and quantisation, the
+/// octree in core or in units with the inner nodes filled by `fill(quant, bytes per
+/// record)`, the files, the info file, `build.json`'s figures (`extra` first) and the
+/// manifest last.
+pub fn build_format<'a, F: octree::Fill>(
+    input: Input<'a>,
+    format: &Format,
+    fill: impl FnOnce(&Quant, usize) -> F,
+    mut extra: serde_json::Map<String, serde_json::Value>,
+    progress: &dyn Progress,
+) -> Result<BuildStats, MethodError> {
+    let t0 = std::time::Instant::now();
+    let Input {
+        cloud,
+        params,
+        scene,
+        dir,
+        hook,
+    } = input;
+    let name = format.name;
     let n = cloud.len();
     if n == 0 || n > u32::MAX as usize {
         return Err(MethodError::Limit(format!(
-            "method '{NAME}': {n} points; a build takes 1..=2³² − 1"
+            "method '{name}': {n} points; a build takes 1..=2³² − 1"
         )));
     }
     let quant = Quant::of(cloud);
-    let meta = write::metadata(cloud, &quant, &p, scene);
-    let mem_bytes = p.mem_mb << 20;
-    let (written, units, largest) = if n as u64 > ooc::unit_capacity(mem_bytes) {
-        let budget = crate::spill::Budget {
-            mem_bytes,
-            dir,
-            hook,
-        };
-        let b = ooc::build(cloud, quant, &p, meta, budget, progress)?;
-        (b.written, b.units, b.largest_unit)
-    } else {
-        progress.start("potree: sort", n as u64);
-        let origin = cloud.origin();
-        let keyed: Vec<(u64, u32)> = cloud
-            .positions()
-            .par_iter()
-            .enumerate()
-            .map(|(i, &l)| (quant.morton(quant.of_local(origin, l)), i as u32))
-            .collect();
-        let sorted = Sorted::new(cloud, quant, 0, keyed);
-        progress.finish();
-        progress.start("potree: octree", n as u64);
-        let at = Node::at(
-            0,
-            0,
-            (quant.min, quant.min + glam::DVec3::splat(quant.size)),
-        );
-        let mut root = octree::split(&sorted, 0..n, at, p.max_leaf as usize);
-        octree::sample(&mut root, &sorted, quant.size / 128.0, &p);
-        progress.finish();
-        let mut descs = Vec::new();
-        write::describe(root, &mut descs);
-        let w = write::write_files(cloud, meta, &mut descs, &sorted, &mut [], dir)?;
-        (w, 1, n as u64)
+    let meta = write::metadata(cloud, &quant, format.step, scene);
+    let bytes_per_point = meta
+        .layout(&dir.join(super::format::METADATA_FILE))?
+        .bytes_per_point;
+    let fill = fill(&quant, bytes_per_point);
+    let budget = crate::spill::Budget {
+        mem_bytes: format.mem_mb << 20,
+        dir,
+        hook,
     };
+    let tree = ooc::Tree {
+        cloud,
+        quant,
+        max_leaf: format.max_leaf,
+        fill: &fill,
+        meta,
+    };
+    let built = ooc::build_files(tree, budget, progress)?;
+    let (written, units, largest) = (built.written, built.units, built.largest_unit);
     let nodes = written.nodes;
     crate::method::write_json(
-        &dir.join(INFO_FILE),
+        &dir.join(format.info_file),
         &Info {
             origin: cloud.origin().to_array(),
             nodes,
             levels: written.depth + 1,
         },
     )?;
-    let mut extra = serde_json::Map::new();
     let mut put = |k: &str, v: serde_json::Value| {
         extra.insert(k.into(), v);
     };
-    put(
-        "sampling",
-        serde_json::to_value(p.sampling).unwrap_or_default(),
-    );
-    put("max_leaf", p.max_leaf.into());
-    put("step", p.step.into());
+    put("max_leaf", format.max_leaf.into());
+    put("step", format.step.into());
     put("spacing", (quant.size / 128.0).into());
     put("scale", quant.scale.into());
     put("hierarchy_chunks", written.chunks.into());
@@ -119,6 +174,10 @@ pub fn build_with(
     put("hierarchy_bytes", written.hierarchy_bytes.into());
     put("units", units.into());
     put("largest_unit", largest.into());
+    if written.samples != n as u64 {
+        // Records that are no input point (`voxel`'s voxels) besides the input points.
+        put("samples", written.samples.into());
+    }
     let stats = BuildStats {
         points_in: n as u64,
         nodes,
@@ -133,8 +192,8 @@ pub fn build_with(
     .finish();
     let attributes = written.layout.attributes();
     Manifest {
-        method: NAME.into(),
-        format_version: FORMAT_VERSION,
+        method: name.into(),
+        format_version: format.format_version,
         params: params.clone(),
         attributes,
         points: n as u64,

@@ -75,6 +75,8 @@ pub struct Span {
     pub lo: [f32; 3],
     /// The node's local box.
     pub hi: [f32; 3],
+    /// True for a leaf (no children).
+    pub leaf: bool,
 }
 
 impl Span {
@@ -303,6 +305,7 @@ impl Hierarchy {
             s.offset = rec.offset;
             s.size = rec.size;
             s.points = self.nodes[node as usize].points;
+            s.leaf = rec.child_mask == 0;
             drop(spans);
             for c in 0..8u8 {
                 if rec.child_mask & (1 << c) == 0 {

@@ -131,6 +131,48 @@ impl ChunkSource for OctreeSource {
     }
 }
 
+/// How the drawn nodes of an octree in the Potree format combine into a frame.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum Refinement {
+    /// Potree's: a node adds points to its ancestors' (none is stored twice); every drawn
+    /// node is drawn whole, a point sized by the deepest drawn node over it ([`adaptive`]).
+    Additive,
+    /// `voxel`'s (Schütz et al. 2023): a drawn child *replaces* its parent's samples in its
+    /// octant, so a node is drawn only where no child of it is; a sample is sized by the
+    /// radius its chunk carries.
+    Replacing,
+}
+
+/// What a method reading the Potree format decides at open: its name (errors), how drawn
+/// nodes combine, and the splat radii of a decoded node.
+#[derive(Clone, Copy)]
+pub struct Mode {
+    /// Registry name, for messages.
+    pub name: &'static str,
+    /// How drawn nodes combine.
+    pub refinement: Refinement,
+    /// Fills the radii of a decoded node (its span, the root's spacing, the batch sorted by
+    /// [`adaptive::sort`]).
+    pub radii: fn(&hierarchy::Span, f64, &mut SplatBatch),
+}
+
+impl Mode {
+    /// Potree's: additive, every point's radius half its node's spacing (the draw scales it).
+    pub const POTREE: Mode = Mode {
+        name: NAME,
+        refinement: Refinement::Additive,
+        radii: level_radius,
+    };
+}
+
+/// Half the spacing of the node's level for every point ([`Mode::POTREE`]).
+fn level_radius(s: &hierarchy::Span, spacing: f64, b: &mut SplatBatch) {
+    let radius = (spacing / f64::from(1u32 << s.level.min(31)) * 0.5) as f32;
+    if let Some(r) = b.radii.as_mut() {
+        r.fill(radius);
+    }
+}
+
 /// An opened Potree octree.
 pub struct Potree {
     hierarchy: Hierarchy,
@@ -139,15 +181,29 @@ pub struct Potree {
     attributes: Attributes,
     access: Box<dyn DataAccess>,
     last: FrameCounters,
+    mode: Mode,
 }
 
 impl Potree {
     /// Opens a build written by [`build()`] (`method.json`, `potree.json` and the Potree
     /// files in `dir`).
     pub fn open(dir: &Path, manifest: Manifest) -> Result<Self, MethodError> {
-        let info: Info = crate::method::read_json(&dir.join(INFO_FILE))?;
         let params = PotreeParams::from_params(&manifest.params)?;
-        let p = Self::open_dir(dir, DVec3::from(info.origin), &params)?;
+        Self::open_build(dir, &manifest, INFO_FILE, &params, Mode::POTREE)
+    }
+
+    /// Opens a build of a method in the Potree format (`potree`, `voxel`): its info file
+    /// `info` (an [`Info`]) gives the origin, and the metadata's point count must be the
+    /// manifest's.
+    pub fn open_build(
+        dir: &Path,
+        manifest: &Manifest,
+        info: &str,
+        params: &PotreeParams,
+        mode: Mode,
+    ) -> Result<Self, MethodError> {
+        let info: Info = crate::method::read_json(&dir.join(info))?;
+        let p = Self::open_as(dir, DVec3::from(info.origin), params, mode)?;
         if p.meta.points != manifest.points {
             return Err(MethodError::corrupt(
                 dir.join(format::METADATA_FILE),
@@ -163,6 +219,17 @@ impl Potree {
     /// Opens a Potree 2.0 directory as PotreeConverter wrote it, positions relative to
     /// `origin` (the scene's), with `params` (their runtime part matters).
     pub fn open_dir(dir: &Path, origin: DVec3, params: &PotreeParams) -> Result<Self, MethodError> {
+        Self::open_as(dir, origin, params, Mode::POTREE)
+    }
+
+    /// [`Potree::open_dir`] for a method in the Potree format (`mode`: Potree's or
+    /// `voxel`'s).
+    pub fn open_as(
+        dir: &Path,
+        origin: DVec3,
+        params: &PotreeParams,
+        mode: Mode,
+    ) -> Result<Self, MethodError> {
         params.validate()?;
         let meta = Metadata::read(dir)?;
         let meta_path = dir.join(format::METADATA_FILE);
@@ -186,13 +253,14 @@ impl Potree {
         let octree_path = octree.path().to_owned();
         let spacing = meta.spacing;
         let decode_spans = Arc::clone(&spans);
+        let radii = mode.radii;
         let decoder: Decoder = Arc::new(move |id: u32, bytes: &[u8]| {
             let s = decode_spans.read().unwrap_or_else(|e| e.into_inner())[id as usize];
-            let radius = (spacing / f64::from(1u32 << s.level.min(31)) * 0.5) as f32;
-            let mut b = decoding.decode(bytes, s.points, radius).map_err(|m| {
+            let mut b = decoding.decode(bytes, s.points, 0.0).map_err(|m| {
                 MethodError::corrupt(&octree_path, format!("node {}: {m}", s.name()))
             })?;
             adaptive::sort(&mut b, glam::Vec3::from(s.lo), glam::Vec3::from(s.hi));
+            radii(&s, spacing, &mut b);
             Ok(b)
         });
         let source = OctreeSource {
@@ -218,6 +286,7 @@ impl Potree {
             attributes,
             access: Box::new(access),
             last: FrameCounters::default(),
+            mode,
         })
     }
 
@@ -335,6 +404,44 @@ impl Potree {
         Ok(items)
     }
 
+    /// The draw items of the drawn nodes `draw` when children replace their parent
+    /// ([`Refinement::Replacing`]): each node's points outside its drawn children (sorted
+    /// by octant at decode, so the rest is a few ranges), at the radius they carry.
+    fn replacing_items(&self, draw: &[u32]) -> Result<Vec<DrawItem>, MethodError> {
+        let nodes = self.hierarchy.nodes();
+        let mut drawn = vec![false; nodes.len()];
+        for &id in draw {
+            drawn[id as usize] = true;
+        }
+        let mut items = Vec::with_capacity(draw.len());
+        for &id in draw {
+            let n = &nodes[id as usize];
+            if n.points == 0 {
+                continue;
+            }
+            let batch = self.access.get(id)?;
+            // Only the children matter (a drawn grandchild's parent is drawn): the walk
+            // stops one level down.
+            let child_drawn = |depth: u32, path: u64| {
+                let c = n.children[(path & 7) as usize];
+                depth == 1 && c != hierarchy::NONE && drawn[c as usize]
+            };
+            let ranges = adaptive::ranges(&batch.positions, (n.lo, n.hi), n.level, &child_drawn);
+            for r in ranges.into_iter().filter(|r| r.lod == n.level) {
+                items.push(DrawItem::Chunk {
+                    id: ChunkId::from(id),
+                    first: r.first,
+                    points: r.len,
+                    size: SplatSize::Radius {
+                        scale: self.params.point_size,
+                        min_px: self.params.min_px,
+                    },
+                });
+            }
+        }
+        Ok(items)
+    }
+
     fn loaded(&self, id: u32, feedback: &Feedback) -> bool {
         !self.hierarchy.is_proxy(id)
             && (self.hierarchy.nodes()[id as usize].points == 0
@@ -376,7 +483,7 @@ impl LodMethod for Potree {
     ) -> Result<DrawList, MethodError> {
         let target = target.validate()?;
         crate::method::check_budget_above_root(
-            NAME,
+            self.mode.name,
             "root node",
             target,
             Some(self.hierarchy.nodes()[0].points),
@@ -414,7 +521,10 @@ impl LodMethod for Potree {
             hierarchy_chunks_read: self.hierarchy.chunks_read() - chunks_before,
         };
         self.last = c;
-        let items = self.adaptive_items(&sel.draw)?;
+        let items = match self.mode.refinement {
+            Refinement::Additive => self.adaptive_items(&sel.draw)?,
+            Refinement::Replacing => self.replacing_items(&sel.draw)?,
+        };
         Ok(DrawList {
             items,
             fetch: sel.waiting.iter().map(|&id| ChunkId::from(id)).collect(),

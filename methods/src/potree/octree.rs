@@ -175,15 +175,16 @@ impl Points for Loose {
     }
 }
 
-/// A node under construction.
+/// A node under construction; `E` is what a [`Fill`] keeps beside the points (nothing for
+/// Potree's subsample, the voxel grid for `voxel`).
 #[derive(Debug, Default)]
-pub struct Node {
+pub struct Node<E = ()> {
     /// Depth.
     pub level: u32,
     /// Octant digits from the root.
     pub path: u64,
     /// Children by octant (`None` where absent or dropped, or kept elsewhere).
-    pub children: [Option<Box<Node>>; 8],
+    pub children: [Option<Box<Node<E>>>; 8],
     /// Children that exist but are not in this tree (an out-of-core unit's root, seen from
     /// the top of the octree), as a child mask.
     pub outer_mask: u8,
@@ -193,9 +194,11 @@ pub struct Node {
     pub min: DVec3,
     /// World box.
     pub max: DVec3,
+    /// What the fill keeps beside the points.
+    pub extra: E,
 }
 
-impl Node {
+impl<E: Default> Node<E> {
     /// An empty node at (`level`, `path`) with the box of that octant of the root box.
     pub fn at(level: u32, path: u64, root: (DVec3, DVec3)) -> Self {
         let (mut min, mut max) = root;
@@ -216,7 +219,8 @@ impl Node {
             m | (u8::from(self.children[i].is_some()) << i)
         })
     }
-    fn has_children_here(&self) -> bool {
+    /// True if some child is in this tree.
+    pub fn has_children_here(&self) -> bool {
         self.children.iter().any(Option::is_some)
     }
     /// True if the node has no children at all.
@@ -226,10 +230,18 @@ impl Node {
 }
 
 /// Splits `range` (indices into `s`) into the octree under `node` (its level, path and box
-/// set).
-pub fn split(s: &Sorted, range: std::ops::Range<usize>, mut node: Node, max_leaf: usize) -> Node {
+/// set): a node of more than `max_leaf` points is split, and the root whatever it holds if
+/// `split_root` ([`Fill::splits_root`]).
+pub fn split<E: Default + Send>(
+    s: &Sorted,
+    range: std::ops::Range<usize>,
+    mut node: Node<E>,
+    max_leaf: usize,
+    split_root: bool,
+) -> Node<E> {
     let (level, path, min, max) = (node.level, node.path, node.min, node.max);
-    if range.len() <= max_leaf || level >= MAX_LEVEL {
+    let small = range.len() <= max_leaf && !(split_root && level == 0);
+    if small || level >= MAX_LEVEL {
         node.points = (s.base + range.start as u32..s.base + range.end as u32).collect();
         return node;
     }
@@ -245,7 +257,7 @@ pub fn split(s: &Sorted, range: std::ops::Range<usize>, mut node: Node, max_leaf
         }
         start = stop;
     }
-    let kids: Vec<(u8, Node)> = bounds
+    let kids: Vec<(u8, Node<E>)> = bounds
         .into_par_iter()
         .map(|(oct, r)| {
             let (cmin, cmax) = format::child_box(min, max, oct);
@@ -256,13 +268,56 @@ pub fn split(s: &Sorted, range: std::ops::Range<usize>, mut node: Node, max_leaf
                 max: cmax,
                 ..Default::default()
             };
-            (oct, split(s, r, child, max_leaf))
+            (oct, split(s, r, child, max_leaf, false))
         })
         .collect();
     for (oct, k) in kids {
         node.children[usize::from(oct)] = Some(Box::new(k));
     }
     node
+}
+
+/// What fills the inner nodes of an octree build and turns the finished tree into node
+/// descriptions: Potree's subsample ([`Subsample`]) or `voxel`'s grid of averaged samples.
+/// The tree, its split, the units of an out-of-core build and the files are shared
+/// ([`super::ooc::build_files`]); only this differs.
+pub trait Fill: Sync {
+    /// What a node keeps beside its points while the tree is built.
+    type Extra: Default + Send + Sync + std::fmt::Debug;
+    /// The method's name, for progress phases and spill folders.
+    fn name(&self) -> &'static str;
+    /// True if the root is an inner node however few points the cloud has (`voxel`: its
+    /// coarsest level is always a grid of voxels); false: a cloud of at most `max_leaf`
+    /// points is one leaf (Potree).
+    fn splits_root(&self) -> bool {
+        false
+    }
+    /// Fills every inner node of `node`'s tree bottom up from its children; nodes without
+    /// children in this tree (leaves, or unit roots filled already) are left as they are.
+    fn fill<P: Points>(&self, node: &mut Node<Self::Extra>, s: &P);
+    /// Every node of `node`'s tree as a description, its contents moved out of the tree.
+    fn describe(&self, node: Node<Self::Extra>, out: &mut Vec<super::write::Desc>);
+}
+
+/// Potree's inner nodes: points moved up from the children ([`sample`]).
+pub struct Subsample<'a> {
+    /// The root's spacing.
+    pub spacing: f64,
+    /// The build's parameters.
+    pub params: &'a PotreeParams,
+}
+
+impl Fill for Subsample<'_> {
+    type Extra = ();
+    fn name(&self) -> &'static str {
+        super::NAME
+    }
+    fn fill<P: Points>(&self, node: &mut Node, s: &P) {
+        sample(node, s, self.spacing, self.params);
+    }
+    fn describe(&self, node: Node, out: &mut Vec<super::write::Desc>) {
+        super::write::describe(node, out);
+    }
 }
 
 /// Moves the sample of every inner node of `node`'s tree up from its children, bottom up

@@ -22,8 +22,7 @@ use glam::DVec3;
 use rayon::prelude::*;
 use scenes::{PointCloud, Progress};
 
-use super::PotreeParams;
-use super::octree::{self, Loose, MORTON_BITS, Node, Quant, Sorted};
+use super::octree::{self, Fill, Loose, MORTON_BITS, Node, Quant, Sorted};
 use super::write::{self, Desc, Src};
 use crate::MethodError;
 use crate::spill::{Budget, Spill, SpillDir};
@@ -81,41 +80,101 @@ fn cell_of(code: u64) -> usize {
     (code >> (3 * (MORTON_BITS - GRID_LEVEL))) as usize
 }
 
-/// What [`build`] made.
+/// What [`build_files`] made.
 pub struct Built {
     /// The files written.
     pub written: write::Written,
-    /// Units.
+    /// Units (1 in core).
     pub units: u64,
-    /// Points of the largest unit.
+    /// Points of the largest unit (the cloud's in core).
     pub largest_unit: u64,
 }
 
-/// Builds `cloud` in units of at most `budget.mem_bytes / 64` points into `budget.dir`.
-pub fn build(
-    cloud: &PointCloud,
-    quant: Quant,
-    p: &PotreeParams,
-    meta: crate::potree::format::Metadata,
+/// What an octree build in the Potree format is made of.
+pub struct Tree<'a, F> {
+    /// The points.
+    pub cloud: &'a PointCloud,
+    /// Their cube and quantisation.
+    pub quant: Quant,
+    /// Leaf capacity: a node of more points is split.
+    pub max_leaf: u32,
+    /// What fills the inner nodes.
+    pub fill: &'a F,
+    /// The metadata (hierarchy sizes filled in by the files' writer).
+    pub meta: crate::potree::format::Metadata,
+}
+
+/// Builds `tree`'s octree (nodes of at most `max_leaf` points, inner nodes filled by `fill`)
+/// into the Potree files in `budget.dir`: in core when the cloud fits `budget.mem_bytes`
+/// ([`unit_capacity`]), else in units of at most that many points. Both give the same files
+/// byte for byte.
+pub fn build_files<F: Fill>(
+    tree: Tree<'_, F>,
     budget: Budget<'_>,
     progress: &dyn Progress,
 ) -> Result<Built, MethodError> {
+    let n = tree.cloud.len();
+    if n as u64 > unit_capacity(budget.mem_bytes) {
+        return build(tree, budget, progress);
+    }
+    let (cloud, quant, fill) = (tree.cloud, tree.quant, tree.fill);
+    let name = fill.name();
+    progress.start(&format!("{name}: sort"), n as u64);
+    let origin = cloud.origin();
+    let keyed: Vec<(u64, u32)> = cloud
+        .positions()
+        .par_iter()
+        .enumerate()
+        .map(|(i, &l)| (quant.morton(quant.of_local(origin, l)), i as u32))
+        .collect();
+    let sorted = Sorted::new(cloud, quant, 0, keyed);
+    progress.finish();
+    progress.start(&format!("{name}: octree"), n as u64);
+    let at = Node::at(0, 0, (quant.min, quant.min + DVec3::splat(quant.size)));
+    let max_leaf = tree.max_leaf as usize;
+    let mut root = octree::split(&sorted, 0..n, at, max_leaf, fill.splits_root());
+    fill.fill(&mut root, &sorted);
+    progress.finish();
+    let mut descs = Vec::new();
+    fill.describe(root, &mut descs);
+    let written = write::write_files(cloud, tree.meta, &mut descs, &sorted, &mut [], budget.dir)?;
+    Ok(Built {
+        written,
+        units: 1,
+        largest_unit: n as u64,
+    })
+}
+
+/// [`build_files`] in units of at most `budget.mem_bytes / 64` points.
+fn build<F: Fill>(
+    tree: Tree<'_, F>,
+    budget: Budget<'_>,
+    progress: &dyn Progress,
+) -> Result<Built, MethodError> {
+    let Tree {
+        cloud,
+        quant,
+        max_leaf,
+        fill,
+        meta,
+    } = tree;
     let n = cloud.len();
+    let name = fill.name();
     let origin = cloud.origin();
     let pos = cloud.positions();
     let code_of = |i: usize| quant.morton(quant.of_local(origin, pos[i]));
     // 1. Count.
-    progress.start("potree: count", n as u64);
+    progress.start(&format!("{name}: count"), n as u64);
     let prefix = count_cells(n, &code_of);
     progress.finish();
     // 2. Plan.
-    let cap = unit_capacity(budget.mem_bytes).max(u64::from(p.max_leaf));
+    let cap = unit_capacity(budget.mem_bytes).max(u64::from(max_leaf));
     let units = plan(&prefix, cap);
     let (unit_of, bases) = unit_cells(&units, &prefix);
     drop(prefix);
     // 3. Route.
-    let spill = SpillDir::create(budget.dir, "potree-units")?;
-    progress.start("potree: route", n as u64);
+    let spill = SpillDir::create(budget.dir, &format!("{name}-units"))?;
+    progress.start(&format!("{name}: route"), n as u64);
     let routed = route(cloud, &code_of, &unit_of, units.len(), &spill)?;
     drop(unit_of);
     progress.finish();
@@ -123,13 +182,13 @@ pub fn build(
         hook(&routed.iter().collect::<Vec<_>>());
     }
     // 4. Units.
-    progress.start("potree: units", n as u64);
+    progress.start(&format!("{name}: units"), n as u64);
     let builder = UnitBuilder {
         cloud,
         quant,
-        p,
+        max_leaf,
+        fill,
         spill: &spill,
-        spacing: quant.size / 128.0,
         root_box: (quant.min, quant.min + DVec3::splat(quant.size)),
         bpp: meta
             .layout(&budget.dir.join(crate::potree::format::METADATA_FILE))?
@@ -154,7 +213,7 @@ pub fn build(
         loose,
         largest,
     } = built;
-    // 5. Top: the nodes above the units, sampling from the units' roots.
+    // 5. Top: the nodes above the units, filled from the units' roots.
     let loose = builder.top(roots, loose, &mut descs);
     // 6. Files.
     let mut readers = encoded
@@ -240,13 +299,13 @@ fn route(
 }
 
 /// What step 4 has made of the units so far.
-struct BuiltUnits {
+struct BuiltUnits<E> {
     /// Every node below a unit's root.
     descs: Vec<Desc>,
     /// Per unit, the spill file of those nodes' points.
     encoded: Vec<Spill>,
     /// Per unit, its root (with its points).
-    roots: Vec<Node>,
+    roots: Vec<Node<E>>,
     /// The units' roots' points: (rank, integer position, input index).
     loose: Vec<(u32, [i32; 3], u32)>,
     /// Points of the largest unit.
@@ -254,22 +313,21 @@ struct BuiltUnits {
 }
 
 /// What steps 4 and 5 build the nodes with.
-struct UnitBuilder<'a> {
+struct UnitBuilder<'a, F> {
     cloud: &'a PointCloud,
     quant: Quant,
-    p: &'a PotreeParams,
+    max_leaf: u32,
+    fill: &'a F,
     spill: &'a SpillDir,
-    /// The root's sampling spacing.
-    spacing: f64,
     /// The root's box.
     root_box: (DVec3, DVec3),
     /// Bytes per point in the files.
     bpp: usize,
 }
 
-impl UnitBuilder<'_> {
+impl<F: Fill> UnitBuilder<'_, F> {
     /// Step 4 for unit `k` (`u`, its points routed to `routed`, which is removed; `base`:
-    /// its first global rank): sort, split, sample as in core; every node but the root is
+    /// its first global rank): sort, split, fill as in core; every node but the root is
     /// encoded into a spill file, breadth first; the root, with its points, joins the top.
     fn unit(
         &self,
@@ -277,9 +335,9 @@ impl UnitBuilder<'_> {
         u: &Unit,
         routed: Spill,
         base: u32,
-        out: &mut BuiltUnits,
+        out: &mut BuiltUnits<F::Extra>,
     ) -> Result<(), MethodError> {
-        let (cloud, p, bpp) = (self.cloud, self.p, self.bpp);
+        let (cloud, bpp) = (self.cloud, self.bpp);
         let mut keyed = Vec::with_capacity(u.count as usize);
         routed.read(|block| {
             for r in block.chunks_exact(12) {
@@ -293,29 +351,44 @@ impl UnitBuilder<'_> {
         out.largest = out.largest.max(keyed.len() as u64);
         let sorted = Sorted::new(cloud, self.quant, base, keyed);
         let at = Node::at(u.level, u.path, self.root_box);
-        let mut root = octree::split(&sorted, 0..sorted.len(), at, p.max_leaf as usize);
-        octree::sample(&mut root, &sorted, self.spacing, p);
+        let max_leaf = self.max_leaf as usize;
+        let mut root = octree::split(
+            &sorted,
+            0..sorted.len(),
+            at,
+            max_leaf,
+            self.fill.splits_root(),
+        );
+        self.fill.fill(&mut root, &sorted);
         // Every node below the root, breadth first, encoded into the unit's file.
         root.outer_mask = root.child_mask();
         let mut below = Vec::new();
         for c in std::mem::take(&mut root.children).into_iter().flatten() {
-            write::describe(*c, &mut below);
+            self.fill.describe(*c, &mut below);
         }
         below.sort_unstable_by_key(|d| (d.level, d.path));
         let mut w = self.spill.writer_with_block("unit", bpp, SPILL_BLOCK)?;
         let mut buf = vec![0u8; bpp];
         for d in below {
-            if let Src::Ids(ids) = &d.src {
-                for &id in ids {
-                    let i = sorted.order[(id - sorted.base) as usize];
-                    write::encode(
-                        cloud,
-                        i as usize,
-                        sorted.q[(id - sorted.base) as usize],
-                        &mut buf,
-                    );
-                    w.push(&buf)?;
+            match &d.src {
+                Src::Ids(ids) => {
+                    for &id in ids {
+                        let i = sorted.order[(id - sorted.base) as usize];
+                        write::encode(
+                            cloud,
+                            i as usize,
+                            sorted.q[(id - sorted.base) as usize],
+                            &mut buf,
+                        );
+                        w.push(&buf)?;
+                    }
                 }
+                Src::Encoded(records) => {
+                    for r in records.chunks_exact(bpp) {
+                        w.push(r)?;
+                    }
+                }
+                Src::Unit(_) => {}
             }
             out.descs.push(Desc {
                 src: Src::Unit(k),
@@ -331,11 +404,11 @@ impl UnitBuilder<'_> {
         Ok(())
     }
 
-    /// Step 5: the nodes above the units, sampled from the units' `roots` (whose points are
+    /// Step 5: the nodes above the units, filled from the units' `roots` (whose points are
     /// `loose`), described into `descs`; returns the points by rank.
     fn top(
         &self,
-        roots: Vec<Node>,
+        roots: Vec<Node<F::Extra>>,
         mut loose: Vec<(u32, [i32; 3], u32)>,
         descs: &mut Vec<Desc>,
     ) -> Loose {
@@ -348,14 +421,14 @@ impl UnitBuilder<'_> {
         for r in roots {
             insert(&mut top, r, self.root_box);
         }
-        octree::sample(&mut top, &loose, self.spacing, self.p);
-        write::describe(top, descs);
+        self.fill.fill(&mut top, &loose);
+        self.fill.describe(top, descs);
         loose
     }
 }
 
 /// Puts unit root `r` into the top tree under `top`, creating the nodes on the way.
-fn insert(top: &mut Node, r: Node, root_box: (DVec3, DVec3)) {
+fn insert<E: Default>(top: &mut Node<E>, r: Node<E>, root_box: (DVec3, DVec3)) {
     if r.level == top.level {
         // The unit is the whole cloud's root.
         *top = r;

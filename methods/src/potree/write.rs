@@ -9,7 +9,6 @@ use std::path::Path;
 use glam::DVec3;
 use scenes::PointCloud;
 
-use super::PotreeParams;
 use super::format::{self, AttributeDesc, BoundingBox, HierarchyInfo, Metadata, NodeKind, Record};
 use super::octree::{Points, Quant};
 use crate::MethodError;
@@ -35,6 +34,9 @@ pub enum Src {
     Ids(Vec<u32>),
     /// The next `points` records of unit `u`'s spill file (encoded already).
     Unit(usize),
+    /// In memory, encoded already ([`encode_record`]): samples that are no input point
+    /// (`voxel`'s averaged voxels).
+    Encoded(Vec<u8>),
 }
 
 /// Every node of `root`'s tree, its points (moved out of the tree) in memory.
@@ -54,20 +56,32 @@ pub fn describe(mut root: super::octree::Node, out: &mut Vec<Desc>) {
 /// Encodes the point record of input sample `i` at integer position `q` into `rec` (as long
 /// as the layout's `bytes_per_point`): position, then `rgb` and `NormalX/Y/Z` if present.
 pub fn encode(cloud: &PointCloud, i: usize, q: [i32; 3], rec: &mut [u8]) {
+    encode_record(
+        q,
+        cloud.colors().map(|c| c[i]),
+        cloud.normals().map(|n| n[i]),
+        rec,
+    );
+}
+
+/// Encodes a point record (as long as the layout's `bytes_per_point`): position `q`, then
+/// the 8-bit colour `rgb` as `uint16` (`v · 257`, which the reader's `v / 256` turns back
+/// into `v`) and the normal, each when given (the layout has them iff the scene has).
+pub fn encode_record(q: [i32; 3], rgb: Option<[u8; 3]>, normal: Option<[f32; 3]>, rec: &mut [u8]) {
     for k in 0..3 {
         rec[4 * k..4 * k + 4].copy_from_slice(&q[k].to_le_bytes());
     }
     let mut at = 12;
-    if let Some(c) = cloud.colors() {
+    if let Some(c) = rgb {
         for k in 0..3 {
-            let v = u16::from(c[i][k]) * 257;
+            let v = u16::from(c[k]) * 257;
             rec[at + 2 * k..at + 2 * k + 2].copy_from_slice(&v.to_le_bytes());
         }
         at += 6;
     }
-    if let Some(nm) = cloud.normals() {
+    if let Some(nm) = normal {
         for k in 0..3 {
-            rec[at + 4 * k..at + 4 * k + 4].copy_from_slice(&nm[i][k].to_le_bytes());
+            rec[at + 4 * k..at + 4 * k + 4].copy_from_slice(&nm[k].to_le_bytes());
         }
     }
 }
@@ -121,12 +135,15 @@ pub struct Written {
     pub depth: u32,
     /// Nodes.
     pub nodes: u64,
+    /// Records (points and any other samples) in `octree.bin`.
+    pub samples: u64,
     /// The record layout.
     pub layout: format::Layout,
 }
 
-/// The metadata of a build of `cloud` (hierarchy sizes filled in by [`write_files`]).
-pub fn metadata(cloud: &PointCloud, quant: &Quant, p: &PotreeParams, scene: &str) -> Metadata {
+/// The metadata of a build of `cloud` with hierarchy chunks of `step` levels (hierarchy
+/// sizes filled in by [`write_files`]).
+pub fn metadata(cloud: &PointCloud, quant: &Quant, step: u32, scene: &str) -> Metadata {
     let (min, max) = (quant.min, quant.min + DVec3::splat(quant.size));
     Metadata {
         version: format::VERSION.into(),
@@ -136,7 +153,7 @@ pub fn metadata(cloud: &PointCloud, quant: &Quant, p: &PotreeParams, scene: &str
         projection: String::new(),
         hierarchy: HierarchyInfo {
             first_chunk_size: 0,
-            step_size: p.step,
+            step_size: step,
             depth: 0,
         },
         offset: quant.min.to_array(),
@@ -180,6 +197,10 @@ pub fn write_files(
                     out.write_all(&rec)
                         .map_err(|e| MethodError::io(&octree_path, e))?;
                 }
+            }
+            Src::Encoded(records) => {
+                out.write_all(records)
+                    .map_err(|e| MethodError::io(&octree_path, e))?;
             }
             Src::Unit(u) => {
                 for _ in 0..d.points {
@@ -247,6 +268,7 @@ pub fn write_files(
         chunks: chunk_list.len() as u64,
         depth,
         nodes: descs.len() as u64,
+        samples: offset / bpp as u64,
         layout,
     })
 }

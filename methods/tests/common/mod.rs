@@ -152,6 +152,52 @@ pub fn spt_build_open(
     methods::spt::Spt::open(dir, methods::Manifest::read(dir).unwrap())
 }
 
+/// A node of a build in the Potree format (`potree`, `voxel`) read back: its span, and its
+/// records' integer positions and 8-bit colours.
+pub type NodeRecords = (
+    methods::potree::hierarchy::Span,
+    Vec<([i32; 3], Option<[u8; 3]>)>,
+);
+
+/// Every record of the build in the Potree format in `dir` (its info file `info`, read with
+/// `mode`), node by node in the hierarchy's order, with the metadata.
+pub fn read_back(
+    dir: &std::path::Path,
+    info: &str,
+    mode: methods::potree::Mode,
+) -> (methods::potree::format::Metadata, Vec<NodeRecords>) {
+    use glam::DVec3;
+    use methods::potree::format::{Decoding, Metadata};
+    let meta = Metadata::read(dir).unwrap();
+    let layout = meta.layout(&dir.join("metadata.json")).unwrap();
+    let dec = Decoding {
+        layout,
+        scale: DVec3::from(meta.scale),
+        offset: DVec3::from(meta.offset),
+        origin: DVec3::ZERO,
+    };
+    let info: methods::potree::Info =
+        serde_json::from_str(&std::fs::read_to_string(dir.join(info)).unwrap()).unwrap();
+    let params = methods::potree::PotreeParams::default();
+    let mut p =
+        methods::potree::Potree::open_as(dir, DVec3::from(info.origin), &params, mode).unwrap();
+    p.expand_all().unwrap();
+    let octree = std::fs::read(dir.join("octree.bin")).unwrap();
+    let spans = p.hierarchy().spans();
+    let spans = spans.read().unwrap();
+    let nodes = spans
+        .iter()
+        .map(|s| {
+            let bytes = &octree[s.offset as usize..(s.offset + s.size) as usize];
+            let recs = (0..s.points as usize)
+                .map(|i| (dec.raw_position(bytes, i), dec.color(bytes, i)))
+                .collect();
+            (*s, recs)
+        })
+        .collect();
+    (meta, nodes)
+}
+
 /// The statue SPT's tests use (seed 7).
 pub fn spt_statue(n: usize) -> PointCloud {
     Generator::Statue.generate(n, 7).unwrap()

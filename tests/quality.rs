@@ -119,6 +119,14 @@ fn hole_bound(method: MethodKind, params: &[&str], scene: &str, path: &str) -> H
             "Potree's level-spacing point size (1.7 s, narrower than the 2 s a Poisson-disk \
              sample needs) on the statue orbit",
         ),
+        // voxel draws its voxels cell-sized (√3·s across, the paper's pixel-sized voxels taken
+        // literally): where the terrain's samples are sparser than the root's cells, gaps
+        // show on the first frame, before the leaves load (`sizing=spacing` bridges them).
+        MethodKind::Voxel if terrain => HoleBound::ratchet(
+            0.0146,
+            "voxel's cell-sized splats where the terrain's samples are sparser than the \
+             root's 128³ cells (density varies > 100x), before the leaves load",
+        ),
         // CLOD keeps a point only when its spacing is at least the target spacing (ε px at the
         // screen's centre, up to ε/0.3 at its edge with the paper's foveation), and its rule
         // has no floor: where even the root's spacing (cube side / 128) projects below that,

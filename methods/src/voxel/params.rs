@@ -25,13 +25,14 @@ pub const RUNTIME_PARAMS: &[&str] = &[
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Default, serde::Deserialize, serde::Serialize)]
 #[serde(rename_all = "lowercase")]
 pub enum Sizing {
-    /// Its cell's corners, and across the gaps where its node's samples are sparser than
-    /// its cells (`super::radii`): no holes where the data is sparse.
-    #[default]
-    Spacing,
     /// Its cell's corners only (`√3·s` across): the paper's pixel-sized voxels taken
-    /// literally, with holes where the data is sparser than the cells.
+    /// literally, with holes where the data is sparser than the cells (the default: the
+    /// paper's).
+    #[default]
     Cell,
+    /// A departure: its cell's corners, and across the gaps where its node's samples are
+    /// sparser than its cells (`super::radii`): no holes where the data is sparse.
+    Spacing,
 }
 
 /// Where an inner node's voxel sample lies (`--param position=`).
@@ -94,7 +95,7 @@ impl Default for VoxelParams {
             min_node_px: MIN_NODE_PX,
             point_size: 1.0,
             min_px: 1.0,
-            sizing: Sizing::Spacing,
+            sizing: Sizing::Cell,
             core_mb: 256,
             delay_frames: 0,
             in_flight: None,

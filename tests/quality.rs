@@ -122,10 +122,12 @@ fn hole_bound(method: MethodKind, params: &[&str], scene: &str, path: &str) -> H
         // voxel draws its voxels cell-sized (√3·s across, the paper's pixel-sized voxels taken
         // literally): where the terrain's samples are sparser than the root's cells, gaps
         // show on the first frame, before the leaves load (`sizing=spacing` bridges them).
+        // Loading is asynchronous, so frame 0 holds the root alone or more: the root alone is
+        // the worst (3.05 %; 1.46 % when a leaf had arrived, on an idle machine).
         MethodKind::Voxel if terrain => HoleBound::ratchet(
-            0.0146,
+            0.0305,
             "voxel's cell-sized splats where the terrain's samples are sparser than the \
-             root's 128³ cells (density varies > 100x), before the leaves load",
+             root's 128³ cells (density varies > 100x), the root alone on frame 0",
         ),
         // CLOD keeps a point only when its spacing is at least the target spacing (ε px at the
         // screen's centre, up to ε/0.3 at its edge with the paper's foveation), and its rule

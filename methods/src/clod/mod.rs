@@ -172,13 +172,7 @@ pub fn build(
     progress.start("clod: octree", n as u64);
     let quant = Quant::of(cloud);
     let origin = cloud.origin();
-    let keyed: Vec<(u64, u32)> = cloud
-        .positions()
-        .par_iter()
-        .enumerate()
-        .map(|(i, &l)| (quant.morton(quant.of_local(origin, l)), i as u32))
-        .collect();
-    let sorted = Sorted::new(cloud, quant, 0, keyed);
+    let sorted = Sorted::of_cloud(cloud, quant);
     let at = Node::at(0, 0, (quant.min, quant.min + DVec3::splat(quant.size)));
     let mut root = octree::split(&sorted, 0..n, at, p.max_leaf as usize, false);
     let spacing = quant.size / 128.0;

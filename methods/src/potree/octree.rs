@@ -109,6 +109,18 @@ pub struct Sorted {
 }
 
 impl Sorted {
+    /// Every point of `cloud` (in core), keyed by its Morton code under `quant` and sorted.
+    pub fn of_cloud(cloud: &PointCloud, quant: Quant) -> Self {
+        let origin = cloud.origin();
+        let keyed: Vec<(u64, u32)> = cloud
+            .positions()
+            .par_iter()
+            .enumerate()
+            .map(|(i, &l)| (quant.morton(quant.of_local(origin, l)), i as u32))
+            .collect();
+        Self::new(cloud, quant, 0, keyed)
+    }
+
     /// Sorts `keyed` (Morton code, input index) pairs of `cloud`'s points.
     pub fn new(cloud: &PointCloud, quant: Quant, base: u32, mut keyed: Vec<(u64, u32)>) -> Self {
         keyed.par_sort_unstable();

@@ -120,14 +120,7 @@ pub fn build_files<F: Fill>(
     let (cloud, quant, fill) = (tree.cloud, tree.quant, tree.fill);
     let name = fill.name();
     progress.start(&format!("{name}: sort"), n as u64);
-    let origin = cloud.origin();
-    let keyed: Vec<(u64, u32)> = cloud
-        .positions()
-        .par_iter()
-        .enumerate()
-        .map(|(i, &l)| (quant.morton(quant.of_local(origin, l)), i as u32))
-        .collect();
-    let sorted = Sorted::new(cloud, quant, 0, keyed);
+    let sorted = Sorted::of_cloud(cloud, quant);
     progress.finish();
     progress.start(&format!("{name}: octree"), n as u64);
     let at = Node::at(0, 0, (quant.min, quant.min + DVec3::splat(quant.size)));

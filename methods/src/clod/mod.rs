@@ -465,6 +465,38 @@ impl LodMethod for Clod {
     fn gpu_resident_bytes(&self) -> Option<u64> {
         Some(self.chunks.iter().map(|c| c.byte_size()).sum())
     }
+    /// The points its filter keeps, counted in parallel by [`Clod::count_kept`] (the same
+    /// predicate as [`crate::method::count_drawn`]'s, without decoding every normal it ignores), when
+    /// every item carries one CLOD test for this view; otherwise the default count.
+    fn drawn_points(&self, view: &View, list: &DrawList) -> Result<u64, MethodError> {
+        let vp = view.view_proj().to_cols_array_2d();
+        let mut tests = list.items.iter().map(|i| match i {
+            DrawItem::Sequential {
+                test: SplatTest::Clod(t),
+                prefix,
+                id,
+                ..
+            } if t.view_proj == vp
+                && t.fovea == self.params.fovea
+                && self
+                    .chunks
+                    .get(*id as usize)
+                    .is_some_and(|c| c.len() == *prefix as usize) =>
+            {
+                Some(t.scale)
+            }
+            _ => None,
+        });
+        let first = tests.next().flatten();
+        match first {
+            Some(scale)
+                if list.items.len() == self.chunks.len() && tests.all(|t| t == Some(scale)) =>
+            {
+                Ok(self.count_kept(view, scale))
+            }
+            _ => crate::method::count_drawn(self, view, list),
+        }
+    }
 }
 
 /// Median hole ratio above which a run's holes are taken as the foveated rule's: 2 % (LPC's

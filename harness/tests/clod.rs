@@ -1,7 +1,8 @@
 //! CLOD on the GPU (`clod.wgsl`): the filter passes exactly the points its CPU mirror
 //! (`methods::clod::select`) keeps, and the faded, distance-sized points cover the pixels
 //! the CPU mirror of the rasteriser covers: exactly with the compute rasteriser, and with the
-//! quads but for pixels whose centre lies within the rasteriser's snapping of an edge.
+//! quads but for pixels whose centre lies within the rasteriser's snapping of an edge; under a
+//! budget, what passes on the GPU is what the mirror counts, within the budget.
 #![allow(clippy::unwrap_used)]
 
 mod common;
@@ -22,45 +23,22 @@ use scenes::paths::PathSpec;
 /// ones (a 0.3 px square covers a centre with probability 0.09 and has one within 1/256 px of
 /// an edge with probability ≈ 0.005), hence this bound instead of `render.rs`'s fraction.
 fn borderline(v: &View, m: &Clod, list: &methods::DrawList) -> std::collections::HashSet<usize> {
-    let Some(methods::DrawItem::Sequential {
-        test: methods::SplatTest::Clod(t),
-        size: methods::SplatSize::Clod { point_size },
-        ..
-    }) = list.items.first().cloned()
-    else {
-        panic!("clod draws sequential items");
-    };
     let delta = 1.0 / (1u32 << cpu::SUBPIXEL_BITS) as f32;
-    let vp = v.view_proj();
-    let eye = v.camera.position;
     let (w, h) = (v.width as i64, v.height as i64);
     let mut out = std::collections::HashSet::new();
-    for id in 0.. {
-        let Ok(c) = m.chunk(id) else { break };
-        let lod = c.lod.as_ref().unwrap();
-        for (p, l) in c.positions.iter().zip(lod) {
-            let p = glam::Vec3::from(*p);
-            if !t.passes(p, [l[0], 0.0, 0.0, 0.0], eye) {
-                continue;
-            }
-            let clip = vp * p.extend(1.0);
-            let half = 0.5 * cpu::clod_px(&t, point_size, l[0], p, clip, eye, v.proj_scale());
-            let cx = (clip.x / clip.w * 0.5 + 0.5) * v.width as f32;
-            let cy = (0.5 - clip.y / clip.w * 0.5) * v.height as f32;
-            let near = |c: f32, x: f32| {
-                ((x - (c - half)).abs() <= delta) || ((x - (c + half)).abs() <= delta)
-            };
-            let x0 = ((cx - half - delta - 0.5).floor() as i64).max(0);
-            let x1 = ((cx + half + delta - 0.5).ceil() as i64).min(w - 1);
-            let y0 = ((cy - half - delta - 0.5).floor() as i64).max(0);
-            let y1 = ((cy + half + delta - 0.5).ceil() as i64).min(h - 1);
-            for y in y0..=y1 {
-                for x in x0..=x1 {
-                    let (xc, yc) = (x as f32 + 0.5, y as f32 + 0.5);
-                    let inside = |c: f32, q: f32| (q - c).abs() <= half + delta;
-                    if inside(cx, xc) && inside(cy, yc) && (near(cx, xc) || near(cy, yc)) {
-                        out.insert((y * w + x) as usize);
-                    }
+    for (cx, cy, half) in cpu::squares(v, list, m).unwrap() {
+        let near =
+            |c: f32, x: f32| ((x - (c - half)).abs() <= delta) || ((x - (c + half)).abs() <= delta);
+        let inside = |c: f32, q: f32| (q - c).abs() <= half + delta;
+        let x0 = ((cx - half - delta - 0.5).floor() as i64).max(0);
+        let x1 = ((cx + half + delta - 0.5).ceil() as i64).min(w - 1);
+        let y0 = ((cy - half - delta - 0.5).floor() as i64).max(0);
+        let y1 = ((cy + half + delta - 0.5).ceil() as i64).min(h - 1);
+        for y in y0..=y1 {
+            for x in x0..=x1 {
+                let (xc, yc) = (x as f32 + 0.5, y as f32 + 0.5);
+                if inside(cx, xc) && inside(cy, yc) && (near(cx, xc) || near(cy, yc)) {
+                    out.insert((y * w + x) as usize);
                 }
             }
         }
@@ -148,6 +126,16 @@ fn clod_gpu_pass_count_and_coverage_equal_the_cpu_mirror() {
                             );
                         }
                     }
+                }
+                // Budgets on the GPU: what passes the filter there is what the mirror counts,
+                // and never more than the budget.
+                for b in [300u64, 3_000] {
+                    let what = format!("{params:?} {raster:?} view {vi} budget {b}");
+                    let list = m.frame(v, Target::Budget(b), &Feedback::default()).unwrap();
+                    let (stats, _) = r.draw(v, &list, &m, false).unwrap();
+                    let mirror = m.drawn_points(v, &list).unwrap();
+                    assert_eq!(stats.gpu_passed, Some(mirror), "{what}");
+                    assert!(0 < mirror && mirror <= b, "{what}: {mirror} passed");
                 }
             }
         }

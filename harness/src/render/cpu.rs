@@ -211,6 +211,19 @@ pub fn rasterize_shaded(
     render_shaded(view, list, method, kernel, shade).map(|f| f.image)
 }
 
+/// The squares the mirror rasterises for `list` in `view`: each drawn splat's centre (x, y in
+/// pixels, y down) and half side in pixels, in draw order (splats the LOD tests reject or
+/// behind the eye left out). For tests that bound where the GPU's snapped quad edges may
+/// cover pixels the mirror does not.
+pub fn squares(
+    view: &View,
+    list: &DrawList,
+    method: &dyn LodMethod,
+) -> anyhow::Result<Vec<(f32, f32, f32)>> {
+    let (splats, _, _) = footprints(view, &list.items, method, Kernel::Square, &Shade::default())?;
+    Ok(splats.iter().map(|f| (f.cx, f.cy, f.half)).collect())
+}
+
 /// Footprints of the splats of `items` (those the interval tests pass, in front of the eye),
 /// plus the splats sent and the cached chunks drawn.
 fn footprints<'a>(

@@ -26,7 +26,7 @@
 pub mod select;
 
 use std::path::Path;
-use std::sync::Arc;
+use std::sync::{Arc, Mutex};
 use std::time::Instant;
 
 use glam::{DVec3, Vec3};
@@ -270,6 +270,27 @@ pub struct Clod {
     info: Info,
     params: ClodParams,
     points: u64,
+    /// The last [`Clod::count_kept`], by its inputs' bits: a budget's frame counts at its
+    /// scale to confirm it, and the runner's [`LodMethod::drawn_points`] asks the same count
+    /// of the same frame; each is a pass over every point.
+    last_count: Mutex<Option<(CountKey, u64)>>,
+}
+
+/// The inputs of a count, bit for bit: the view-projection, the eye, the scale (the fovea
+/// is fixed when the build is opened, the points when it is read).
+type CountKey = [u32; 20];
+
+fn count_key(vp: &glam::Mat4, eye: Vec3, scale: f32) -> CountKey {
+    let mut k = [0u32; 20];
+    for (d, v) in k.iter_mut().zip(
+        vp.to_cols_array()
+            .into_iter()
+            .chain(eye.to_array())
+            .chain([scale]),
+    ) {
+        *d = v.to_bits();
+    }
+    k
 }
 
 impl Clod {
@@ -322,6 +343,7 @@ impl Clod {
             info,
             params,
             points: manifest.points,
+            last_count: Mutex::new(None),
         })
     }
 
@@ -370,12 +392,22 @@ impl Clod {
         scale
     }
 
-    /// Points the filter keeps for `view` at `scale` (the CPU mirror, in parallel).
+    /// Points the filter keeps for `view` at `scale` (the CPU mirror, in parallel; the last
+    /// count is remembered, so the same question twice is one pass).
     pub fn count_kept(&self, view: &View, scale: f32) -> u64 {
         let vp = view.view_proj();
         let eye = view.camera.position;
+        let key = count_key(&vp, eye, scale);
+        // A poisoned lock holds a whole entry or none: its value is still good.
+        let last = *self.last_count.lock().unwrap_or_else(|e| e.into_inner());
+        if let Some((k, n)) = last
+            && k == key
+        {
+            return n;
+        }
         let fovea = self.params.fovea;
-        self.chunks
+        let n = self
+            .chunks
             .par_iter()
             .map(|c| {
                 let lod = c.lod.as_deref().unwrap_or(&[]);
@@ -385,7 +417,9 @@ impl Clod {
                     .filter(|(p, l)| select::keeps(Vec3::from(**p), l[0], &vp, eye, scale, fovea))
                     .count() as u64
             })
-            .sum()
+            .sum();
+        *self.last_count.lock().unwrap_or_else(|e| e.into_inner()) = Some((key, n));
+        n
     }
 
     /// The octree the levels came from.

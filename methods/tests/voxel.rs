@@ -1,7 +1,8 @@
 //! `voxel` (colour-filtered voxel LOD, Schütz et al. 2023) read back from its files: every
-//! inner node holds exactly one sample per occupied cell of its 128³ grid, with the exact
-//! mean colour of the input points in that cell, at the cell's centre (or the points' mean
-//! position); the leaves hold every input point once; the files do not depend on the thread
+//! inner node holds exactly one sample per occupied cell of its 128³ grid, with the mean
+//! colour of its children's samples in that cell (the default, the authors' filter) or the
+//! exact mean colour of the input points in it (`filter=points`), at the cell's centre (or
+//! the mean position); the leaves hold every input point once; the files do not depend on the thread
 //! count nor on the build memory; the selection replaces a parent's voxels by its drawn
 //! children and converges on the input points.
 #![allow(clippy::unwrap_used)]
@@ -49,12 +50,20 @@ fn quantised(cloud: &PointCloud) -> (Quant, Vec<Quantised>) {
     (quant, pts)
 }
 
-/// A coloured terrain of 20 k points split at 1,500 per leaf (four levels of voxels): every
-/// inner node has one record per occupied cell of its grid, no more, no fewer; its colour is
-/// the rounded mean of the 8-bit colours of every input point in the cell (the sums of all
-/// the points below, not a mean of the children's means); its position is the cell's
-/// centre, or with `position=mean` the rounded mean of the points' integer positions. The
-/// leaves hold every input point exactly once, with its own colour.
+/// The cell's centre at `depth`, quantised.
+fn centre(quant: &Quant, key: u64, depth: u32) -> [i32; 3] {
+    let axis = |shift: u32| f64::from(methods::morton::compact21(key >> shift));
+    let cell = quant.size / f64::from(1u32 << depth);
+    let c = DVec3::new(axis(2), axis(1), axis(0));
+    quant.quantise(quant.min + (c + DVec3::splat(0.5)) * cell)
+}
+
+/// With `filter=points`, on a coloured terrain of 20 k points split at 1,500 per leaf (four
+/// levels of voxels): every inner node has one record per occupied cell of its grid, no
+/// more, no fewer; its colour is the rounded mean of the 8-bit colours of every input point
+/// in the cell (the sums of all the points below, not a mean of the children's means); its
+/// position is the cell's centre, or with `position=mean` the rounded mean of the points'
+/// integer positions. The leaves hold every input point exactly once, with its own colour.
 #[test]
 fn one_sample_per_occupied_voxel_with_the_exact_mean_colour() {
     let cloud = Generator::Terrain.generate(20_000, 3).unwrap();
@@ -62,7 +71,7 @@ fn one_sample_per_occupied_voxel_with_the_exact_mean_colour() {
     for position in ["centre", "mean"] {
         let tmp = tempfile::tempdir().unwrap();
         let p = format!("position={position}");
-        let stats = build(&cloud, &["max_leaf=1500", &p], tmp.path());
+        let stats = build(&cloud, &["max_leaf=1500", "filter=points", &p], tmp.path());
         let (meta, nodes) = common::read_back(tmp.path(), "voxel.json", MODE);
         assert_eq!(meta.points, 20_000);
         let mut leaf_points = Vec::new();
@@ -100,11 +109,7 @@ fn one_sample_per_occupied_voxel_with_the_exact_mean_colour() {
                 let mean = rgb.map(|v| ((v + count / 2) / count) as u8);
                 assert_eq!(c.unwrap(), mean, "{position}: node {level}/{path:o}");
                 let want = if position == "centre" {
-                    // The cell's centre, quantised.
-                    let axis = |shift: u32| f64::from(methods::morton::compact21(key >> shift));
-                    let cell = quant.size / f64::from(1u32 << depth);
-                    let c = DVec3::new(axis(2), axis(1), axis(0));
-                    quant.quantise(quant.min + (c + DVec3::splat(0.5)) * cell)
+                    centre(&quant, key, depth)
                 } else {
                     // The rounded mean of the points' integer positions (it lies in its cell,
                     // so the cell found from it is the voxel's).
@@ -125,6 +130,94 @@ fn one_sample_per_occupied_voxel_with_the_exact_mean_colour() {
         assert_eq!(
             stats.extra["samples"].as_u64().unwrap(),
             20_000 + voxels as u64
+        );
+    }
+}
+
+/// The default filter, the authors' "average in cell": on the same terrain, every inner
+/// node's record in a cell has the rounded mean colour of its children's records in that
+/// cell (a child's voxel counts once, as a leaf's point does), read from the files alone;
+/// one record per cell its children occupy (the cells the input occupies); at the cell's
+/// centre, or with `position=mean` the rounded mean of the children's records' positions.
+/// The same build with `filter=points` differs in some colour: the test tells them apart.
+#[test]
+fn a_voxel_averages_its_childrens_samples_by_default() {
+    let cloud = Generator::Terrain.generate(20_000, 3).unwrap();
+    let (quant, pts) = quantised(&cloud);
+    for position in ["centre", "mean"] {
+        let tmp = tempfile::tempdir().unwrap();
+        let p = format!("position={position}");
+        build(&cloud, &["max_leaf=1500", &p], tmp.path());
+        let (_, nodes) = common::read_back(tmp.path(), "voxel.json", MODE);
+        let by_node: BTreeMap<(u32, u64), &Vec<Rec>> = nodes
+            .iter()
+            .map(|(s, recs)| ((s.level, s.path), recs))
+            .collect();
+        let (mut inner, mut differ) = (0, 0);
+        for (span, recs) in &nodes {
+            if span.leaf {
+                continue;
+            }
+            inner += 1;
+            let (level, path) = (span.level, span.path);
+            let depth = cell_depth(level);
+            // The children's records by this node's cell: count, colour sums, position sums.
+            let mut cells: BTreeMap<u64, (u64, [u64; 3], [i64; 3])> = BTreeMap::new();
+            for octant in 0..8 {
+                let Some(child) = by_node.get(&(level + 1, path << 3 | octant)) else {
+                    continue;
+                };
+                for (q, c) in child.iter() {
+                    let e = cells.entry(cell_key(quant.morton(*q), depth)).or_default();
+                    e.0 += 1;
+                    let rgb = c.unwrap();
+                    (0..3).for_each(|k| {
+                        e.1[k] += u64::from(rgb[k]);
+                        e.2[k] += i64::from(q[k]);
+                    });
+                }
+            }
+            // The input's cells below this node: the same set.
+            let mut occupied: Vec<u64> = pts
+                .iter()
+                .filter(|(code, _, _)| code >> (3 * (21 - level)) == path)
+                .map(|(code, _, _)| cell_key(*code, depth))
+                .collect();
+            occupied.sort_unstable();
+            occupied.dedup();
+            assert!(
+                cells.keys().copied().eq(occupied.iter().copied()),
+                "{position}: node {level}/{path:o}: the children's cells are not the input's"
+            );
+            assert_eq!(recs.len(), cells.len(), "{position}: node {level}/{path:o}");
+            for (q, c) in recs.iter() {
+                let key = cell_key(quant.morton(*q), depth);
+                let (count, rgb, sum_q) = cells[&key];
+                let mean = rgb.map(|v| ((v + count / 2) / count) as u8);
+                assert_eq!(c.unwrap(), mean, "{position}: node {level}/{path:o}");
+                let want = if position == "centre" {
+                    centre(&quant, key, depth)
+                } else {
+                    let n = count as i64;
+                    sum_q.map(|v| ((v + n / 2) / n) as i32)
+                };
+                assert_eq!(*q, want, "{position}: node {level}/{path:o}");
+                // The exact mean over the input points in the cell, for comparison.
+                let (n, sum) = pts
+                    .iter()
+                    .filter(|(code, _, _)| cell_key(*code, depth) == key)
+                    .fold((0u64, [0u64; 3]), |(n, s), (_, _, c)| {
+                        let c = c.unwrap();
+                        (n + 1, [0, 1, 2].map(|k| s[k] + u64::from(c[k])))
+                    });
+                let exact = sum.map(|v| ((v + n / 2) / n) as u8);
+                differ += usize::from(exact != mean);
+            }
+        }
+        assert!(inner >= 5, "{position}: {inner} inner nodes");
+        assert!(
+            differ > 0,
+            "{position}: no voxel tells the children's mean from the points' mean"
         );
     }
 }
@@ -184,36 +277,46 @@ fn files(dir: &Path) -> Vec<Vec<u8>> {
 #[test]
 fn builds_are_byte_identical_across_thread_counts() {
     let cloud = Generator::Terrain.generate(30_000, 9).unwrap();
-    let files = |threads: usize| -> Vec<Vec<u8>> {
-        let tmp = tempfile::tempdir().unwrap();
-        rayon::ThreadPoolBuilder::new()
-            .num_threads(threads)
-            .build()
-            .unwrap()
-            .install(|| build(&cloud, &["max_leaf=1000"], tmp.path()));
-        files(tmp.path())
-    };
-    assert!(files(1) == files(3), "a build depends on the thread count");
+    for filter in ["filter=children", "filter=points"] {
+        let files = |threads: usize| -> Vec<Vec<u8>> {
+            let tmp = tempfile::tempdir().unwrap();
+            rayon::ThreadPoolBuilder::new()
+                .num_threads(threads)
+                .build()
+                .unwrap()
+                .install(|| build(&cloud, &["max_leaf=1000", filter], tmp.path()));
+            files(tmp.path())
+        };
+        assert!(
+            files(1) == files(3),
+            "{filter}: a build depends on the thread count"
+        );
+    }
 }
 
 /// A build in units (`mem_mb=1`: at most 16,384 points a unit) writes the in-core build's
-/// files byte for byte, with `position=centre` and `mean`: a voxel's sums come from its
+/// files byte for byte, with `position=centre` and `mean` and either filter: a voxel's sums come from its
 /// own subtree only, so a unit's root hands the top the same voxels.
 #[test]
 fn a_build_in_units_equals_the_build_in_core() {
     let cloud = Generator::Terrain.generate(120_000, 4).unwrap();
-    for position in ["centre", "mean"] {
+    for (position, filter) in [
+        ("centre", "children"),
+        ("mean", "children"),
+        ("centre", "points"),
+    ] {
         let tmp = tempfile::tempdir().unwrap();
         let (core, units) = (tmp.path().join("core"), tmp.path().join("units"));
         let p = format!("position={position}");
-        build(&cloud, &["max_leaf=3000", &p], &core);
-        let stats = build(&cloud, &["max_leaf=3000", "mem_mb=1", &p], &units);
+        let f = format!("filter={filter}");
+        build(&cloud, &["max_leaf=3000", &p, &f], &core);
+        let stats = build(&cloud, &["max_leaf=3000", "mem_mb=1", &p, &f], &units);
         let n_units = stats.extra["units"].as_u64().unwrap();
         assert!(n_units > 7, "{position}: {n_units} units");
         assert!(stats.extra["largest_unit"].as_u64().unwrap() <= 16_384);
         assert!(
             files(&core) == files(&units),
-            "{position}: units change the files"
+            "{position}, {filter}: units change the files"
         );
     }
 }

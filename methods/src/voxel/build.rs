@@ -2,7 +2,8 @@
 //! ([`crate::potree::build::build_format`]: the cube and its `int32` quantisation, the
 //! octree split at `max_leaf` points, in core or in units, the files breadth first) with
 //! the inner nodes filled by [`VoxelFill`]: one sample per occupied cell of the node's 128³
-//! grid, the mean of the points below it. Leaves keep the original points; no point is
+//! grid, the mean of its children's samples in it (or of every input point below it:
+//! [`super::Filter`]). Leaves keep the original points; no point is
 //! moved, so a cloud's `N` points are all in the leaves and the voxels come on top.
 
 use std::path::Path;
@@ -37,11 +38,16 @@ pub fn build(
         "position".into(),
         serde_json::to_value(p.position).unwrap_or_default(),
     );
+    extra.insert(
+        "filter".into(),
+        serde_json::to_value(p.filter).unwrap_or_default(),
+    );
     extra.insert("grid".into(), super::grid::GRID.into());
     let fill = |quant: &crate::potree::octree::Quant, bytes_per_point: usize| VoxelFill {
         cloud,
         quant: *quant,
         position: p.position,
+        filter: p.filter,
         bytes_per_point,
     };
     let input = Input {

@@ -1,14 +1,20 @@
 //! The inner nodes of `voxel`'s octree: one sample per occupied cell of a 128³ grid over the
-//! node ([`GRID`]), carrying the mean colour and the mean normal of the input points below
-//! it (the paper's colour filtering), at the cell's centre or at its points' mean
+//! node ([`GRID`]), carrying the mean colour and the mean normal of what lies below it in
+//! the cell (the paper's colour filtering), at the cell's centre or at its points' mean
 //! ([`Position`]).
 //!
-//! **Exact means, bottom up.** A voxel keeps sums (integer colour sums, `f64` normal sums,
-//! integer position sums) and its point count. A parent's voxel is the union of 2×2×2 cells
-//! of one child's grid, so its sums are the sums of those cells' sums: the parent's mean is
-//! the mean of *all* the points below it, exactly (not a mean of means), computed from its
-//! children only. That is what lets a unit of an out-of-core build fill its nodes alone and
-//! hand its root's voxels to the top, into the same files as in core.
+//! **What is averaged** ([`Filter`]). The default is the authors' "average in cell": a
+//! voxel averages its children's samples in the cell, a child's voxel counting as one
+//! sample as a leaf child's point does ([`Voxel::as_sample`]: a mean of means, as their
+//! code computes it). `filter=points` averages every input point below it instead.
+//!
+//! **Sums, bottom up.** A voxel keeps sums (integer colour sums, `f64` normal sums, integer
+//! position sums) and a count. A parent's voxel is the union of 2×2×2 cells of one child's
+//! grid, so its sums are the sums of those cells' contributions: with `filter=points` their
+//! sums (the parent's mean is then the mean of *all* the points below it, exactly), with
+//! `filter=children` each cell's sample. Either way a voxel is computed from its children
+//! only, which is what lets a unit of an out-of-core build fill its nodes alone and hand its
+//! root's voxels to the top, into the same files as in core.
 //!
 //! **Cells are Morton prefixes.** A point's cell in a node of level `L` is its 63-bit
 //! Morton code (`potree::octree::Quant::morton`, 21 bits per axis) cut to `L + 7` levels:
@@ -20,7 +26,7 @@ use glam::DVec3;
 use rayon::prelude::*;
 use scenes::PointCloud;
 
-use super::Position;
+use super::{Filter, Position};
 use crate::potree::octree::{Fill, MORTON_BITS, Node, Points, Quant};
 use crate::potree::write::{self, Desc, Src};
 
@@ -98,6 +104,24 @@ impl Voxel {
         }
     }
 
+    /// This voxel (at `depth`) as one sample of its parent's cell `key`: a count of one, its
+    /// sample's integer position, its rounded mean colour and its mean normal (the authors'
+    /// "average in cell" averages a child's voxels as it averages a leaf's points). Rounded
+    /// to nearest where their code truncates (`R / count`), which would darken every level
+    /// by half a step on average, compounding up the tree.
+    fn as_sample(&self, quant: &Quant, depth: u32, position: Position, key: u64) -> Self {
+        Voxel {
+            key,
+            count: 1,
+            q: self.position(quant, depth, position).map(i64::from),
+            rgb: self.mean_rgb().map(|c| c.map(u64::from)),
+            normal: self.normal.zip(self.mean_normal()).map(|(n, m)| NormalSum {
+                sum: m.map(f64::from),
+                ..n
+            }),
+        }
+    }
+
     /// The mean 8-bit colour, rounded to nearest (halves up).
     pub fn mean_rgb(&self) -> Option<[u8; 3]> {
         let n = self.count;
@@ -152,6 +176,8 @@ pub struct VoxelFill<'a> {
     pub quant: Quant,
     /// Where a voxel's sample lies.
     pub position: Position,
+    /// What a voxel averages.
+    pub filter: Filter,
     /// Bytes of a record in the files.
     pub bytes_per_point: usize,
 }
@@ -184,10 +210,14 @@ impl Fill for VoxelFill<'_> {
         // whatever the threads and whether in core or in units.
         let mut parts: Vec<Voxel> = Vec::new();
         for c in node.children.iter().flatten() {
-            let shift = 3 * (cell_depth(c.level) - depth);
-            parts.extend(c.extra.iter().map(|v| Voxel {
-                key: v.key >> shift,
-                ..v.clone()
+            let child_depth = cell_depth(c.level);
+            let shift = 3 * (child_depth - depth);
+            parts.extend(c.extra.iter().map(|v| {
+                let key = v.key >> shift;
+                match self.filter {
+                    Filter::Children => v.as_sample(&self.quant, child_depth, self.position, key),
+                    Filter::Points => Voxel { key, ..v.clone() },
+                }
             }));
             parts.extend(c.points.iter().map(|&id| {
                 let key = cell_key(s.quant().morton(s.q(id)), depth);

@@ -1,7 +1,8 @@
 //! `voxel`: a colour-filtered voxel LOD after Schütz, Kerbl, Klaus, Wimmer, "GPU-Accelerated
 //! LOD Generation for Point Clouds", Computer Graphics Forum 42(8), 2023: a hybrid
 //! voxel–point octree whose inner nodes hold one sample per occupied cell of a 128³ grid,
-//! with the mean colour (and normal) of the points below it, and whose leaves hold the
+//! with the mean colour (and normal) of its children's samples in the cell (or of every input
+//! point below it: [`Filter`]), and whose leaves hold the
 //! original points.
 //!
 //! It is written in the Potree 2.0 format and read by `potree`'s reader, loader and
@@ -26,7 +27,7 @@ use crate::potree::hierarchy::Span;
 use crate::potree::{Mode, Potree, Refinement};
 use crate::{Manifest, MethodError, SplatBatch};
 pub use build::build;
-pub use params::{MIN_NODE_PX, Position, RUNTIME_PARAMS, Sizing, VoxelParams};
+pub use params::{Filter, MIN_NODE_PX, Position, RUNTIME_PARAMS, Sizing, VoxelParams};
 
 /// Registry name.
 pub const NAME: &str = "voxel";
@@ -35,14 +36,16 @@ pub const FORMAT_VERSION: u32 = 1;
 /// What a build records beside the Potree files: the scene's origin (`potree::Info`).
 pub const INFO_FILE: &str = "voxel.json";
 
-/// How `potree`'s reader reads a `voxel` build (`sizing=spacing`, the default).
+/// How `potree`'s reader reads a `voxel` build with `sizing=spacing` (a departure: voxels
+/// also bridge sparse gaps).
 pub const MODE: Mode = Mode {
     name: NAME,
     refinement: Refinement::Replacing,
     radii,
 };
 
-/// [`MODE`] with `sizing=cell`: every voxel its cell's diagonal across, however sparse.
+/// [`MODE`] with `sizing=cell` (the default): every voxel its cell's diagonal across,
+/// however sparse.
 pub const MODE_CELL: Mode = Mode {
     name: NAME,
     refinement: Refinement::Replacing,

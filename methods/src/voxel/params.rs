@@ -1,5 +1,5 @@
-//! `voxel`'s parameters (`--param`): the build's (leaf capacity, voxel position, hierarchy
-//! chunks, memory) and the runtime ones ([`RUNTIME_PARAMS`], shared with `potree`, whose
+//! `voxel`'s parameters (`--param`): the build's (leaf capacity, voxel position, colour
+//! filter, hierarchy chunks, memory) and the runtime ones ([`RUNTIME_PARAMS`], shared with `potree`, whose
 //! reader and selection `voxel` uses). Defaults are the paper's (Schütz et al. 2023) where
 //! it states one, Potree's where `voxel` reads the Potree format; each is argued in
 //! `README.md`.
@@ -47,6 +47,20 @@ pub enum Position {
     Mean,
 }
 
+/// What an inner node's voxel averages (`--param filter=`).
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Default, serde::Deserialize, serde::Serialize)]
+#[serde(rename_all = "lowercase")]
+pub enum Filter {
+    /// The mean of its children's samples in the cell: a child's voxel counts as one
+    /// sample, as a leaf child's point does (the authors' "average in cell",
+    /// `AVERAGE_SINGLECELL` of their published code: the default, the paper's).
+    #[default]
+    Children,
+    /// A departure: the exact mean of every input point below it in the cell (a child's
+    /// voxel weighted by the points it holds), a box filter of the input over the cell.
+    Points,
+}
+
 /// Parameters of `voxel`.
 #[derive(Debug, Clone, PartialEq, serde::Deserialize, serde::Serialize)]
 #[serde(deny_unknown_fields, default)]
@@ -56,6 +70,8 @@ pub struct VoxelParams {
     pub max_leaf: u32,
     /// Where a voxel's sample lies.
     pub position: Position,
+    /// What a voxel's colour and normal average.
+    pub filter: Filter,
     /// Levels per hierarchy chunk of the Potree files (PotreeConverter: 4).
     pub step: u32,
     /// Working memory of the build, MiB (≥ 1): a cloud of more than `mem_mb·2²⁰ / 64`
@@ -90,6 +106,7 @@ impl Default for VoxelParams {
         Self {
             max_leaf: 50_000,
             position: Position::Centre,
+            filter: Filter::Children,
             step: 4,
             mem_mb: 256,
             min_node_px: MIN_NODE_PX,

@@ -156,6 +156,19 @@ ours = "b.clouds"
 rule = "report"
 
 [[row]]
+what = "a build rate is a rate"
+paper = 1
+ours = "b.points_per_s * b.seconds / b.points_in"
+rule = "within"
+tolerance = 0.01
+
+[[row]]
+what = "frames take time"
+paper = [0, 1e9]
+ours = "r.median.wall_ms"
+rule = "inside"
+
+[[row]]
 what = "a finer tolerance draws more"
 paper = [1, 2]
 ours = ["sw.eps_8.median.points_drawn", "sw.eps_1.median.points_drawn"]
@@ -240,6 +253,21 @@ fn a_tiny_spec_runs_every_kind_of_measure() {
         "{report}"
     );
     assert!(report.contains("Sweep `sw`"), "{report}");
+    // Times a verdict reads are medians of three: the build's (b's rate), the run's frames.
+    assert!(
+        report.contains("build time: the median of 3 builds ("),
+        "{report}"
+    );
+    assert!(report.contains("times: the median of 3 runs ("), "{report}");
+    assert!(
+        report.contains("| a build rate is a rate | 1 | 1 | 1.00 | ratio within ±1 % | holds |"),
+        "{report}"
+    );
+    let build_json = std::fs::read_dir(out.join("builds"))
+        .unwrap()
+        .map(|e| e.unwrap().path().join("build.json"))
+        .find(|p| std::fs::read_to_string(p).is_ok_and(|t| t.contains("timing_builds")));
+    assert!(build_json.is_some(), "the timed build's build.json says so");
     // The measure limited to the larger profiles did not run; its row is named.
     assert!(
         report.contains(

@@ -98,6 +98,18 @@ impl Expr {
         out
     }
 
+    /// The `(measure, key)` pairs the expression reads (with repeats; not sweep arguments,
+    /// which read a sweep's image error and points, never a time).
+    pub fn refs(&self) -> Vec<(&str, &str)> {
+        let mut out = Vec::new();
+        self.visit(&mut |e| {
+            if let Expr::Ref { measure, key } = e {
+                out.push((measure.as_str(), key.as_str()));
+            }
+        });
+        out
+    }
+
     fn visit<'a>(&'a self, f: &mut impl FnMut(&'a Expr)) {
         f(self);
         match self {

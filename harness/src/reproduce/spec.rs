@@ -240,6 +240,29 @@ pub struct RowElsewhere {
     pub profiles: Vec<Profile>,
 }
 
+/// Whether a metric key is a time or a rate (its last part `seconds`, `…_seconds`, `…_ms`
+/// or `…_per_s`): what moves from one run to the next on the same input.
+pub fn is_timing_key(key: &str) -> bool {
+    let last = key.rsplit('.').next().unwrap_or(key);
+    last == "seconds"
+        || last.ends_with("_seconds")
+        || last.ends_with("_ms")
+        || last.ends_with("_per_s")
+}
+
+/// Which of a measure's timings verdict rows read ([`Spec::timed`]).
+#[derive(Debug, Clone, Copy, Default, PartialEq, Eq)]
+pub struct Timed {
+    /// Its build's, by a row judged on any adapter.
+    pub build: bool,
+    /// Its build's, by a row judged on a GPU only.
+    pub build_on_gpu: bool,
+    /// Its frames', by a row judged on any adapter.
+    pub frames: bool,
+    /// Its frames', by a row judged on a GPU only.
+    pub frames_on_gpu: bool,
+}
+
 /// One row of a spec's table.
 #[derive(Debug, Clone)]
 pub struct Row {
@@ -313,6 +336,42 @@ impl Spec {
             }
         }
         gpu_only
+    }
+
+    /// The measures whose timings a verdict rests on: those a row with a verdict rule
+    /// (not `report`, not `by_construction`) reads a time or a rate of ([`is_timing_key`]),
+    /// split by whether the time is its build's (`seconds`, `points_per_s`, … of a build
+    /// measure; `build.…` of a run or sweep) or its frames', and by whether the row is judged
+    /// on any adapter or on a GPU only (`needs_gpu`, `judge_on_gpu`). Such measures are timed
+    /// as the median of repeats (`exec`): one timing of a short build or a few frames moves
+    /// with whatever else the machine does, and a verdict should not.
+    pub fn timed(&self) -> BTreeMap<&str, Timed> {
+        let mut out: BTreeMap<&str, Timed> = BTreeMap::new();
+        for row in self
+            .rows
+            .iter()
+            .filter(|r| !matches!(r.rule, Rule::Report | Rule::ByConstruction))
+        {
+            let on_gpu = row.needs_gpu || row.judge_on_gpu;
+            for (measure, key) in row.ours.iter().flat_map(Expr::refs) {
+                if !is_timing_key(key) {
+                    continue;
+                }
+                let of_build = key.starts_with("build.")
+                    || self
+                        .measure(measure)
+                        .is_some_and(|m| m.kind == MeasureKind::Build);
+                let t = out.entry(measure).or_default();
+                let slot = match (of_build, on_gpu) {
+                    (true, false) => &mut t.build,
+                    (true, true) => &mut t.build_on_gpu,
+                    (false, false) => &mut t.frames,
+                    (false, true) => &mut t.frames_on_gpu,
+                };
+                *slot = true;
+            }
+        }
+        out
     }
 
     /// Finds a measure by id.

@@ -56,10 +56,11 @@ pub struct BuildSourceArgs {
     /// in_flight, occlusion, occlusion_threshold).
     #[arg(long)]
     pub build_dir: Option<PathBuf>,
-    /// Run on the LPC or MWKD build served at this URL (`splatbench serve DIR`) instead of
-    /// building: its index and manifest are fetched once into remote-build/ of each run, its
-    /// chunks by HTTP range requests over kept-alive connections, checksums verified as for
-    /// a local build. The same checks and `--param` rule as --build-dir.
+    /// Run on the LPC, MWKD, Potree or voxel build served at this URL (`splatbench serve
+    /// DIR`) instead of building: its small files (manifest, index; Potree's hierarchy) are
+    /// fetched once into remote-build/ of each run, its chunks (nodes) by HTTP range requests
+    /// over kept-alive connections, LPC's and MWKD's checksums verified as for a local build.
+    /// The same checks and `--param` rule as --build-dir.
     #[arg(long, value_name = "URL", conflicts_with = "build_dir")]
     pub build_url: Option<String>,
     /// Seconds one HTTP request of --build-url may take, connection to last byte. A server

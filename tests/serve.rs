@@ -274,8 +274,8 @@ fn walk(dir: &std::path::Path) -> Vec<std::path::PathBuf> {
     out
 }
 
-/// Once converged, a run over HTTP draws the local run's image, pixel for pixel: LPC and
-/// MWKD on a still camera (`paper/paths/still-near.toml`), 24 frames, the last frame's PNG
+/// Once converged, a run over HTTP draws the local run's image, pixel for pixel: LPC, MWKD
+/// and Potree on a still camera (`paper/paths/still-near.toml`), 24 frames, the last frame's PNG
 /// of each run compared byte for byte (the same renderer and encoder), after checking in
 /// `frames.csv` that both had converged (no coarse cloud or stand-in, nothing pending).
 #[test]
@@ -291,6 +291,7 @@ fn a_remote_run_draws_the_local_runs_image_once_converged() {
     for (method, param, coarse) in [
         ("lpc", "m=512", "clouds_coarse"),
         ("mwkd", "vbo=1024", "stand_ins"),
+        ("potree", "max_leaf=1000", "nodes_waiting"),
     ] {
         let build = tmp.path().join(format!("b-{method}"));
         let server = build_and_serve(method, param, scene, &build, &cache);

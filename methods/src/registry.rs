@@ -328,20 +328,29 @@ impl MethodKind {
         match self {
             MethodKind::Lpc => Some(&[lpc::INDEX_FILE, lpc::INFO_FILE]),
             MethodKind::Mwkd => Some(&[mwkd::INDEX_FILE, mwkd::INFO_FILE]),
-            MethodKind::Full
-            | MethodKind::Qsplat
-            | MethodKind::Spt
-            | MethodKind::Potree
-            | MethodKind::Voxel
-            | MethodKind::Clod => None,
+            // Potree's hierarchy is copied whole (22 bytes a node: ≈ 2 MB for a billion
+            // points at 50 k a leaf) where Potree's viewer reads it by chunks; its points are
+            // read by ranges.
+            MethodKind::Potree => Some(&[
+                potree::INFO_FILE,
+                potree::format::METADATA_FILE,
+                potree::format::HIERARCHY_FILE,
+            ]),
+            MethodKind::Voxel => Some(&[
+                voxel::INFO_FILE,
+                potree::format::METADATA_FILE,
+                potree::format::HIERARCHY_FILE,
+            ]),
+            MethodKind::Full | MethodKind::Qsplat | MethodKind::Spt | MethodKind::Clod => None,
         }
     }
 
     /// Copies the small files of the build served at `url` (its manifest, `build.json` and
     /// [`MethodKind::remote_files`]) into the directory `into`, each fetched once through
     /// `open` (a client: `harness::remote`), and returns where its repository is read: the
-    /// same URL's `repo.bin`, by range requests. Methods other than LPC and MWKD, and builds
-    /// with `strays=apart` (a second build inside), are refused with an error saying so.
+    /// same URL's repository (`repo.bin`; Potree's and voxel's `octree.bin`), by range
+    /// requests. The methods that read a whole build (full, QSplat, SPT, CLOD) and builds
+    /// with `strays=apart` (a second build inside) are refused with an error saying so.
     pub fn fetch_remote(
         url: &str,
         into: &Path,
@@ -367,7 +376,7 @@ impl MethodKind {
                 msg: format!(
                     "a {kind} build is read from a local directory (its files are not \
                      chunked for range requests): copy it and use --build-dir; remote builds \
-                     are LPC's and MWKD's"
+                     are LPC's, MWKD's, Potree's and voxel's"
                 ),
             });
         };
@@ -385,6 +394,7 @@ impl MethodKind {
         }
         let repo = match kind {
             MethodKind::Mwkd => mwkd::codec::REPO_FILE,
+            MethodKind::Potree | MethodKind::Voxel => potree::format::OCTREE_FILE,
             _ => lpc::REPO_FILE,
         };
         Ok(RepoAt::Remote(open(&format!("{base}{repo}"))))
@@ -432,8 +442,14 @@ impl MethodKind {
                 Some(r) => mwkd::Mwkd::open_at(dir, manifest, r)?,
                 None => mwkd::Mwkd::open(dir, manifest)?,
             }),
-            MethodKind::Potree => Box::new(potree::Potree::open(dir, manifest)?),
-            MethodKind::Voxel => Box::new(voxel::open(dir, manifest)?),
+            MethodKind::Potree => Box::new(match repo {
+                Some(r) => potree::Potree::open_at(dir, manifest, r)?,
+                None => potree::Potree::open(dir, manifest)?,
+            }),
+            MethodKind::Voxel => Box::new(match repo {
+                Some(r) => voxel::open_at(dir, manifest, r)?,
+                None => voxel::open(dir, manifest)?,
+            }),
             MethodKind::Clod => Box::new(clod::Clod::open(dir, manifest)?),
         };
 

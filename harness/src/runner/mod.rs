@@ -97,7 +97,8 @@ pub struct RunConfig {
     pub build_dir: Option<PathBuf>,
     /// Open the build served at this URL (`splatbench serve`) instead: its small files are
     /// copied once into `out/remote-build/`, its chunks read by HTTP range requests
-    /// ([`MethodKind::fetch_remote`]; LPC and MWKD only). The same checks as `build_dir`.
+    /// ([`MethodKind::fetch_remote`]; LPC, MWKD, Potree and voxel). The same checks as
+    /// `build_dir`.
     pub build_url: Option<RemoteBuild>,
     /// Finish with exit status 0 although chunks failed to load (`--allow-missing-chunks`);
     /// they are reported either way.

@@ -1,6 +1,7 @@
 //! `splatbench serve`: a build directory served over HTTP/1.1 with byte ranges, for the
-//! remote runs of LPC and MWKD (the LPC paper streams its repository "over HTTP/1.1 range
-//! requests with persistent connections") and for experiments on a slow or failing link.
+//! remote runs of LPC, MWKD, Potree and voxel (the LPC paper streams its repository "over
+//! HTTP/1.1 range requests with persistent connections"; Potree's viewer reads `octree.bin`
+//! a node at a time by ranges) and for experiments on a slow or failing link.
 //!
 //! The HTTP protocol (request parsing, persistent connections, `Content-Length`, `HEAD`) is
 //! [`tiny_http`]'s: a synchronous server, so serving adds no async runtime to the build.

@@ -131,6 +131,32 @@ impl ChunkSource for OctreeSource {
     }
 }
 
+/// `octree.bin` served elsewhere (`--build-url`), read a node at a time by range requests,
+/// as Potree's viewer reads it. Its size is not asked for: a node's span past the end fails
+/// its request, naming the URL (the hierarchy's spans are checked against the size locally).
+struct RemoteRange {
+    file: Arc<dyn crate::store::remote::RemoteFile>,
+    url: std::path::PathBuf,
+}
+
+impl RangeRead for RemoteRange {
+    fn read(&self, offset: u64, len: u64, what: &str) -> Result<Vec<u8>, MethodError> {
+        self.file.get_range(offset, len).map_err(|e| match e {
+            MethodError::Remote { url, msg } => MethodError::Remote {
+                url,
+                msg: format!("{what}: {msg}"),
+            },
+            other => other,
+        })
+    }
+    fn len(&self) -> u64 {
+        u64::MAX
+    }
+    fn path(&self) -> &Path {
+        &self.url
+    }
+}
+
 /// How the drawn nodes of an octree in the Potree format combine into a frame.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
 pub enum Refinement {
@@ -188,8 +214,15 @@ impl Potree {
     /// Opens a build written by [`build()`] (`method.json`, `potree.json` and the Potree
     /// files in `dir`).
     pub fn open(dir: &Path, manifest: Manifest) -> Result<Self, MethodError> {
+        let octree = RepoAt::Local(dir.join(format::OCTREE_FILE));
+        Self::open_at(dir, manifest, &octree)
+    }
+
+    /// [`Potree::open`] with `octree.bin` read at `octree` (served elsewhere: `--build-url`,
+    /// whose small files, `hierarchy.bin` among them, were copied into `dir`).
+    pub fn open_at(dir: &Path, manifest: Manifest, octree: &RepoAt) -> Result<Self, MethodError> {
         let params = PotreeParams::from_params(&manifest.params)?;
-        Self::open_build(dir, &manifest, INFO_FILE, &params, Mode::POTREE)
+        Self::open_build(dir, &manifest, INFO_FILE, &params, Mode::POTREE, octree)
     }
 
     /// Opens a build of a method in the Potree format (`potree`, `voxel`): its info file
@@ -201,9 +234,10 @@ impl Potree {
         info: &str,
         params: &PotreeParams,
         mode: Mode,
+        octree: &RepoAt,
     ) -> Result<Self, MethodError> {
         let info: Info = crate::method::read_json(&dir.join(info))?;
-        let p = Self::open_as(dir, DVec3::from(info.origin), params, mode)?;
+        let p = Self::open_from(dir, DVec3::from(info.origin), params, mode, octree)?;
         if p.meta.points != manifest.points {
             return Err(MethodError::corrupt(
                 dir.join(format::METADATA_FILE),
@@ -230,11 +264,29 @@ impl Potree {
         params: &PotreeParams,
         mode: Mode,
     ) -> Result<Self, MethodError> {
+        let octree = RepoAt::Local(dir.join(format::OCTREE_FILE));
+        Self::open_from(dir, origin, params, mode, &octree)
+    }
+
+    /// [`Potree::open_as`] with `octree.bin` at `octree`, the other files in `dir`.
+    fn open_from(
+        dir: &Path,
+        origin: DVec3,
+        params: &PotreeParams,
+        mode: Mode,
+        at: &RepoAt,
+    ) -> Result<Self, MethodError> {
         params.validate()?;
         let meta = Metadata::read(dir)?;
         let meta_path = dir.join(format::METADATA_FILE);
         let layout = meta.layout(&meta_path)?;
-        let octree = LocalFile::open(&dir.join(format::OCTREE_FILE))?;
+        let octree: Box<dyn RangeRead> = match at {
+            RepoAt::Local(path) => Box::new(LocalFile::open(path)?),
+            RepoAt::Remote(file) => Box::new(RemoteRange {
+                url: std::path::PathBuf::from(file.url()),
+                file: Arc::clone(file),
+            }),
+        };
         let hierarchy = Hierarchy::open(
             &meta,
             Box::new(LocalFile::open(&dir.join(format::HIERARCHY_FILE))?),
@@ -264,16 +316,11 @@ impl Potree {
             Ok(b)
         });
         let source = OctreeSource {
-            file: Box::new(octree),
+            file: octree,
             spans,
             read: Default::default(),
         };
-        let options = LoaderOptions::new(
-            params.core_mb,
-            params.delay_frames,
-            params.in_flight,
-            &RepoAt::Local(dir.join(format::OCTREE_FILE)),
-        );
+        let options = LoaderOptions::new(params.core_mb, params.delay_frames, params.in_flight, at);
         let access = Loader::spawn(Arc::new(source), decoder, options);
         // The root is what every frame draws first: read (and checked) now.
         if hierarchy.nodes()[0].points > 0 {

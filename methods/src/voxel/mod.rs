@@ -25,6 +25,7 @@ use std::path::Path;
 
 use crate::potree::hierarchy::Span;
 use crate::potree::{Mode, Potree, Refinement};
+use crate::store::access::RepoAt;
 use crate::{Manifest, MethodError, SplatBatch};
 pub use build::build;
 pub use params::{Filter, MIN_NODE_PX, Position, RUNTIME_PARAMS, Sizing, VoxelParams};
@@ -110,10 +111,16 @@ fn cell_radius(s: &Span, spacing: f64) -> f32 {
 
 /// Opens a build written by [`build()`].
 pub fn open(dir: &Path, manifest: Manifest) -> Result<Potree, MethodError> {
+    let octree = RepoAt::Local(dir.join(crate::potree::format::OCTREE_FILE));
+    open_at(dir, manifest, &octree)
+}
+
+/// [`open`] with `octree.bin` read at `octree` (served elsewhere: `--build-url`).
+pub fn open_at(dir: &Path, manifest: Manifest, octree: &RepoAt) -> Result<Potree, MethodError> {
     let params = VoxelParams::from_params(&manifest.params)?;
     let mode = match params.sizing {
         Sizing::Spacing => MODE,
         Sizing::Cell => MODE_CELL,
     };
-    Potree::open_build(dir, &manifest, INFO_FILE, &params.potree(), mode)
+    Potree::open_build(dir, &manifest, INFO_FILE, &params.potree(), mode, octree)
 }

@@ -3,7 +3,9 @@
 //! It is rerun when HEAD moves: when `HEAD` itself changes (a checkout), when the branch it
 //! names moves (a commit, an amend, a reset: the ref's file, or `packed-refs` once git packs
 //! it), and when the index changes (what `-dirty` depends on). Watching `HEAD` and the index
-//! alone missed an amend that only rewrote the message: the binary kept the old id.
+//! alone misses a commit that leaves the index file as it was — an amend of the message
+//! only, `commit --allow-empty`, `reset --soft` (checked: none of them rewrites the index) —
+//! after which a build would keep the old id.
 use std::path::PathBuf;
 use std::process::Command;
 

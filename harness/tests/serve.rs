@@ -204,10 +204,14 @@ fn one_connection_serves_many_requests() {
             .all(|l| l.split(' ').nth(1) == Some(peer.as_str())),
         "{log}"
     );
+    // In any order: a worker writes its line after the response has left, so the next
+    // request, answered by another worker, may log first (seen once on a loaded machine:
+    // request 1's line fourth).
     assert!(
-        lines[3].ends_with(" GET /f bytes=3000-12999 206 10000"),
-        "{}",
-        lines[3]
+        lines
+            .iter()
+            .any(|l| l.ends_with(" GET /f bytes=3000-12999 206 10000")),
+        "{log}"
     );
 }
 

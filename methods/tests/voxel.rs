@@ -58,6 +58,27 @@ fn centre(quant: &Quant, key: u64, depth: u32) -> [i32; 3] {
     quant.quantise(quant.min + (c + DVec3::splat(0.5)) * cell)
 }
 
+/// What a voxel record in the cell `key` (at `depth`) must hold, from the sums of what it
+/// averages (count, colour sums, integer position sums): the rounded mean colour, and the
+/// cell's centre or (`position=mean`) the rounded mean position — which lies in its cell, so
+/// the cell found from it is the voxel's.
+fn expected(
+    quant: &Quant,
+    key: u64,
+    depth: u32,
+    position: &str,
+    (count, rgb, sum_q): (u64, [u64; 3], [i64; 3]),
+) -> ([u8; 3], [i32; 3]) {
+    let mean = rgb.map(|v| ((v + count / 2) / count) as u8);
+    let q = if position == "centre" {
+        centre(quant, key, depth)
+    } else {
+        let n = count as i64;
+        sum_q.map(|v| ((v + n / 2) / n) as i32)
+    };
+    (mean, q)
+}
+
 /// With `filter=points`, on a coloured terrain of 20 k points split at 1,500 per leaf (four
 /// levels of voxels): every inner node has one record per occupied cell of its grid, no
 /// more, no fewer; its colour is the rounded mean of the 8-bit colours of every input point
@@ -105,17 +126,8 @@ fn one_sample_per_occupied_voxel_with_the_exact_mean_colour() {
             for (q, c) in recs {
                 let key = cell_key(quant.morton(*q), depth);
                 assert!(seen.insert(key), "{position}: cell {key} twice");
-                let (count, rgb, sum_q) = cells[&key];
-                let mean = rgb.map(|v| ((v + count / 2) / count) as u8);
+                let (mean, want) = expected(&quant, key, depth, position, cells[&key]);
                 assert_eq!(c.unwrap(), mean, "{position}: node {level}/{path:o}");
-                let want = if position == "centre" {
-                    centre(&quant, key, depth)
-                } else {
-                    // The rounded mean of the points' integer positions (it lies in its cell,
-                    // so the cell found from it is the voxel's).
-                    let n = count as i64;
-                    sum_q.map(|v| ((v + n / 2) / n) as i32)
-                };
                 assert_eq!(*q, want, "{position}: node {level}/{path:o}");
             }
         }
@@ -192,15 +204,8 @@ fn a_voxel_averages_its_childrens_samples_by_default() {
             assert_eq!(recs.len(), cells.len(), "{position}: node {level}/{path:o}");
             for (q, c) in recs.iter() {
                 let key = cell_key(quant.morton(*q), depth);
-                let (count, rgb, sum_q) = cells[&key];
-                let mean = rgb.map(|v| ((v + count / 2) / count) as u8);
+                let (mean, want) = expected(&quant, key, depth, position, cells[&key]);
                 assert_eq!(c.unwrap(), mean, "{position}: node {level}/{path:o}");
-                let want = if position == "centre" {
-                    centre(&quant, key, depth)
-                } else {
-                    let n = count as i64;
-                    sum_q.map(|v| ((v + n / 2) / n) as i32)
-                };
                 assert_eq!(*q, want, "{position}: node {level}/{path:o}");
                 // The exact mean over the input points in the cell, for comparison.
                 let (n, sum) = pts

@@ -366,11 +366,7 @@ fn builds_are_byte_identical_across_thread_counts() {
     let cloud = Generator::Terrain.generate(30_000, 9).unwrap();
     let files = |threads: usize| -> Vec<Vec<u8>> {
         let tmp = tempfile::tempdir().unwrap();
-        rayon::ThreadPoolBuilder::new()
-            .num_threads(threads)
-            .build()
-            .unwrap()
-            .install(|| build(&cloud, &["max_leaf=1000"], tmp.path()));
+        common::with_threads(threads, || build(&cloud, &["max_leaf=1000"], tmp.path()));
         [
             "octree.bin",
             "hierarchy.bin",

@@ -285,11 +285,9 @@ fn builds_are_byte_identical_across_thread_counts() {
     for filter in ["filter=children", "filter=points"] {
         let files = |threads: usize| -> Vec<Vec<u8>> {
             let tmp = tempfile::tempdir().unwrap();
-            rayon::ThreadPoolBuilder::new()
-                .num_threads(threads)
-                .build()
-                .unwrap()
-                .install(|| build(&cloud, &["max_leaf=1000", filter], tmp.path()));
+            common::with_threads(threads, || {
+                build(&cloud, &["max_leaf=1000", filter], tmp.path())
+            });
             files(tmp.path())
         };
         assert!(

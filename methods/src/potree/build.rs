@@ -49,14 +49,7 @@ pub fn build_with(
     progress: &dyn Progress,
 ) -> Result<BuildStats, MethodError> {
     let p = PotreeParams::from_params(params)?;
-    let format = Format {
-        name: NAME,
-        format_version: FORMAT_VERSION,
-        info_file: INFO_FILE,
-        max_leaf: p.max_leaf,
-        step: p.step,
-        mem_mb: p.mem_mb,
-    };
+    let format = Format::of(NAME, FORMAT_VERSION, INFO_FILE, &p);
     let mut extra = serde_json::Map::new();
     extra.insert(
         "sampling".into(),
@@ -105,6 +98,26 @@ pub struct Format {
     pub step: u32,
     /// Build memory, MiB.
     pub mem_mb: u64,
+}
+
+impl Format {
+    /// The format of method `name` (its files' version, its info file) with the octree
+    /// settings of `p` (leaf capacity, hierarchy step, build memory).
+    pub fn of(
+        name: &'static str,
+        format_version: u32,
+        info_file: &'static str,
+        p: &PotreeParams,
+    ) -> Self {
+        Self {
+            name,
+            format_version,
+            info_file,
+            max_leaf: p.max_leaf,
+            step: p.step,
+            mem_mb: p.mem_mb,
+        }
+    }
 }
 
 /// The shared build of the methods in the Potree format: the cube and quantisation, the

@@ -25,14 +25,7 @@ pub fn build(
     progress: &dyn Progress,
 ) -> Result<BuildStats, MethodError> {
     let p = VoxelParams::from_params(params)?;
-    let format = Format {
-        name: NAME,
-        format_version: FORMAT_VERSION,
-        info_file: INFO_FILE,
-        max_leaf: p.max_leaf,
-        step: p.step,
-        mem_mb: p.mem_mb,
-    };
+    let format = Format::of(NAME, FORMAT_VERSION, INFO_FILE, &p.potree());
     let mut extra = serde_json::Map::new();
     extra.insert(
         "position".into(),

@@ -17,7 +17,7 @@
 //!   parents ([`super::quant`]), in `forest.rs`. Each level is processed in parallel; the
 //!   output does not depend on the thread count.
 
-use glam::Vec3;
+use glam::{BVec3A, Vec3, Vec3A};
 use scenes::PointCloud;
 
 use super::node::Binary;
@@ -139,6 +139,34 @@ fn bounds_of(items: &[Item]) -> Bounds {
     )
 }
 
+/// Moves the items with coordinate `axis` below `cut` to the front; returns their count and
+/// the bounding boxes of the two sides.
+///
+/// Without a branch on the side (a sample's side is a coin flip on a random scan, and the
+/// two-pointer loop's mispredictions made this pass 12–18 % of a QSplat build's samples,
+/// `perf`, terrain 10 M): every item is swapped to the front's end and the front grows by
+/// one when it belongs there (Lomuto's scheme), and both boxes take every sample, the other
+/// side's as ±∞. Which samples go left depends on the set alone, never on its order, so
+/// the tree and the file are those of any other partition scheme.
+fn split_at_cut(items: &mut [Item], axis: usize, cut: f64) -> (usize, Bounds, Bounds) {
+    let (inf, ninf) = (Vec3A::INFINITY, Vec3A::NEG_INFINITY);
+    let (mut lmin, mut lmax, mut rmin, mut rmax) = (inf, ninf, inf, ninf);
+    let mut a = 0;
+    for j in 0..items.len() {
+        let it = items[j];
+        let below = (it.p[axis] as f64) < cut;
+        items.swap(a, j);
+        a += usize::from(below);
+        let p = Vec3A::from(it.p);
+        let m = BVec3A::splat(below);
+        lmin = lmin.min(Vec3A::select(m, p, inf));
+        lmax = lmax.max(Vec3A::select(m, p, ninf));
+        rmin = rmin.min(Vec3A::select(m, inf, p));
+        rmax = rmax.max(Vec3A::select(m, ninf, p));
+    }
+    (a, (lmin.into(), lmax.into()), (rmin.into(), rmax.into()))
+}
+
 /// Partitions `items` (positions `base..base + items.len()`, bounding box `bounds`) in
 /// place, records the splits of its binary nodes in `left`/`right`/`grand` (slices of the
 /// same positions) and returns the range's split (absolute, 0 for a single sample) and cost.
@@ -163,20 +191,7 @@ fn partition(
     let mut mid = 0;
     if opt.split == Split::Midpoint {
         let cut = (lo[axis] as f64 + hi[axis] as f64) * 0.5;
-        // Deterministic two-pointer partition: samples with coordinate < cut first.
-        let (mut a, mut b) = (0, n);
-        while a < b {
-            let p = items[a].p;
-            if (p[axis] as f64) < cut {
-                lb = (lb.0.min(p), lb.1.max(p));
-                a += 1;
-            } else {
-                rb = (rb.0.min(p), rb.1.max(p));
-                b -= 1;
-                items.swap(a, b);
-            }
-        }
-        mid = a;
+        (mid, lb, rb) = split_at_cut(items, axis, cut);
     }
     if mid == 0 || mid == n {
         mid = n / 2;

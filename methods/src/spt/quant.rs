@@ -225,12 +225,18 @@ impl Extent {
     }
 
     /// The extent of `nodes` (in parallel; the result does not depend on the order).
+    ///
+    /// Folded per chunk in place: a 2 KB `Extent` moved through `fold` by value was a
+    /// `memcpy` per node, 7 % of an SPT build's samples (`perf`, terrain 10 M).
     pub fn of(nodes: &[Node]) -> Extent {
         use rayon::prelude::*;
         nodes
-            .par_iter()
-            .fold(Extent::default, |mut e, nd| {
-                e.add(nd);
+            .par_chunks(1 << 14)
+            .map(|chunk| {
+                let mut e = Extent::default();
+                for nd in chunk {
+                    e.add(nd);
+                }
                 e
             })
             .reduce(Extent::default, |a, b| a.merge(&b))

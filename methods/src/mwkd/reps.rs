@@ -253,27 +253,41 @@ fn color_diff(a: [f32; 3], b: [f32; 3]) -> f32 {
     (0..3).map(|k| (a[k] - b[k]).abs()).fold(0.0, f32::max)
 }
 
-/// The cell of a position in a `k`-per-axis grid over `lo..lo+size` (as a row-major index
-/// into the `k³` cells).
-fn cell_key(p: Vec3, lo: Vec3, size: Vec3, k: u32) -> u64 {
-    let kf = k as f32;
-    let coord = |v: f32, l: f32, s: f32| -> u64 {
+/// A position's coordinates in its box `lo..lo+size` as fractions `(v − lo) / size` (NaN
+/// on an axis where the box is flat or the coordinate not finite: that axis's cell is 0),
+/// computed once for every grid [`choose_grid`] tries.
+fn box_fractions(pos: &[Vec3], lo: Vec3, size: Vec3) -> Vec<[f32; 3]> {
+    let f = |v: f32, l: f32, s: f32| {
         if s > 0.0 && v.is_finite() {
-            (((v - l) / s * kf).floor().max(0.0) as u64).min(u64::from(k) - 1)
+            (v - l) / s
         } else {
-            0
+            f32::NAN
         }
     };
-    let k64 = u64::from(k);
-    let x = coord(p.x, lo.x, size.x);
-    let y = coord(p.y, lo.y, size.y);
-    let z = coord(p.z, lo.z, size.z);
-    (x * k64 + y) * k64 + z
+    pos.iter()
+        .map(|p| {
+            [
+                f(p.x, lo.x, size.x),
+                f(p.y, lo.y, size.y),
+                f(p.z, lo.z, size.z),
+            ]
+        })
+        .collect()
+}
+
+/// The cell of a position (its [`box_fractions`]) in a `k`-per-axis grid over its box (as
+/// a row-major index into the `k³` cells): per axis `⌊t·k⌋` clamped to `0..k`, the cast
+/// doing both the floor (fractions are ≥ 0; a negative or NaN one saturates to 0) and the
+/// lower clamp, without a call to `floorf`.
+fn cell_key(t: [f32; 3], k: u32) -> u64 {
+    let (kf, k64) = (k as f32, u64::from(k));
+    let coord = |t: f32| ((t * kf) as u64).min(k64 - 1);
+    (coord(t[0]) * k64 + coord(t[1])) * k64 + coord(t[2])
 }
 
 /// [`cell_key`] of every input splat.
-fn cell_keys(pos: &[Vec3], lo: Vec3, size: Vec3, k: u32) -> Vec<u64> {
-    pos.iter().map(|&p| cell_key(p, lo, size, k)).collect()
+fn cell_keys(fr: &[[f32; 3]], k: u32) -> Vec<u64> {
+    fr.iter().map(|&t| cell_key(t, k)).collect()
 }
 
 /// Whether the keys of a `k`-grid ([`cell_key`]) occupy at most `target` cells. Up to
@@ -309,9 +323,10 @@ const BITMAP_CELLS: u64 = 1 << 22;
 /// The largest `k ≤ grid` whose grid has at most `target` occupied cells, and the cell
 /// keys of that grid.
 fn choose_grid(pos: &[Vec3], lo: Vec3, size: Vec3, grid: u32, target: usize) -> (u32, Vec<u64>) {
-    let fits = |k: u32| occupied_at_most(pos.iter().map(|&p| cell_key(p, lo, size, k)), k, target);
+    let fr = box_fractions(pos, lo, size);
+    let fits = |k: u32| occupied_at_most(fr.iter().map(|&t| cell_key(t, k)), k, target);
     if fits(grid) {
-        return (grid, cell_keys(pos, lo, size, grid));
+        return (grid, cell_keys(&fr, grid));
     }
     // Binary search assuming monotonicity, then walk down if a glitch breaks it.
     let (mut good, mut bad) = (1u32, grid);
@@ -327,7 +342,7 @@ fn choose_grid(pos: &[Vec3], lo: Vec3, size: Vec3, grid: u32, target: usize) -> 
     while k > 1 && !fits(k) {
         k -= 1;
     }
-    (k, cell_keys(pos, lo, size, k))
+    (k, cell_keys(&fr, k))
 }
 
 /// Lists longer than this merge in batches over a window of neighbours (in Morton order)

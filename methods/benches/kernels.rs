@@ -1,5 +1,5 @@
 //! CPU kernels shared by the methods: normal encoding, leaf-radius estimation (k nearest
-//! neighbours), scene generation, `full`'s per-frame selection and QSplat's traversal
+//! neighbours), QSplat's and SPT's trees, scene generation, `full`'s per-frame selection and QSplat's traversal
 //! (throughput = nodes visited), and the chunk store's LZO + checksum on one chunk. Timing is
 //! reported, never asserted.
 //! Run: `cargo bench -p methods --bench kernels` (QSplat only: `... -- qsplat/`; store only:
@@ -39,6 +39,15 @@ fn kernels(c: &mut Criterion) {
     let radii = methods::leaf::leaf_radii(&terrain).radii.into_owned();
     g.bench_function("qsplat_tree_terrain", |b| {
         b.iter(|| methods::qsplat::build::build_tree(&terrain, &radii).unwrap())
+    });
+    // SPT's point tree (Morton sort, per-node disks or balls and errors; radii given): with
+    // normals (disks, errors) and without (balls, as a LAS scan without normals).
+    g.bench_function("spt_tree_terrain", |b| {
+        b.iter(|| methods::spt::build::build_tree(&terrain, &radii, 255.0))
+    });
+    let bare = terrain.clone().without_normals();
+    g.bench_function("spt_tree_terrain_no_normals", |b| {
+        b.iter(|| methods::spt::build::build_tree(&bare, &radii, 255.0))
     });
     for generator in Generator::ALL {
         g.bench_function(format!("generate_{}", generator.name()), |b| {

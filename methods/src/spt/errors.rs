@@ -44,104 +44,33 @@ pub fn tangent_basis(n: Vec3) -> (Vec3, Vec3) {
     (t1, n.cross(t1))
 }
 
-/// Lanes of [`Reach`]: an octree node's most children.
-const LANES: usize = 8;
-
-/// Up to [`LANES`] circles or balls (a circle is a ball with `z = 0`: every distance, step
-/// and point below is then bit for bit the 2-D one), coordinates apart so that the distances
-/// from a centre to all of them are one vectorised loop.
-struct Reach {
-    x: [f32; LANES],
-    y: [f32; LANES],
-    z: [f32; LANES],
-    r: [f32; LANES],
-    len: usize,
-}
-
-impl Reach {
-    fn new(items: &[(Vec3, f32)]) -> Self {
-        let mut s = Self {
-            x: [0.0; LANES],
-            y: [0.0; LANES],
-            z: [0.0; LANES],
-            // Unused lanes never reach farthest.
-            r: [f32::NEG_INFINITY; LANES],
-            len: items.len(),
-        };
-        for (j, &(q, r)) in items.iter().enumerate() {
-            (s.x[j], s.y[j], s.z[j], s.r[j]) = (q.x, q.y, q.z, r);
-        }
-        s
-    }
-
-    /// `(|qⱼ − c|, |qⱼ − c| + rⱼ)` of every lane, the length as `(qⱼ − c).length()`
-    /// computes it.
-    fn from(&self, c: Vec3) -> ([f32; LANES], [f32; LANES]) {
-        let (mut len, mut reach) = ([0.0; LANES], [0.0; LANES]);
-        for j in 0..LANES {
-            let (dx, dy, dz) = (self.x[j] - c.x, self.y[j] - c.y, self.z[j] - c.z);
-            len[j] = (dx * dx + dy * dy + dz * dz).sqrt();
-            reach[j] = len[j] + self.r[j];
-        }
-        (len, reach)
-    }
-
-    /// The first of the used lanes whose reach is the largest that is not NaN, if any
-    /// exceeds −1: what a scan keeping the first strictly larger reach above −1 finds, with
-    /// a tree of `max` in place of its eight dependent compares.
-    fn farthest(&self, reach: &[f32; LANES]) -> Option<usize> {
-        let m = reach.map(|d| if d.is_nan() { f32::NEG_INFINITY } else { d });
-        let a = [
-            m[0].max(m[4]),
-            m[1].max(m[5]),
-            m[2].max(m[6]),
-            m[3].max(m[7]),
-        ];
-        let top = a[0].max(a[2]).max(a[1].max(a[3]));
-        if top > -1.0 {
-            m[..self.len].iter().position(|&d| d == top)
-        } else {
-            None
-        }
-    }
-}
-
-/// Smallest-found ball enclosing balls `(c, r)` (circles: `z = 0`; see the module doc):
-/// `(centre, radius)`.
-fn enclosing(items: &[(Vec3, f32)], mean: Vec3, mid: Vec3) -> (Vec3, f32) {
-    let lanes = (items.len() <= LANES).then(|| Reach::new(items));
-    // The radius around `c` and the farthest point of the farthest ball from `c`, in one
-    // pass (a Bădoiu–Clarkson step needs the second at the centre whose radius the step
-    // before measured: one pass per step instead of two). The point is formed once, for the
-    // first ball reaching farthest: reaches never fall below −1 (lengths and radii are ≥ 0)
-    // and NaN reaches are skipped, as `f32::max` skips them in the radius.
-    let eval = |c: Vec3| {
-        // (reach, lane, its length) of the farthest.
-        let found = match &lanes {
-            Some(l) => {
-                let (len, reach) = l.from(c);
-                l.farthest(&reach).map(|j| (reach[j], j, len[j]))
+/// Smallest-found circle enclosing circles `(c, r)` (see the module doc): `(centre, radius)`.
+fn enclosing<V>(
+    items: &[(V, f32)],
+    sub: impl Fn(V, V) -> V,
+    len: impl Fn(V) -> f32,
+    add_scaled: impl Fn(V, V, f32) -> V,
+    mean: V,
+    mid: V,
+) -> (V, f32)
+where
+    V: Copy,
+{
+    // The radius around `c` and the farthest point of the farthest circle from `c`, in
+    // one pass (a Bădoiu–Clarkson step needs the second at the centre whose radius the step
+    // before measured: one pass per step instead of two).
+    let eval = |c: V| {
+        let (mut radius, mut fd, mut far) = (0.0f32, -1.0f32, None);
+        for &(q, r) in items {
+            let v = sub(q, c);
+            let l = len(v);
+            radius = radius.max(l + r);
+            if l + r > fd {
+                fd = l + r;
+                far = Some(if l > 0.0 { add_scaled(q, v, r / l) } else { q });
             }
-            None => {
-                let mut found = None;
-                for (j, &(q, r)) in items.iter().enumerate() {
-                    let len = (q - c).length();
-                    if len + r > found.map_or(-1.0, |f: (f32, usize, f32)| f.0) {
-                        found = Some((len + r, j, len));
-                    }
-                }
-                found
-            }
-        };
-        match found {
-            Some((reach, j, l)) => {
-                let (q, r) = items[j];
-                let v = q - c;
-                let far = if l > 0.0 { q + v * (r / l) } else { q };
-                (reach.max(0.0), Some(far))
-            }
-            None => (0.0, None),
         }
+        (radius, far)
     };
     let (r0, mut far) = eval(mean);
     let mut best = (mean, r0);
@@ -152,7 +81,7 @@ fn enclosing(items: &[(Vec3, f32)], mean: Vec3, mid: Vec3) -> (Vec3, f32) {
     let mut c = mean;
     for step in 1..=BC_STEPS {
         let Some(f) = far else { break };
-        c += (f - c) * (1.0 / (step as f32 + 1.0));
+        c = add_scaled(c, sub(f, c), 1.0 / (step as f32 + 1.0));
         let (rc, next) = eval(c);
         if rc < best.1 {
             best = (c, rc);
@@ -180,8 +109,14 @@ pub fn bounding_disk(n: Vec3, children: &[ChildDisk]) -> (Vec3, f32) {
         (Vec2::splat(f32::INFINITY), Vec2::splat(f32::NEG_INFINITY)),
         |(lo, hi), &(q, r)| (lo.min(q - r), hi.max(q + r)),
     );
-    let flat: SmallVec<[(Vec3, f32); 8]> = items.iter().map(|&(q, r)| (q.extend(0.0), r)).collect();
-    let (c, r) = enclosing(&flat, Vec3::ZERO, ((lo + hi) * 0.5).extend(0.0));
+    let (c, r) = enclosing(
+        &items,
+        |a, b| a - b,
+        Vec2::length,
+        |a, v, s| a + v * s,
+        Vec2::ZERO,
+        (lo + hi) * 0.5,
+    );
     (mean + t1 * c.x + t2 * c.y, r)
 }
 
@@ -194,7 +129,14 @@ pub fn bounding_ball(children: &[ChildDisk]) -> (Vec3, f32) {
         (Vec3::splat(f32::INFINITY), Vec3::splat(f32::NEG_INFINITY)),
         |(lo, hi), &(q, r)| (lo.min(q - r), hi.max(q + r)),
     );
-    enclosing(&items, mean, (lo + hi) * 0.5)
+    enclosing(
+        &items,
+        |a, b| a - b,
+        Vec3::length,
+        |a, v, s| a + v * s,
+        mean,
+        (lo + hi) * 0.5,
+    )
 }
 
 /// `ρ = r·sqrt(1 − (a·b)²)`: the half-extent of a disk of radius `r`, normal `a`, along unit `b`.

@@ -144,7 +144,7 @@ impl Default for MwkdParams {
             queue: QueueOrder::Length,
             clustering: Clustering::Adaptive,
             tree: TreeKind::Mwkd,
-            mem_mb: 256,
+            mem_mb: crate::params::BUILD_MEM_MB,
             c0: 1.0,
             c1: 1.0,
             c2: 0.0,

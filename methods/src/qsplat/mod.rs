@@ -75,8 +75,9 @@ pub struct QsplatParams {
     /// the surface seen from inside faces away; and for scans whose normals are not
     /// oriented, culls half of the samples. The reference draws both sides.
     pub two_sided: bool,
-    /// Working memory of the build in MiB (≥ 16). A larger cloud is built in units of at
-    /// most `mem_mb·2²⁰ / 200` samples ([`ooc`]); the file is the same for any value.
+    /// Working memory of the build in MiB (≥ 16; default [`crate::params::BUILD_MEM_MB`]).
+    /// A larger cloud is built in units of at most `mem_mb·2²⁰ / 256` samples
+    /// ([`ooc::UNIT_BYTES_PER_SAMPLE`]); the file is the same for any value.
     pub mem_mb: u64,
 }
 
@@ -89,8 +90,7 @@ impl Default for QsplatParams {
             combine: build::Combine::default(),
             fit: quant::Fit::default(),
             two_sided: false,
-            // As LPC's and MWKD's builds.
-            mem_mb: 256,
+            mem_mb: crate::params::BUILD_MEM_MB,
         }
     }
 }

@@ -62,8 +62,7 @@ impl Default for SptParams {
             gpu_limit_mb: 4096,
             cpu_mirror: false,
             bound: SptBound::Sphere,
-            // As the other methods' builds.
-            mem_mb: 256,
+            mem_mb: crate::params::BUILD_MEM_MB,
         }
     }
 }

@@ -29,10 +29,20 @@ mod view;
 
 use clap::{Parser, Subcommand};
 
+/// `--version`: the package version and the commit the binary was built from, so a figure
+/// measured with a binary can name it (e.g. `scripts/build-vs-potree.sh`).
+static VERSION: std::sync::LazyLock<String> = std::sync::LazyLock::new(|| {
+    format!(
+        "{} ({})",
+        env!("CARGO_PKG_VERSION"),
+        harness::runner::GIT_COMMIT
+    )
+});
+
 #[derive(Parser)]
 #[command(
     name = "splatbench",
-    version,
+    version = VERSION.as_str(),
     about = "Benchmark harness for multiresolution point rendering (QSplat, SPT, LPC, MWKD)"
 )]
 struct Cli {

@@ -505,3 +505,24 @@ fn help_texts_carry_no_rustdoc_links() {
         }
     }
 }
+
+/// `--version` names the commit the binary was built from (the one run results carry), so a
+/// figure measured with it can say which code made it.
+#[test]
+fn version_names_the_build_commit() {
+    let out = bin()
+        .arg("--version")
+        .assert()
+        .success()
+        .get_output()
+        .stdout
+        .clone();
+    let text = String::from_utf8(out).unwrap();
+    let want = format!(
+        "splatbench {} ({})",
+        env!("CARGO_PKG_VERSION"),
+        harness::runner::GIT_COMMIT
+    );
+    assert_eq!(text.trim(), want);
+    assert_ne!(harness::runner::GIT_COMMIT, "", "{text}");
+}

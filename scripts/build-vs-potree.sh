@@ -12,7 +12,8 @@
 # column cache, so the LAS read is in its wall time.
 # Prints markdown: the builds (median wall, points/s, median of the per-round ratios
 # "PotreeConverter default's wall ÷ ours" and "fastest's ÷ ours", peak RSS), then every
-# method's phases (median seconds). Keeps OUT/N/rK/NAME.{time,json,log}.
+# method's phases (median seconds). Keeps OUT/N/rK/NAME.{time,json,log}; with REPORT_ONLY=1
+# prints the tables from those files without building.
 set -euo pipefail
 usage="usage: $0 BIN OUT N POTREE_BIN [REPEATS] [METHODS]"
 bin=$(realpath "${1:?$usage}")
@@ -61,13 +62,16 @@ run() { # NAME RD
   rm -rf "$rd/out" "$rd/cache"
 }
 
-for r in $(seq 1 "$repeats"); do
-  rd="$dir/r$r"
-  mkdir -p "$rd"
-  for i in $(seq 0 $((count - 1))); do
-    run "${names[$(((i + r - 1) % count))]}" "$rd"
+# REPORT_ONLY=1: no builds, the tables from the rounds kept in OUT/N/rK.
+if [ "${REPORT_ONLY:-0}" != 1 ]; then
+  for r in $(seq 1 "$repeats"); do
+    rd="$dir/r$r"
+    mkdir -p "$rd"
+    for i in $(seq 0 $((count - 1))); do
+      run "${names[$(((i + r - 1) % count))]}" "$rd"
+    done
   done
-done
+fi
 
 median() { sort -g | awk '{ v[NR] = $1 } END { if (NR == 0) print "?"; else if (NR % 2) print v[(NR + 1) / 2]; else print (v[NR / 2] + v[NR / 2 + 1]) / 2 }'; }
 wall() { cut -d' ' -f1 "$dir/r$1/$2.time"; }
@@ -86,14 +90,16 @@ echo
 for name in "${names[@]}"; do
   case "$name" in potree-*) continue ;; esac
   tag=$(tr ':=,' '-' <<<"$name")
-  echo "**$name** phases (median s of $repeats):"
-  jq -r '.extra.phases[].phase' "$dir/r1/$tag.json" | while read -r phase; do
+  echo "**$name** phases (median s of $repeats; a phase that recurs, e.g. LPC's partition of"
+  echo "each unit, summed within its build):"
+  jq -r 'reduce .extra.phases[].phase as $p ([]; if any(.[]; . == $p) then . else . + [$p] end) | .[]' \
+    "$dir/r1/$tag.json" | while read -r phase; do
     s=$(for r in $(seq 1 "$repeats"); do
-      jq -r --arg p "$phase" '.extra.phases[] | select(.phase == $p) | .seconds' "$dir/r$r/$tag.json"
+      jq -r --arg p "$phase" '[.extra.phases[] | select(.phase == $p) | .seconds] | add' "$dir/r$r/$tag.json"
     done | median)
     printf '%s %.2f; ' "$phase" "$s"
   done
   echo
   echo
 done
-echo "LAS: $(stat -L -c %s "$las") bytes; $("$bin" --version), $(date -u +%F); $(nproc) cores; $(grep -m1 -o 'model name.*' /proc/cpuinfo | cut -d: -f2- | sed 's/^ *//'); PotreeConverter $potree"
+echo "LAS: $(stat -L -c %s "$las") bytes; $("$bin" --version), measured $(date -u -r "$dir/r1" +%F); $(nproc) cores; $(grep -m1 -o 'model name.*' /proc/cpuinfo | cut -d: -f2- | sed 's/^ *//'); PotreeConverter $potree"

@@ -138,8 +138,9 @@ pub fn build_tree(cloud: &PointCloud, radii: &[f32], color_threshold: f32) -> Po
 }
 
 /// A node's children (or their ranges, disks, colours): on the stack up to an octree cell's
-/// 8 (a cell of duplicates at the finest level has more, on the heap). A `Vec` per node
-/// for each of these had been a tenth of the point tree's time (allocations, `perf`).
+/// 8 (a cell of duplicates at the finest level has more, on the heap), instead of five heap
+/// allocations per inner node; the build's wall time did not move measurably with it
+/// (`results/measurements/issue-40-builds.md`).
 type Kids<T> = SmallVec<[T; 8]>;
 
 /// Cells of at least this many samples build their children's subtrees in parallel.

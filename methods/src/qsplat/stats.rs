@@ -74,23 +74,34 @@ pub struct ConeCulls {
 pub const CULL_VIEWS: usize = 16;
 
 impl ConeCulls {
-    /// The directions, unit vectors spread evenly over the sphere.
-    pub fn views() -> [glam::DVec3; CULL_VIEWS] {
-        let golden = std::f64::consts::PI * (3.0 - 5f64.sqrt());
-        std::array::from_fn(|i| {
-            let z = 1.0 - (2 * i + 1) as f64 / CULL_VIEWS as f64;
-            let r = (1.0 - z * z).sqrt();
-            let a = golden * i as f64;
-            glam::DVec3::new(r * a.cos(), r * a.sin(), z)
-        })
+    /// The directions, unit vectors spread evenly over the sphere (computed once).
+    pub fn views() -> &'static [glam::DVec3; CULL_VIEWS] {
+        static VIEWS: std::sync::LazyLock<[glam::DVec3; CULL_VIEWS]> =
+            std::sync::LazyLock::new(|| {
+                let golden = std::f64::consts::PI * (3.0 - 5f64.sqrt());
+                std::array::from_fn(|i| {
+                    let z = 1.0 - (2 * i + 1) as f64 / CULL_VIEWS as f64;
+                    let r = (1.0 - z * z).sqrt();
+                    let a = golden * i as f64;
+                    glam::DVec3::new(r * a.cos(), r * a.sin(), z)
+                })
+            });
+        &VIEWS
     }
 
     /// Tests one node: true normal `n` and half-angle `cone`, decoded normal `q` and class
-    /// `class`; `inner` when it has children.
+    /// `class`; `inner` when it has children. A node that neither cone can cull (an
+    /// exact half-angle of π/2 or more and the never-culled class 3, as every node of a scene
+    /// without normals has) counts nothing and is not tested: with the 16 directions
+    /// recomputed per node, `perf` had put ≈ 9 % of a terrain 10 M build's samples on this
+    /// test (skipping it and computing the directions once: the build's CPU ×0.97, paired).
     pub fn add(&mut self, n: glam::DVec3, cone: f64, q: glam::DVec3, class: u8, inner: bool) {
         let exact_sin = (cone < std::f64::consts::FRAC_PI_2).then(|| cone.sin());
         let quant_sin = (class < 3).then(|| f64::from(quant::CONE_SIN[usize::from(class)]));
-        for v in Self::views() {
+        if exact_sin.is_none() && quant_sin.is_none() {
+            return;
+        }
+        for &v in Self::views() {
             let exact = exact_sin.is_some_and(|s| n.dot(v) < -s);
             let quantised = quant_sin.is_some_and(|s| q.dot(v) < -s - 1e-4);
             for (k, on) in [(0, true), (1, inner)] {

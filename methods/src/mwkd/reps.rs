@@ -255,7 +255,7 @@ fn color_diff(a: [f32; 3], b: [f32; 3]) -> f32 {
 
 /// A position's coordinates in its box `lo..lo+size` as fractions `(v − lo) / size` (NaN
 /// on an axis where the box is flat or the coordinate not finite: that axis's cell is 0),
-/// computed once for every grid [`choose_grid`] tries.
+/// computed once for every grid [`choose_grid`] tries and for the [`morton_codes`].
 fn box_fractions(pos: &[Vec3], lo: Vec3, size: Vec3) -> Vec<[f32; 3]> {
     let f = |v: f32, l: f32, s: f32| {
         if s > 0.0 && v.is_finite() {
@@ -322,11 +322,10 @@ const BITMAP_CELLS: u64 = 1 << 22;
 
 /// The largest `k ≤ grid` whose grid has at most `target` occupied cells, and the cell
 /// keys of that grid.
-fn choose_grid(pos: &[Vec3], lo: Vec3, size: Vec3, grid: u32, target: usize) -> (u32, Vec<u64>) {
-    let fr = box_fractions(pos, lo, size);
+fn choose_grid(fr: &[[f32; 3]], grid: u32, target: usize) -> (u32, Vec<u64>) {
     let fits = |k: u32| occupied_at_most(fr.iter().map(|&t| cell_key(t, k)), k, target);
     if fits(grid) {
-        return (grid, cell_keys(&fr, grid));
+        return (grid, cell_keys(fr, grid));
     }
     // Binary search assuming monotonicity, then walk down if a glitch breaks it.
     let (mut good, mut bad) = (1u32, grid);
@@ -342,7 +341,7 @@ fn choose_grid(pos: &[Vec3], lo: Vec3, size: Vec3, grid: u32, target: usize) -> 
     while k > 1 && !fits(k) {
         k -= 1;
     }
-    (k, cell_keys(&fr, k))
+    (k, cell_keys(fr, k))
 }
 
 /// Lists longer than this merge in batches over a window of neighbours (in Morton order)
@@ -352,23 +351,19 @@ const ALL_PAIRS_MAX: usize = 64;
 /// Neighbours (in list order) each cluster is paired with in a long list.
 const WINDOW: usize = 16;
 
-/// 30-bit Morton codes (10 bits per axis) of positions in the box `lo..lo+size`.
-fn morton_codes(pos: &[Vec3], lo: Vec3, size: Vec3) -> Vec<u32> {
-    let q = |v: f32, l: f32, s: f32| -> u32 {
-        if s > 0.0 && v.is_finite() {
-            (((v - l) / s * 1023.0).round().clamp(0.0, 1023.0)) as u32
-        } else {
+/// 30-bit Morton codes (10 bits per axis) of positions given as [`box_fractions`]: per axis
+/// `round(t·1023)` clamped to `0..=1023` (a NaN fraction, a flat axis or a coordinate that is
+/// not finite, gives 0).
+fn morton_codes(fr: &[[f32; 3]]) -> Vec<u32> {
+    let q = |t: f32| -> u32 {
+        if t.is_nan() {
             0
+        } else {
+            (t * 1023.0).round().clamp(0.0, 1023.0) as u32
         }
     };
-    pos.iter()
-        .map(|p| {
-            crate::morton::morton63([
-                q(p.x, lo.x, size.x),
-                q(p.y, lo.y, size.y),
-                q(p.z, lo.z, size.z),
-            ]) as u32
-        })
+    fr.iter()
+        .map(|t| crate::morton::morton63([q(t[0]), q(t[1]), q(t[2])]) as u32)
         .collect()
 }
 
@@ -538,12 +533,13 @@ fn cell_lists(input: &Splats, grid: u32, target: usize) -> (u32, Vec<Vec<usize>>
     } else {
         (Vec3::ZERO, Vec3::ZERO)
     };
-    let (k, keys) = choose_grid(&input.positions, lo, size, grid.max(1), target);
+    let fr = box_fractions(&input.positions, lo, size);
+    let (k, keys) = choose_grid(&fr, grid.max(1), target);
     let cell_diag = {
         let d = (size / k as f32).length();
         if d > 0.0 && d.is_finite() { d } else { 1.0 }
     };
-    let morton = morton_codes(&input.positions, lo, size);
+    let morton = morton_codes(&fr);
     let mut order: Vec<u32> = (0..m as u32).collect();
     order.sort_unstable_by_key(|&i| (keys[i as usize], morton[i as usize], i));
     let mut lists: Vec<Vec<usize>> = Vec::new();

@@ -144,9 +144,9 @@ fn bounds_of(items: &[Item]) -> Bounds {
 ///
 /// Without a branch on the side (a sample's side is a coin flip on a random scan; with the
 /// two-pointer loop this pass was 11–18 % of a QSplat build's samples, `perf`, terrain 10 M,
-/// and without the branch the whole build takes ×0.95 the wall time, paired): every item is swapped to the front's end and the front grows by
-/// one when it belongs there (Lomuto's scheme), and both boxes take every sample, the other
-/// side's as ±∞. Which samples go left depends on the set alone, never on its order, so
+/// and without the branch the whole build takes ×0.95 the wall time, paired): every item
+/// is swapped to the front's end and the front grows by one when it belongs there
+/// (Lomuto's scheme), and both boxes take every sample, the other side's as ±∞. Which samples go left depends on the set alone, never on its order, so
 /// the tree and the file are those of any other partition scheme.
 fn split_at_cut(items: &mut [Item], axis: usize, cut: f64) -> (usize, Bounds, Bounds) {
     let (inf, ninf) = (Vec3A::INFINITY, Vec3A::NEG_INFINITY);
@@ -186,21 +186,17 @@ fn partition(
     }
     let (lo, hi) = bounds;
     let axis = scenes::Aabb { min: lo, max: hi }.longest_axis();
-    let empty = (Vec3::splat(f32::INFINITY), Vec3::splat(f32::NEG_INFINITY));
-    let (mut lb, mut rb) = (empty, empty);
-    let mut mid = 0;
-    if opt.split == Split::Midpoint {
-        let cut = (lo[axis] as f64 + hi[axis] as f64) * 0.5;
-        (mid, lb, rb) = split_at_cut(items, axis, cut);
-    }
-    if mid == 0 || mid == n {
-        mid = n / 2;
+    // The midpoint's split, unless it left a side empty; else the median's.
+    let at_cut = (opt.split == Split::Midpoint)
+        .then(|| split_at_cut(items, axis, (lo[axis] as f64 + hi[axis] as f64) * 0.5))
+        .filter(|&(mid, _, _)| mid != 0 && mid != n);
+    let (mid, lb, rb) = at_cut.unwrap_or_else(|| {
+        let mid = n / 2;
         items.select_nth_unstable_by(mid, |a, b| {
             a.p[axis].total_cmp(&b.p[axis]).then(a.i.cmp(&b.i))
         });
-        lb = bounds_of(&items[..mid]);
-        rb = bounds_of(&items[mid..]);
-    }
+        (mid, bounds_of(&items[..mid]), bounds_of(&items[mid..]))
+    });
     let (pl, pr) = items.split_at_mut(mid);
     let (ll, lr) = left.split_at_mut(mid);
     let (rl, rr) = right.split_at_mut(mid);

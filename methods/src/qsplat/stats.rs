@@ -528,6 +528,18 @@ mod tests {
         assert_eq!((d.exact[0], d.quantised[0], d.wrong), (8, 0, 0));
         d.add(z, 1.6, z, 0, true);
         assert_eq!((d.exact[0], d.quantised[0], d.wrong), (8, 7, 7));
+        // Neither cone culls (every node of a scene without normals: cone π, class 3): the
+        // node is skipped and counts nothing.
+        let before = d;
+        d.add(
+            glam::DVec3::ZERO,
+            std::f64::consts::PI,
+            glam::DVec3::ZERO,
+            3,
+            true,
+        );
+        d.add(z, 1.6, z, 3, false);
+        assert_eq!(d, before);
         // A stored normal pointing elsewhere than the true one culls what it should not.
         let mut w = ConeCulls::default();
         w.add(glam::DVec3::X, 0.0, z, 0, true);

@@ -1,7 +1,7 @@
 //! CPU kernels shared by the methods: normal encoding, leaf-radius estimation (k nearest
-//! neighbours), QSplat's and SPT's trees, scene generation, `full`'s per-frame selection and QSplat's traversal
-//! (throughput = nodes visited), and the chunk store's LZO + checksum on one chunk. Timing is
-//! reported, never asserted.
+//! neighbours), QSplat's and SPT's trees, scene generation, `full`'s per-frame selection and
+//! QSplat's traversal (throughput = nodes visited), and the chunk store's LZO + checksum on
+//! one chunk. Timing is reported, never asserted.
 //! Run: `cargo bench -p methods --bench kernels` (QSplat only: `... -- qsplat/`; store only:
 //! `... -- store/`; MWKD only: `... -- mwkd/`; generation and k-NN: `... -- kernels/`; PLY
 //! reading: `... -- scene_io/`).

@@ -119,16 +119,6 @@ fn hole_bound(method: MethodKind, params: &[&str], scene: &str, path: &str) -> H
             "Potree's level-spacing point size (1.7 s, narrower than the 2 s a Poisson-disk \
              sample needs) on the statue orbit",
         ),
-        // voxel draws its voxels cell-sized (√3·s across, the paper's pixel-sized voxels taken
-        // literally): where the terrain's samples are sparser than the root's cells, gaps
-        // show on the first frame, before the leaves load (`sizing=spacing` bridges them).
-        // Loading is asynchronous, so frame 0 holds the root alone or more: the root alone is
-        // the worst (3.05 %; 1.46 % when a leaf had arrived, on an idle machine).
-        MethodKind::Voxel if terrain => HoleBound::ratchet(
-            0.0305,
-            "voxel's cell-sized splats where the terrain's samples are sparser than the \
-             root's 128³ cells (density varies > 100x), the root alone on frame 0",
-        ),
         // CLOD keeps a point only when its spacing is at least the target spacing (ε px at the
         // screen's centre, up to ε/0.3 at its edge with the paper's foveation), and its rule
         // has no floor: where even the root's spacing (cube side / 128) projects below that,
@@ -159,7 +149,9 @@ fn hole_bound(method: MethodKind, params: &[&str], scene: &str, path: &str) -> H
 /// views: the statue orbit, the coloured terrain orbit (density varying > 100×) and a close
 /// still view of the statue (`paper/paths/still-near.toml`, the finest levels fill the view).
 /// Every frame's hole ratio stays within the method's bound ([`hole_bound`], each stated and
-/// explained).
+/// explained). The loading methods run with one frame of simulated latency, so each frame's
+/// loaded set is the same on every machine (voxel's root-alone frames have their own test,
+/// [`voxel_root_alone_on_the_terrain_then_its_leaves`]).
 #[test]
 fn holes_at_1px_stay_within_each_methods_bound() {
     let Some(gpu) = harness::gpu::gpu_for_test("holes_at_1px_stay_within_each_methods_bound")
@@ -179,9 +171,18 @@ fn holes_at_1px_stay_within_each_methods_bound() {
     for (vi, (scene, path, frames)) in views.iter().enumerate() {
         for (method, params) in &configs {
             let name = format!("{method}-{}-{vi}", params.len());
+            // A loader with no simulated latency (the default, `delay_frames=0`) makes a
+            // frame hold whatever the loader thread happened to decode in time: frame 0 of a
+            // loaded machine held a different set than on an idle one (voxel's terrain: 9.9 %
+            // holes against 3.05 %). One frame of latency makes every frame's set exact (the
+            // loader waits for what is due), so the bounds hold on any machine.
+            let mut params = params.clone();
+            if method.runtime_params().contains(&"delay_frames") {
+                params.push("delay_frames=1");
+            }
             let cfg = config(
                 *method,
-                params,
+                &params,
                 scene,
                 path,
                 *frames,
@@ -191,7 +192,7 @@ fn holes_at_1px_stay_within_each_methods_bound() {
             );
             run(&cfg, &gpu, &scenes::NoProgress)
                 .unwrap_or_else(|e| panic!("{method} {params:?} on {scene} {path}: {e:#}"));
-            let bound = hole_bound(*method, params, scene, path);
+            let bound = hole_bound(*method, &params, scene, path);
             for (i, holes) in column(&tmp.path().join(&name), "hole_ratio")
                 .into_iter()
                 .enumerate()
@@ -205,6 +206,58 @@ fn holes_at_1px_stay_within_each_methods_bound() {
                 );
             }
         }
+    }
+}
+
+/// voxel draws its inner nodes' voxels cell-sized (√3·s across, the paper's pixel-sized voxels
+/// taken literally): where the terrain's samples are sparser than the root's 128³ cells, gaps
+/// show while the root is drawn alone, before the leaves load (`sizing=spacing` bridges them);
+/// once they have loaded the leaves' own samples cover as the reference does. A loader three
+/// frames late (`delay_frames=3`, exact: the loader waits for what is due) holds frames 0–1 at
+/// the root alone, whatever the machine's speed.
+#[test]
+fn voxel_root_alone_on_the_terrain_then_its_leaves() {
+    let Some(gpu) = harness::gpu::gpu_for_test("voxel_root_alone_on_the_terrain_then_its_leaves")
+    else {
+        return;
+    };
+    let tmp = tempfile::tempdir().unwrap();
+    let cfg = config(
+        MethodKind::Voxel,
+        &["delay_frames=3"],
+        "terrain:40000:2",
+        "orbit",
+        4,
+        256,
+        tmp.path(),
+        "run",
+    );
+    run(&cfg, &gpu, &scenes::NoProgress).unwrap();
+    let (nodes, holes) = (
+        column(&cfg.out, "visible_nodes"),
+        column(&cfg.out, "hole_ratio"),
+    );
+    let root = HoleBound::ratchet(
+        0.0989,
+        "voxel's cell-sized splats where the terrain's samples are sparser than the root's \
+         128³ cells (density varies > 100x), the root alone",
+    );
+    let leaves = hole_bound(MethodKind::Voxel, &[], "terrain:40000:2", "orbit");
+    for i in 0..4 {
+        let (bound, state) = if i < 2 {
+            assert_eq!(nodes[i], 1.0, "frame {i}: the root alone is in core");
+            (&root, "root alone")
+        } else {
+            assert!(nodes[i] > 1.0, "frame {i}: the leaves have arrived");
+            (&leaves, "leaves loaded")
+        };
+        assert!(
+            holes[i] <= bound.max,
+            "frame {i} ({state}): hole ratio {:.4} > {:.4} ({})",
+            holes[i],
+            bound.max,
+            bound.describe()
+        );
     }
 }
 

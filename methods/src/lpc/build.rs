@@ -58,9 +58,11 @@
 //! **Input spacing** `r` (when not given): from the distance to the
 //! [`crate::leaf::LEAF_K`]-th nearest neighbour by the `spacing_rule` ([`spacing_estimates`]:
 //! the paper's average spacing by default) over a seeded probe (each sample with
-//! probability `min(1, 16 384 / N)`), each probe measured against the full-density samples of
-//! the in-core subtree that contains it when that subtree is loaded ([`probe_knn`]). Probes
-//! that end up in the cloud of an out-of-core node are not measured.
+//! probability `min(1, 16 384 / N)`), each probe measured exactly against all the scene's
+//! samples: by the in-core root ([`probe_knn`], alongside its first split) or, when the root
+//! is streamed, by one scan of the position column before the partition
+//! ([`column_probe_knn`]: the same values in the same order), so that `r`, and with it the
+//! files, do not depend on `mem_mb`.
 //!
 //! **Temporary files** (`temp_bytes` in `build.json`): the cloud file (`20·N` bytes) plus
 //! `20` bytes for each sample written to a streamed group's frontier file. With no group
@@ -95,8 +97,8 @@ pub use super::multilevel::{MAX_FILES, MAX_LEVELS, MAX_SIMULATED, WRITE_BUF};
 pub use super::partition::PAR_MIN;
 use super::partition::{Cfg, Phase1, Temps};
 pub use super::spacing::{
-    KNN_CHUNK, MEAN_SPACING_FACTOR, SPACING_QUANTILE, hierarchical_spacing, probe_knn,
-    spacing_estimates,
+    KNN_CHUNK, MEAN_SPACING_FACTOR, SPACING_QUANTILE, column_probe_knn, hierarchical_spacing,
+    probe_knn, spacing_estimates,
 };
 
 use super::layout::IO_BUF;

@@ -423,6 +423,8 @@ impl Scan {
 pub(super) struct Phase1<'a> {
     pub(super) cfg: Cfg,
     pub(super) budget: u64,
+    /// Whether the probes are still to be measured: by the in-core root, or (a streamed
+    /// root) once over the scene's columns before the partition, after which it is false.
     pub(super) estimate: bool,
     pub(super) dir: PathBuf,
     pub(super) nodes: Vec<PNode>,
@@ -543,6 +545,16 @@ impl<'a> Phase1<'a> {
             }
             self.in_core(root(nsum), &mut bufs)?;
         } else {
+            if self.estimate {
+                // The probes measured against the whole scene, as the in-core root measures
+                // them, rather than in the in-core subtrees (whose borders and number depend
+                // on the memory budget): the input spacing, and so the files, do not depend
+                // on `mem_mb`.
+                self.progress.start("lpc: spacing probes", 0);
+                self.probes = cols.probe_knn();
+                self.progress.finish();
+                self.estimate = false;
+            }
             // A first pass over the normal column gives the root's cone axis.
             let item = self.group(
                 root(cols.normal_sum()),

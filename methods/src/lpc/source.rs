@@ -45,6 +45,25 @@ impl<'c> Columns<'c> {
         self.cloud.len() as u64
     }
 
+    /// Whether sample `i` of the scene is a spacing probe (a seeded hash of its index).
+    #[inline]
+    pub(super) fn is_probe(&self, i: usize) -> bool {
+        let mut h = self.seed ^ (i as u64).wrapping_mul(0xA24B_AED4_963E_E407);
+        splitmix64(&mut h) <= self.threshold
+    }
+
+    /// `[nearest, LEAF_K-th nearest]` distances of every probe, measured against the whole
+    /// scene ([`super::spacing::column_probe_knn`]): what the in-core root measures, for a
+    /// root that is streamed.
+    pub(super) fn probe_knn(&self) -> Vec<[f32; 2]> {
+        super::spacing::column_probe_knn(
+            self.cloud.positions(),
+            |i| self.is_probe(i),
+            self.cloud.bounds(),
+            crate::leaf::LEAF_K,
+        )
+    }
+
     /// The sum of the quantised normals, in order (the root's cone axis before its scan; zero
     /// without normals): one pass over the normal column, blocks encoded in parallel while
     /// the previous one is summed.
@@ -96,7 +115,6 @@ impl<'c> Columns<'c> {
         nsum: Option<&mut DVec3>,
     ) {
         let cloud = self.cloud;
-        let (seed, threshold) = (self.seed, self.threshold);
         let pos = &cloud.positions()[range.clone()];
         let nrm = cloud.normals().map(|v| &v[range.clone()]);
         let col = cloud.colors().map(|v| &v[range.clone()]);
@@ -109,12 +127,10 @@ impl<'c> Columns<'c> {
                 for (jj, s) in chunk.iter_mut().enumerate() {
                     let j = c * CONVERT_CHUNK + jj;
                     let i = range.start + j;
-                    let mut h = seed ^ (i as u64).wrapping_mul(0xA24B_AED4_963E_E407);
-                    let probe = splitmix64(&mut h) <= threshold;
                     *s = Sample {
                         p: pos[j],
                         normal: nrm.map_or(0, |nv| cloud::oct16_encode(Vec3::from(nv[j]))),
-                        flags: if probe { PROBE } else { 0 },
+                        flags: if self.is_probe(i) { PROBE } else { 0 },
                         color: col.map_or([0; 4], |c| [c[j][0], c[j][1], c[j][2], 0]),
                     };
                 }

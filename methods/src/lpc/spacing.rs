@@ -82,6 +82,48 @@ pub fn probe_knn(s: &[Sample], bbox: Aabb, k: usize) -> Vec<[f32; 2]> {
         .filter(|x| x.flags & PROBE != 0)
         .map(|x| x.p)
         .collect();
+    knn_of(&probes, s, |x| x.p, bbox, k)
+}
+
+/// [`probe_knn`] over the whole scene, read from its position column: the probes are the
+/// samples whose index hashes at most `is_probe` says, in column order, measured against
+/// every sample of `positions`, whose box is `bbox`. The same values in the same order as
+/// [`probe_knn`] of the whole scene's samples in column order (the in-core root's buffer),
+/// whatever part of the build is streamed: the input spacing does not depend on the memory
+/// budget.
+pub fn column_probe_knn(
+    positions: &[[f32; 3]],
+    is_probe: impl Fn(usize) -> bool + Sync,
+    bbox: Aabb,
+    k: usize,
+) -> Vec<[f32; 2]> {
+    let probes: Vec<[f32; 3]> = positions
+        .par_chunks(KNN_CHUNK)
+        .enumerate()
+        .map(|(c, chunk)| {
+            let lo = c * KNN_CHUNK;
+            chunk
+                .iter()
+                .enumerate()
+                .filter(|&(j, _)| is_probe(lo + j))
+                .map(|(_, &p)| p)
+                .collect::<Vec<_>>()
+        })
+        .collect::<Vec<_>>()
+        .concat();
+    knn_of(&probes, positions, |p| *p, bbox, k)
+}
+
+/// The exact `[nearest, k-th nearest]` distances of `probes` (each one of `s`, excluded once)
+/// against every item of `s`, whose positions `pos` gives and whose box is `bbox`
+/// ([`probe_knn`]'s grid scan).
+fn knn_of<T: Sync>(
+    probes: &[[f32; 3]],
+    s: &[T],
+    pos: impl Fn(&T) -> [f32; 3] + Sync,
+    bbox: Aabb,
+    k: usize,
+) -> Vec<[f32; 2]> {
     if probes.is_empty() || s.len() < 2 {
         return Vec::new();
     }
@@ -92,16 +134,18 @@ pub fn probe_knn(s: &[Sample], bbox: Aabb, k: usize) -> Vec<[f32; 2]> {
         // Every sample coincides: every distance is 0.
         return vec![[0.0; 2]; probes.len()];
     }
-    let area = 2.0 * (size.x * size.y + size.y * size.z + size.z * size.x);
-    let mut h = (1.0 * (area / s.len() as f32).sqrt()).max(ext / (1u32 << 19) as f32);
+    let h0 = first_radius(bbox, s.len());
+    let round_of = |d: f32| round_of(h0, d);
+    let mut h = h0;
     let mut pending: Vec<u32> = (0..probes.len() as u32).collect();
-    let mut out = Vec::with_capacity(probes.len());
+    // Each probe's distances and its round.
+    let mut done = vec![([0f32; 2], 0u32); probes.len()];
     let min = bbox.min;
     while !pending.is_empty() {
         let inv = 1.0 / h;
         let cell = |p: [f32; 3]| {
             let c = (Vec3::from(p) - min) * inv;
-            [c.x.floor() as i64, c.y.floor() as i64, c.z.floor() as i64]
+            [c.x as i64, c.y as i64, c.z as i64]
         };
         let key = |c: [i64; 3]| {
             ((c[0] + 1) as u64) | ((c[1] + 1) as u64) << 21 | ((c[2] + 1) as u64) << 42
@@ -137,9 +181,10 @@ pub fn probe_knn(s: &[Sample], bbox: Aabb, k: usize) -> Vec<[f32; 2]> {
         let kk = k + 1;
         let h2 = h * h;
         let fresh = || vec![[f32::INFINITY; LEAF_K + 1]; pending.len()];
-        let scan = |mut best: Vec<Best>, chunk: &[Sample]| {
+        let scan = |mut best: Vec<Best>, chunk: &[T]| {
             for x in chunk {
-                let kx = key(cell(x.p));
+                let p = pos(x);
+                let kx = key(cell(p));
                 let f = filter_bit(kx);
                 if filter[f >> 6] & (1 << (f & 63)) == 0 {
                     continue;
@@ -150,7 +195,7 @@ pub fn probe_knn(s: &[Sample], bbox: Aabb, k: usize) -> Vec<[f32; 2]> {
                 for &(_, j) in &entries[a as usize..b as usize] {
                     let j = j as usize;
                     let q = probes[pending[j] as usize];
-                    let d2 = (Vec3::from(x.p) - Vec3::from(q)).length_squared();
+                    let d2 = (Vec3::from(p) - Vec3::from(q)).length_squared();
                     let bj = &mut best[j][..kk];
                     if d2 <= h2 && d2 < bj[kk - 1] {
                         let mut i = kk - 1;
@@ -179,16 +224,50 @@ pub fn probe_knn(s: &[Sample], bbox: Aabb, k: usize) -> Vec<[f32; 2]> {
             // `best[j][0]` is the probe itself.
             let d = best[j][k];
             if d <= h2 {
-                out.push([best[j][1].sqrt(), d.sqrt()]);
+                done[pi as usize] = ([best[j][1].sqrt(), d.sqrt()], round_of(d));
             } else {
                 next.push(pi);
             }
         }
         pending = next;
-        h *= 2.0;
+        // A few stragglers (sparse parts of the scene) are measured with a radius growing
+        // faster: a scan of every sample for each doubling costs more than the larger
+        // cells' extra samples.
+        h *= if pending.len() * STRAGGLERS < probes.len() {
+            4.0
+        } else {
+            2.0
+        };
     }
-    out
+    // The probes in the order of the doubling schedule's rounds (then in their own order),
+    // whatever schedule measured them: the mean of the distances is summed in this order.
+    let mut order: Vec<u32> = (0..probes.len() as u32).collect();
+    order.sort_by_key(|&i| (done[i as usize].1, i));
+    order.into_iter().map(|i| done[i as usize].0).collect()
 }
+
+/// The first cell size of [`knn_of`]'s grid for `n` samples in `bbox` (positive extent):
+/// `sqrt(A/n)` with `A` the surface area of the box, at least 2⁻¹⁹ of its extent.
+fn first_radius(bbox: Aabb, n: usize) -> f32 {
+    let size = bbox.size();
+    let area = 2.0 * (size.x * size.y + size.y * size.z + size.z * size.x);
+    (1.0 * (area / n as f32).sqrt()).max(size.max_element() / (1u32 << 19) as f32)
+}
+
+/// The round of the doubling schedule `h_r = h0·2^r` in which a probe whose k-th squared
+/// distance is `d` is measured: the first with `d ≤ h_r²` (the order of [`knn_of`]'s output).
+fn round_of(h0: f32, d: f32) -> u32 {
+    let (mut r, mut hr) = (0u32, h0);
+    while d > hr * hr {
+        hr *= 2.0;
+        r += 1;
+    }
+    r
+}
+
+/// Below one pending probe in this many, [`knn_of`]'s radius quadruples from scan to scan
+/// instead of doubling.
+const STRAGGLERS: usize = 64;
 
 /// Quantile of the `LEAF_K`-th-neighbour distance that sets the splat spacing of
 /// [`SpacingRule::Cover90`].
@@ -263,6 +342,58 @@ mod tests {
         assert_eq!(count, wc);
         assert!((sum - want).abs() < 1e-4 * want, "{sum} vs {want}");
         assert!((sum1 - want1).abs() < 1e-4 * want1, "{sum1} vs {want1}");
+    }
+
+    /// The whole-scene measure ([`column_probe_knn`], a streamed root's) gives exactly the
+    /// in-core root's values in the same order, and those are the exact k-NN distances: on
+    /// a scene whose density varies 1,000× (most probes measured in the first scans, the
+    /// sparse corner's in the straggler scans).
+    #[test]
+    fn column_probe_knn_is_the_in_core_measure_exactly() {
+        let mut rng = Pcg32::new(5);
+        let s: Vec<Sample> = (0..30_000)
+            .map(|i| {
+                let sparse = i % 1000 == 0;
+                let (u, v) = (rng.f32(), rng.f32());
+                let p = if sparse {
+                    [10.0 + u * 30.0, v * 30.0, 0.0]
+                } else {
+                    [u * 10.0, v * 10.0, (u * 9.0).sin() * 0.1]
+                };
+                Sample {
+                    p,
+                    flags: if i % 7 == 0 { PROBE } else { 0 },
+                    ..Default::default()
+                }
+            })
+            .collect();
+        let pos: Vec<[f32; 3]> = s.iter().map(|x| x.p).collect();
+        let bbox = Aabb::from_points(&pos);
+        let in_core = probe_knn(&s, bbox, LEAF_K);
+        let streamed = column_probe_knn(&pos, |i| i % 7 == 0, bbox, LEAF_K);
+        assert_eq!(in_core, streamed);
+        // Brute force, in the doubling schedule's order: by round, then by index.
+        let h0 = first_radius(bbox, s.len());
+        let mut want: Vec<(u32, usize, [f32; 2])> = (0..s.len())
+            .step_by(7)
+            .map(|i| {
+                let mut d: Vec<f32> = (0..s.len())
+                    .filter(|&j| j != i)
+                    .map(|j| (Vec3::from(pos[j]) - Vec3::from(pos[i])).length_squared())
+                    .collect();
+                d.sort_by(f32::total_cmp);
+                let dk = d[LEAF_K - 1];
+                (round_of(h0, dk), i, [d[0].sqrt(), dk.sqrt()])
+            })
+            .collect();
+        want.sort_by_key(|w| (w.0, w.1));
+        let rounds: std::collections::BTreeSet<u32> = want.iter().map(|w| w.0).collect();
+        assert!(
+            rounds.len() >= 4,
+            "a scene measured in several rounds: {rounds:?}"
+        );
+        let want: Vec<[f32; 2]> = want.into_iter().map(|w| w.2).collect();
+        assert_eq!(streamed, want);
     }
 
     #[test]

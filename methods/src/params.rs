@@ -66,14 +66,15 @@ impl Params {
     }
 }
 
-/// The default build memory (`mem_mb`) of QSplat, SPT and MWKD, whose files do not depend on
-/// it (`methods/tests/mem_budget.rs`), so it only trades peak RSS for speed. 768 (256 until
-/// issue 40): at 10 M terrain points their builds then run in 5, 7 and 1 units instead of
-/// 15, 23 and 4, ≈ 1 s faster each (QSplat 12.5 → 11.5 s, SPT 18.3 → 17.7 s, MWKD 8.5 →
-/// 7.4 s; peak RSS 535, 480 and 243 MB), and the issue's memory goal, ≤ 1 GB at 50 M, keeps
-/// a margin (`results/measurements/issue-40-builds.md`). LPC, potree and voxel keep 256:
-/// LPC's files depend on `mem_mb` unless its spacing is given, and potree's and voxel's
-/// units follow PotreeConverter's.
+/// The default build memory (`mem_mb`) of QSplat, SPT, MWKD and LPC, whose files do not depend
+/// on it (`methods/tests/mem_budget.rs`), so it only trades peak RSS for speed. 768 (256 until
+/// issue 40): at 10 M terrain points QSplat's, SPT's and MWKD's builds then run in 5, 7 and 1
+/// units instead of 15, 23 and 4, ≈ 1 s faster each (QSplat 12.5 → 11.5 s, SPT 18.3 → 17.7
+/// s, MWKD 8.5 → 7.4 s; peak RSS 535, 480 and 243 MB); LPC's 50 M build streams two
+/// partition passes instead of four and two groups (14.4 → 11.5 s, peak RSS 279 → 749 MB).
+/// The issue's memory goal, ≤ 1 GB at 50 M, keeps a margin
+/// (`results/measurements/issue-40-builds.md`). potree and voxel keep 256: their units
+/// follow PotreeConverter's.
 pub const BUILD_MEM_MB: u64 = 768;
 
 /// The most MiB a size parameter (`mem_mb`, `core_mb`, `gpu_limit_mb`) may name: 2³⁰ MiB

@@ -167,7 +167,7 @@ impl Default for LpcParams {
             m: 2048,
             k: 2.0,
             seed: 1,
-            mem_mb: 256,
+            mem_mb: crate::params::BUILD_MEM_MB,
             spacing: None,
             spacing_rule: SpacingRule::Mean,
             nn_spacing: None,

@@ -46,8 +46,8 @@
 //! while that keeps all three (a simulated node replaces one frontier node by at most two).
 //! A frontier node that does not fit starts a new group, whose samples are written once
 //! more. With a split near the midpoint (a balanced tree), a group of up to 6 levels writes
-//! every sample once: with the default 256 MiB budget (in-core subtrees of ≤ 6.7 M samples),
-//! inputs up to ≈ 430 M samples are written to temporary files once, larger ones once per 6
+//! every sample once: with the default 768 MiB budget (in-core subtrees of ≤ 20 M samples),
+//! inputs up to ≈ 1.3 G samples are written to temporary files once, larger ones once per 6
 //! streamed levels; uneven splits under speculation add at most one more write of the
 //! samples below them. Degenerate inputs (a chain of nodes) are written once per
 //! [`MAX_LEVELS`] levels. The price is reads and scans: a group of `L` levels reads its

@@ -545,24 +545,25 @@ impl<'a> Phase1<'a> {
             }
             self.in_core(root(nsum), &mut bufs)?;
         } else {
-            if self.estimate {
-                // The probes measured against the whole scene, as the in-core root measures
-                // them, rather than in the in-core subtrees (whose borders and number depend
-                // on the memory budget): the input spacing, and so the files, do not depend
-                // on `mem_mb`.
-                self.progress.start("lpc: spacing probes", 0);
-                self.probes = cols.probe_knn();
-                self.progress.finish();
-                self.estimate = false;
-            }
-            // A first pass over the normal column gives the root's cone axis.
-            let item = self.group(
-                root(cols.normal_sum()),
-                Source::Columns(&cols),
-                true,
-                "lpc: partition",
-                temps,
-            )?;
+            // The probes are measured against the whole scene, as the in-core root measures
+            // them, rather than in the in-core subtrees (whose borders and number depend on
+            // the memory budget): the input spacing, and so the files, do not depend on
+            // `mem_mb`. The scan runs alongside the first partition passes (which wait on
+            // their temporary files): at 50 M terrain samples it is hidden in them.
+            let estimate = std::mem::replace(&mut self.estimate, false);
+            let task = root(cols.normal_sum());
+            let (probes, item) = rayon::join(
+                || {
+                    if estimate {
+                        cols.probe_knn()
+                    } else {
+                        Vec::new()
+                    }
+                },
+                || self.group(task, Source::Columns(&cols), true, "lpc: partition", temps),
+            );
+            self.probes = probes;
+            let item = item?;
             self.progress.start("lpc: partition", n - self.clouds_len);
             stack.push((item, 0));
         }

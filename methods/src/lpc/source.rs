@@ -61,6 +61,7 @@ impl<'c> Columns<'c> {
             |i| self.is_probe(i),
             self.cloud.bounds(),
             crate::leaf::LEAF_K,
+            |range| self.cloud.release_pages(range),
         )
     }
 

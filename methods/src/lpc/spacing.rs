@@ -82,7 +82,7 @@ pub fn probe_knn(s: &[Sample], bbox: Aabb, k: usize) -> Vec<[f32; 2]> {
         .filter(|x| x.flags & PROBE != 0)
         .map(|x| x.p)
         .collect();
-    knn_of(&probes, s, |x| x.p, bbox, k)
+    knn_of(&probes, s, |x| x.p, bbox, k, |_| {})
 }
 
 /// [`probe_knn`] over the whole scene, read from its position column: the probes are the
@@ -90,39 +90,44 @@ pub fn probe_knn(s: &[Sample], bbox: Aabb, k: usize) -> Vec<[f32; 2]> {
 /// every sample of `positions`, whose box is `bbox`. The same values in the same order as
 /// [`probe_knn`] of the whole scene's samples in column order (the in-core root's buffer),
 /// whatever part of the build is streamed: the input spacing does not depend on the memory
-/// budget.
+/// budget. `scanned` is told each range of samples a scan has finished with (a mapped
+/// column's pages can be released behind it).
 pub fn column_probe_knn(
     positions: &[[f32; 3]],
     is_probe: impl Fn(usize) -> bool + Sync,
     bbox: Aabb,
     k: usize,
+    scanned: impl Fn(std::ops::Range<usize>) + Sync,
 ) -> Vec<[f32; 2]> {
     let probes: Vec<[f32; 3]> = positions
         .par_chunks(KNN_CHUNK)
         .enumerate()
         .map(|(c, chunk)| {
             let lo = c * KNN_CHUNK;
-            chunk
+            let found = chunk
                 .iter()
                 .enumerate()
                 .filter(|&(j, _)| is_probe(lo + j))
                 .map(|(_, &p)| p)
-                .collect::<Vec<_>>()
+                .collect::<Vec<_>>();
+            scanned(lo..lo + chunk.len());
+            found
         })
         .collect::<Vec<_>>()
         .concat();
-    knn_of(&probes, positions, |p| *p, bbox, k)
+    knn_of(&probes, positions, |p| *p, bbox, k, scanned)
 }
 
 /// The exact `[nearest, k-th nearest]` distances of `probes` (each one of `s`, excluded once)
 /// against every item of `s`, whose positions `pos` gives and whose box is `bbox`
-/// ([`probe_knn`]'s grid scan).
+/// ([`probe_knn`]'s grid scan), telling `scanned` each range of `s` a scan is done with.
 fn knn_of<T: Sync>(
     probes: &[[f32; 3]],
     s: &[T],
     pos: impl Fn(&T) -> [f32; 3] + Sync,
     bbox: Aabb,
     k: usize,
+    scanned: impl Fn(std::ops::Range<usize>) + Sync,
 ) -> Vec<[f32; 2]> {
     if probes.is_empty() || s.len() < 2 {
         return Vec::new();
@@ -211,7 +216,12 @@ fn knn_of<T: Sync>(
         };
         let best = s
             .par_chunks(KNN_CHUNK)
-            .fold(fresh, scan)
+            .enumerate()
+            .fold(fresh, |best, (c, chunk)| {
+                let best = scan(best, chunk);
+                scanned(c * KNN_CHUNK..c * KNN_CHUNK + chunk.len());
+                best
+            })
             .reduce_with(|mut x, y| {
                 for (u, v) in x.iter_mut().zip(&y) {
                     merge_best(u, v, kk);
@@ -370,7 +380,7 @@ mod tests {
         let pos: Vec<[f32; 3]> = s.iter().map(|x| x.p).collect();
         let bbox = Aabb::from_points(&pos);
         let in_core = probe_knn(&s, bbox, LEAF_K);
-        let streamed = column_probe_knn(&pos, |i| i % 7 == 0, bbox, LEAF_K);
+        let streamed = column_probe_knn(&pos, |i| i % 7 == 0, bbox, LEAF_K, |_| {});
         assert_eq!(in_core, streamed);
         // Brute force, in the doubling schedule's order: by round, then by index.
         let h0 = first_radius(bbox, s.len());

@@ -113,7 +113,9 @@ fn main() -> std::process::ExitCode {
     let cli = Cli::parse();
     harness::memory::skip_check(cli.skip_memory_check);
     quiet_headless_vulkan(&cli.command);
-    if matches!(cli.command, Command::Build(_)) {
+    if let Command::Build(a) = &cli.command
+        && build::keeps_freed_memory(a)
+    {
         keep_freed_heap_memory();
     }
     // `check` has three outcomes (holds, regression, unusable input): its own exit status.
@@ -163,8 +165,9 @@ fn quiet_headless_vulkan(command: &Command) {
 /// build, 0.22 M with this policy. Paired with the default (terrain 10 M LAS, 3 runs each,
 /// the policy set through `GLIBC_TUNABLES`): wall QSplat ×0.88, SPT ×0.88, LPC ×0.93, MWKD
 /// ×1.01; peak RSS up to +70 MB. The files do not change. Only `build` (and the builds `tune`
-/// runs as `build` processes): a `run`'s per-frame resident set stays measured under the
-/// default policy. mimalloc and jemalloc as the global allocator were tried and not kept
+/// runs as `build` processes), and not one told to use less than
+/// [`build::KEEP_FREED_FROM_MB`]: a `run`'s per-frame resident set stays measured under the
+/// default policy, and a small budget keeps bounding the resident set. mimalloc and jemalloc as the global allocator were tried and not kept
 /// (LPC ×1.28 and QSplat ×1.06 slower respectively).
 ///
 /// The crate's other `unsafe`: `mallopt` only sets the allocator's parameters.

@@ -441,7 +441,7 @@ pub(super) fn build_in_memory(
     let s = Samples::of_cloud(cloud, radii);
     let part = Partitioned::new(s.pos, opt);
     let forest = part.forest(Roots::Whole);
-    let truth = forest.truths(&part.perm, s);
+    let truth = forest.truths(Some(&part.perm), s);
     let attrs = (s.normals.is_some(), s.colors.is_some());
     let q = forest.quantise(&truth, Parent::Root, attrs, opt.fit, 0, debug)?;
     if !debug {

@@ -118,7 +118,7 @@ impl Forest {
     }
 
     /// True properties of every node, bottom-up.
-    pub(super) fn truths(&self, perm: &[u32], s: Samples<'_>) -> Vec<Vec<TrueNode>> {
+    pub(super) fn truths(&self, perm: Option<&[u32]>, s: Samples<'_>) -> Vec<Vec<TrueNode>> {
         let has_n = s.normals.is_some();
         let mut truth: Vec<Vec<TrueNode>> = vec![Vec::new(); self.ranges.len()];
         for l in (0..self.ranges.len()).rev() {
@@ -132,7 +132,7 @@ impl Forest {
                 .enumerate()
                 .map(|(i, &(lo, hi, _))| {
                     if hi - lo == 1 {
-                        leaf_truth(s, perm[lo as usize] as usize)
+                        leaf_truth(s, perm.map_or(lo as usize, |p| p[lo as usize] as usize))
                     } else {
                         combine(&below[starts[i] as usize..starts[i + 1] as usize], has_n)
                     }

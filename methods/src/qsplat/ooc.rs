@@ -258,14 +258,15 @@ impl UnitForests<'_> {
             None => None,
         };
         let unit = &self.top.units[u];
-        let s = unit.load(self.layout, r)?;
+        let mut s = unit.load(self.layout, r)?;
         let saved = unit
             .partition
             .as_ref()
             .ok_or_else(|| MethodError::Bug(format!("qsplat: unit {u} was never partitioned")))?;
         let p = Partitioned::load(saved, unit.n as usize, unit.split as u32, unit.cost)?;
         let forest = p.forest(self.combined.unit_roots[u]);
-        let truth = forest.truths(&p.perm, s.view());
+        s.permute(&p.perm);
+        let truth = forest.truths(None, s.view());
         Ok((forest, truth))
     }
 

@@ -2,6 +2,7 @@
 //! in units stream them, and their loading back into columns.
 
 use glam::Vec3;
+use rayon::prelude::*;
 use scenes::PointCloud;
 
 use super::Spill;
@@ -133,6 +134,25 @@ pub struct SampleColumns {
 }
 
 impl SampleColumns {
+    /// Reorders the columns so that sample `i` becomes `perm[i]`'s (a permutation of
+    /// `0..len`); the input indices are dropped. One column at a time, in parallel: at most
+    /// one column is held twice.
+    pub fn permute(&mut self, perm: &[u32]) {
+        fn gather<T: Copy + Send + Sync>(v: &mut Vec<T>, perm: &[u32]) {
+            let out: Vec<T> = perm.par_iter().map(|&i| v[i as usize]).collect();
+            *v = out;
+        }
+        self.idx = Vec::new();
+        gather(&mut self.pos, perm);
+        gather(&mut self.radii, perm);
+        if let Some(n) = &mut self.normals {
+            gather(n, perm);
+        }
+        if let Some(c) = &mut self.colors {
+            gather(c, perm);
+        }
+    }
+
     /// The columns as a [`SampleView`].
     pub fn view(&self) -> SampleView<'_> {
         SampleView {

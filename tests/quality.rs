@@ -171,15 +171,7 @@ fn holes_at_1px_stay_within_each_methods_bound() {
     for (vi, (scene, path, frames)) in views.iter().enumerate() {
         for (method, params) in &configs {
             let name = format!("{method}-{}-{vi}", params.len());
-            // A loader with no simulated latency (the default, `delay_frames=0`) makes a
-            // frame hold whatever the loader thread happened to decode in time: frame 0 of a
-            // loaded machine held a different set than on an idle one (voxel's terrain: 9.9 %
-            // holes against 3.05 %). One frame of latency makes every frame's set exact (the
-            // loader waits for what is due), so the bounds hold on any machine.
-            let mut params = params.clone();
-            if method.runtime_params().contains(&"delay_frames") {
-                params.push("delay_frames=1");
-            }
+            let params = common::with_exact_loading(*method, params);
             let cfg = config(
                 *method,
                 &params,

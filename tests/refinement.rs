@@ -48,13 +48,8 @@ fn run_close(
 ) -> Frames {
     let name = format!("{method}-{}", params.join("-"));
     let path = concat!(env!("CARGO_MANIFEST_DIR"), "/paper/paths/still-close.toml");
-    // One frame of simulated latency: what each frame holds, and when the run converges, is
-    // then the same on any machine (with none, a loaded machine's loader thread may deliver
-    // less in time than an idle one's).
-    let mut params = params.to_vec();
-    if method.runtime_params().contains(&"delay_frames") {
-        params.push("delay_frames=1");
-    }
+    // What each frame holds, and when the run converges, the same on any machine.
+    let params = common::with_exact_loading(method, params);
     let cfg = common::config(method, &params, SCENE, path, frames, SIZE, dir, &name);
     run(&cfg, gpu, &scenes::NoProgress).unwrap_or_else(|e| panic!("{name}: {e:#}"));
     let rows = read(&cfg.out.join("frames.csv"));

@@ -107,6 +107,19 @@ pub fn write_file(dir: &std::path::Path, name: &str, bytes: &[u8]) -> String {
     p.to_string_lossy().into_owned()
 }
 
+/// `params` with one frame of simulated loader latency (`delay_frames=1`) for a method that
+/// loads its data asynchronously. With none (the default) a frame holds whatever the loader
+/// thread happened to decode in time, which differs between a loaded machine and an idle one
+/// (voxel's terrain frame 0: 9.9 % holes against 3.05 %); with one frame the loader waits for
+/// what is due, so every frame's loaded set is the same on any machine.
+pub fn with_exact_loading<'a>(method: methods::MethodKind, params: &[&'a str]) -> Vec<&'a str> {
+    let mut out = params.to_vec();
+    if method.runtime_params().contains(&"delay_frames") {
+        out.push("delay_frames=1");
+    }
+    out
+}
+
 /// A run at 1 px with metrics, a square kernel, a 64 MiB GPU cache and seed 1, building into
 /// `dir/name` (scene cache in `dir/cache`); tests override fields with `..config(…)`.
 #[allow(clippy::too_many_arguments)]

@@ -650,6 +650,29 @@ mod tests {
             .collect()
     }
 
+    /// A cloud too large for `u32` indices (never built in a test) takes the `usize` items:
+    /// both item widths give the same tree and the exact distances.
+    #[test]
+    fn wide_and_narrow_indices_build_the_same_tree() {
+        let mut r = crate::rng::Pcg32::new(3);
+        let p: Vec<[f32; 3]> = (0..2000)
+            .map(|_| [r.f32(), r.f32(), r.f32() * 0.1])
+            .collect();
+        let (xyz, index, nodes) = KdTree::build_with::<usize>(&p);
+        let wide = KdTree {
+            xyz,
+            index: Indices::Wide(index),
+            nodes,
+        };
+        let narrow = KdTree::build(&p);
+        assert!(matches!(narrow.index, Indices::Narrow(_)));
+        assert_eq!(wide.nodes, narrow.nodes);
+        assert_eq!(wide.xyz, narrow.xyz);
+        let k = 6;
+        assert_eq!(wide.knn_distances(k), narrow.knn_distances(k));
+        assert_eq!(narrow.knn_distances(k), brute(&p, k));
+    }
+
     #[test]
     fn lists_of_parts_merge_to_the_whole_clouds_spacing() {
         // Random points with duplicates, cut into three parts by index (so the parts

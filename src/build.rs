@@ -29,18 +29,17 @@ pub struct BuildArgs {
 pub const KEEP_FREED_FROM_MB: u64 = 256;
 
 /// Whether `build`'s heap policy applies to this build: unless a `mem_mb` below
-/// [`KEEP_FREED_FROM_MB`] is given (a value that does not parse is the method's error to
-/// report).
+/// [`KEEP_FREED_FROM_MB`] is given. Parameters read as the build reads them
+/// ([`methods::Params::parse`]); ones that do not parse are the build's error to report, and
+/// the policy then does not matter.
 pub fn keeps_freed_memory(a: &BuildArgs) -> bool {
-    a.method
-        .params
-        .iter()
-        .filter_map(|p| p.trim().strip_prefix("mem_mb="))
-        .all(|v| {
-            v.trim()
-                .parse::<u64>()
-                .map_or(true, |mb| mb >= KEEP_FREED_FROM_MB)
-        })
+    let Ok(params) = methods::Params::parse(&a.method.params) else {
+        return true;
+    };
+    params
+        .0
+        .get("mem_mb")
+        .is_none_or(|v| v.parse::<u64>().map_or(true, |mb| mb >= KEEP_FREED_FROM_MB))
 }
 
 /// `splatbench build`: builds and prints `build.json`.
@@ -110,8 +109,11 @@ mod tests {
         assert!(keeps(&["overlap=1", "mem_mb=4096"]));
         assert!(!keeps(&["mem_mb=16"]));
         assert!(!keeps(&["mem_mb=255"]));
-        assert!(!keeps(&["mem_mb=1024", "mem_mb=16"]));
-        // Not a number: the method reports it; the policy does not matter.
+        // Spaces around the key and the value, as the build reads them.
+        assert!(!keeps(&[" mem_mb = 16"]));
+        // Not a number, or a key given twice: the build reports it; the policy does not
+        // matter.
         assert!(keeps(&["mem_mb=lots"]));
+        assert!(keeps(&["mem_mb=1024", "mem_mb=16"]));
     }
 }

@@ -162,13 +162,14 @@ fn quiet_headless_vulkan(command: &Command) {
 /// glibc's defaults map each block above a (growing) threshold afresh and unmap it when
 /// freed, so a build that works unit by unit (QSplat, SPT, LPC's subtrees) faulted every
 /// page of every unit's buffers in again: 1.15 M minor page faults in QSplat's 10 M terrain
-/// build, 0.22 M with this policy. Paired with the default (terrain 10 M LAS, 3 runs each,
-/// the policy set through `GLIBC_TUNABLES`): wall QSplat ×0.88, SPT ×0.88, LPC ×0.93, MWKD
-/// ×1.01; peak RSS up to +70 MB. The files do not change. Only `build` (and the builds `tune`
-/// runs as `build` processes), and not one told to use less than
-/// [`build::KEEP_FREED_FROM_MB`]: a `run`'s per-frame resident set stays measured under the
-/// default policy, and a small budget keeps bounding the resident set. mimalloc and jemalloc as the global allocator were tried and not kept
-/// (LPC ×1.28 and QSplat ×1.06 slower respectively).
+/// build, 0.36 M with this policy. Paired with the binary before it (terrain 10 M LAS, 3 runs
+/// each): wall QSplat ×0.84, SPT ×0.95; LPC ×0.93 and MWKD ×1.01 with the same settings
+/// (and a 256 MiB top pad) through `GLIBC_TUNABLES`; peak RSS up to +70 MB. The files do not
+/// change. Only `build` (and the builds `tune` runs as `build` processes), and not one told
+/// to use less than [`build::KEEP_FREED_FROM_MB`]: a `run`'s per-frame resident set stays
+/// measured under the default policy, and a small budget keeps bounding the resident set.
+/// Trimming at 64 MiB kept none of the gain; mimalloc and jemalloc as the global allocator
+/// were tried and not kept (LPC ×1.28 and QSplat ×1.06 slower respectively).
 ///
 /// The crate's other `unsafe`: `mallopt` only sets the allocator's parameters.
 #[cfg(all(target_os = "linux", target_env = "gnu"))]

@@ -5,7 +5,8 @@
 //! the finest levels project above 1 px, at ε = 1 px, on an evenly sampled statue (the
 //! papers' kind of data: `statue:N:seed:even`). The first frame draws what the untimed
 //! warm-up frame requested (the loaders run with `delay_frames=1`, so every frame's loaded
-//! set is exact on any machine); later frames add finer chunks until nothing is left to load. Rules, for every frame against the first:
+//! set is exact on any machine); later frames add finer chunks until nothing is left to load.
+//! Rules, for every frame against the first:
 //! - **FLIP never above the first frame's** (no margin: refining adds detail; measured
 //!   first → converged LPC 0.127 → 0.061, MWKD 0.031 → 0.031);
 //! - **holes at most [`HOLE_MARGIN`] above the first frame's, and above QSplat's at the same

@@ -86,7 +86,7 @@ pub fn probe_knn(s: &[Sample], bbox: Aabb, k: usize) -> Vec<[f32; 2]> {
 }
 
 /// [`probe_knn`] over the whole scene, read from its position column: the probes are the
-/// samples whose index hashes at most `is_probe` says, in column order, measured against
+/// samples whose index `is_probe` accepts, in column order, measured against
 /// every sample of `positions`, whose box is `bbox`. The same values in the same order as
 /// [`probe_knn`] of the whole scene's samples in column order (the in-core root's buffer),
 /// whatever part of the build is streamed: the input spacing does not depend on the memory
@@ -140,7 +140,6 @@ fn knn_of<T: Sync>(
         return vec![[0.0; 2]; probes.len()];
     }
     let h0 = first_radius(bbox, s.len());
-    let round_of = |d: f32| round_of(h0, d);
     let mut h = h0;
     let mut pending: Vec<u32> = (0..probes.len() as u32).collect();
     // Each probe's distances and its round.
@@ -234,7 +233,7 @@ fn knn_of<T: Sync>(
             // `best[j][0]` is the probe itself.
             let d = best[j][k];
             if d <= h2 {
-                done[pi as usize] = ([best[j][1].sqrt(), d.sqrt()], round_of(d));
+                done[pi as usize] = ([best[j][1].sqrt(), d.sqrt()], round_of(h0, d));
             } else {
                 next.push(pi);
             }

@@ -146,8 +146,9 @@ fn bounds_of(items: &[Item]) -> Bounds {
 /// two-pointer loop this pass was 11–18 % of a QSplat build's samples, `perf`, terrain 10 M,
 /// and without the branch the whole build takes ×0.95 the wall time, paired): every item
 /// is swapped to the front's end and the front grows by one when it belongs there
-/// (Lomuto's scheme), and both boxes take every sample, the other side's as ±∞. Which samples go left depends on the set alone, never on its order, so
-/// the tree and the file are those of any other partition scheme.
+/// (Lomuto's scheme), and both boxes take every sample, the other side's as ±∞. Which
+/// samples go left depends on the set alone, never on its order, so the tree and the file
+/// are those of any other partition scheme.
 fn split_at_cut(items: &mut [Item], axis: usize, cut: f64) -> (usize, Bounds, Bounds) {
     let (inf, ninf) = (Vec3A::INFINITY, Vec3A::NEG_INFINITY);
     let (mut lmin, mut lmax, mut rmin, mut rmax) = (inf, ninf, inf, ninf);

@@ -117,7 +117,8 @@ impl Forest {
         }
     }
 
-    /// True properties of every node, bottom-up.
+    /// True properties of every node, bottom-up. The leaf at tree position `p` is sample
+    /// `perm[p]` of `s`, or sample `p` when `perm` is `None` (`s` already in tree order).
     pub(super) fn truths(&self, perm: Option<&[u32]>, s: Samples<'_>) -> Vec<Vec<TrueNode>> {
         let has_n = s.normals.is_some();
         let mut truth: Vec<Vec<TrueNode>> = vec![Vec::new(); self.ranges.len()];

@@ -51,8 +51,9 @@ use crate::spill::samples::{self, SampleColumns, SampleLayout as Layout, f32_at}
 use crate::spill::{Spill, SpillDir, split};
 use crate::unit_knn::{UnitBox, UnitRadii, unit_radii};
 
-/// Working bytes per sample of a unit built in memory: the samples (≤ 31), the permutation
-/// and binary tree (13), and per node (≈ 1.33 per sample) the combined forest's ranges
+/// Working bytes per sample of a unit built in memory: the samples (≤ 31; while they are put
+/// in tree order one column is held twice, ≤ 12 more, before the per-node arrays exist), the
+/// permutation and binary tree (13), and per node (≈ 1.33 per sample) the combined forest's ranges
 /// (16), true properties (52) and the quantisation's spheres, margins and stored nodes (up
 /// to ≈ 60 while a level is encoded): ≈ 200 by count; 240 measured as peak RSS per unit
 /// sample (terrain 2 M, two units, `mem_mb` 256: 266 MB), rounded up.

@@ -140,7 +140,10 @@ pub fn main(a: &ReproduceArgs) -> anyhow::Result<()> {
     let multi = indicatif::MultiProgress::new();
     let outcome = reproduce::reproduce(&opts, &multi)?;
     if let Some(mut record) = part {
-        record.complete = true;
+        // A part in which a table failed did not finish: it stays pending, so that a driver
+        // that skips finished parts runs it again (`--resume` keeps its finished measures)
+        // and `merge` refuses it rather than merging a failure.
+        record.complete = outcome.failed() == 0;
         record.write(&opts.out)?;
     }
     report(&outcome)

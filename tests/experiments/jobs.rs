@@ -171,3 +171,50 @@ fn a_reproduction_as_jobs_merges_into_the_local_report() {
         "part 0 (qsplat-fig6) is in both",
     );
 }
+
+#[test]
+fn a_part_whose_table_failed_stays_pending_and_merge_refuses_it() {
+    // A spec whose one measure fails when it runs (its scene file is there, but not a PLY):
+    // the part returns an error, its record keeps "complete": false — so that a driver which
+    // skips finished parts runs it again — and merge names it instead of merging a failure.
+    let tmp = tempfile::tempdir().unwrap();
+    let specs = tmp.path().join("specs");
+    std::fs::create_dir_all(&specs).unwrap();
+    let broken = tmp.path().join("broken.ply");
+    std::fs::write(&broken, "not a ply\n").unwrap();
+    std::fs::write(
+        specs.join("bad.toml"),
+        format!(
+            "id = \"bad\"\npaper = \"Multi-way kd-tree (Goswami et al. 2010)\"\n\
+             title = \"a build that fails\"\nsource = \"test\"\nnotes = \"test\"\n\n\
+             [scenes.s]\nfile = {:?}\n\n\
+             [[measure]]\nid = \"b\"\nkind = \"build\"\nmethod = \"mwkd\"\nscene = \"s\"\n\n\
+             [[row]]\nwhat = \"nodes\"\nours = \"b.build.nodes\"\nrule = \"report\"\n",
+            broken.display().to_string()
+        ),
+    )
+    .unwrap();
+    let part = tmp.path().join("part-000");
+    fails(
+        bin()
+            .args(["reproduce", "--part", "0", "--specs"])
+            .arg(&specs)
+            .arg("--out")
+            .arg(&part)
+            .arg("--cache")
+            .arg(tmp.path().join("cache")),
+        "1 of 1 tables failed",
+    );
+    let record: serde_json::Value =
+        serde_json::from_str(&std::fs::read_to_string(part.join("reproduce-part.json")).unwrap())
+            .unwrap();
+    assert_eq!(record["complete"], false, "{record}");
+    fails(
+        bin()
+            .arg("merge")
+            .arg(&part)
+            .arg("--out")
+            .arg(tmp.path().join("merged")),
+        "this part did not finish",
+    );
+}

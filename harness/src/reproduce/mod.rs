@@ -559,7 +559,7 @@ pub struct PartRecord {
     pub partial: bool,
     /// `--publish`, done by the merge.
     pub publish: Option<PathBuf>,
-    /// False until the part's reproduction returned.
+    /// False until the part's reproduction returned with no table failed.
     pub complete: bool,
     /// Commit of the binary.
     pub commit: String,

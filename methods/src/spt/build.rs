@@ -210,6 +210,14 @@ const PLACEHOLDER: Node = Node {
     leaf: false,
 };
 
+/// An inner node of [`Ctx::sequential`] waiting for its geometry ([`Ctx::finish`]): its
+/// slot, its height (1 above leaves) and its children's node indices.
+struct Pending {
+    slot: usize,
+    height: u32,
+    children: Kids<u32>,
+}
+
 /// What a subtree build reads.
 #[derive(Clone, Copy)]
 struct Ctx<'a> {
@@ -279,9 +287,10 @@ impl Ctx<'_> {
     /// sequential recursion, and nothing is copied.
     fn subtree(&self, out: &mut [Node], base: u32, lo: usize, hi: usize, level: u32) -> (u32, u32) {
         if hi - lo < PAR_SAMPLES {
-            let mut at = 0;
-            let r = self.sequential(out, base, &mut at, lo, hi, level);
+            let (mut at, mut pending) = (0, Vec::new());
+            let r = self.sequential(out, base, &mut at, lo, hi, level, &mut pending);
             debug_assert_eq!(at, out.len(), "count and build disagree");
+            self.finish(out, base, pending);
             return r;
         }
         let level = self.first_split(lo, hi, level);
@@ -330,7 +339,9 @@ impl Ctx<'_> {
 
     /// [`Self::subtree`] on one thread: the nodes go to `out[*at..]` in post-order, `at`
     /// advancing past them, so no subtree needs counting first (counting before every
-    /// split had walked each subtree once per level above it).
+    /// split had walked each subtree once per level above it). Leaves are written; each
+    /// inner node gets its slot and goes to `pending`, for [`Self::finish`].
+    #[allow(clippy::too_many_arguments)]
     fn sequential(
         &self,
         out: &mut [Node],
@@ -339,6 +350,7 @@ impl Ctx<'_> {
         lo: usize,
         hi: usize,
         level: u32,
+        pending: &mut Vec<Pending>,
     ) -> (u32, u32) {
         if hi - lo == 1 {
             *at += 1;
@@ -356,13 +368,49 @@ impl Ctx<'_> {
         } else {
             // At least two child cells: `first_split` found the keys differing here.
             for (s, e) in self.child_ranges(lo, hi, level) {
-                let (c, h) = self.sequential(out, base, at, s, e, level - 1);
+                let (c, h) = self.sequential(out, base, at, s, e, level - 1, pending);
                 children.push(c);
                 height = height.max(h);
             }
         }
         *at += 1;
-        (self.inner_at(out, base, *at - 1, &children), height + 1)
+        pending.push(Pending {
+            slot: *at - 1,
+            height: height + 1,
+            children,
+        });
+        (base + (*at - 1) as u32, height + 1)
+    }
+
+    /// The inner nodes `pending` of a subtree in `out` (node `base` first), by height, so
+    /// that every node's children are final before it; those of one height are independent
+    /// and go [`errors::BATCH`] at a time through [`inner_nodes`].
+    fn finish(&self, out: &mut [Node], base: u32, mut pending: Vec<Pending>) {
+        pending.sort_by_key(|p| p.height);
+        let at = |c: u32| (c - base) as usize;
+        for level in pending.chunk_by(|a, b| a.height == b.height) {
+            for batch in level.chunks(errors::BATCH) {
+                let kids: SmallVec<[Kids<Node>; errors::BATCH]> = batch
+                    .iter()
+                    .map(|p| p.children.iter().map(|&c| out[at(c)]).collect())
+                    .collect();
+                let refs: SmallVec<[&[Node]; errors::BATCH]> =
+                    kids.iter().map(|k| k.as_slice()).collect();
+                let nodes = inner_nodes(
+                    &refs,
+                    self.s.normals.is_some(),
+                    self.s.colors.is_some(),
+                    self.color_threshold,
+                );
+                for (p, node) in batch.iter().zip(nodes) {
+                    out[p.slot] = node;
+                    let idx = base + p.slot as u32;
+                    for &c in &p.children {
+                        out[at(c)].parent = idx;
+                    }
+                }
+            }
+        }
     }
 
     /// Writes the leaf of `keys[k]` into slot `j` of `out` (node `base + j`).
@@ -392,11 +440,7 @@ impl Ctx<'_> {
 
     /// Writes the inner node over `children` into the last slot of `out`.
     fn inner(&self, out: &mut [Node], base: u32, children: &[u32]) -> u32 {
-        self.inner_at(out, base, out.len() - 1, children)
-    }
-
-    /// Writes the inner node over `children` into slot `last` of `out`.
-    fn inner_at(&self, out: &mut [Node], base: u32, last: usize, children: &[u32]) -> u32 {
+        let last = out.len() - 1;
         let idx = base + last as u32;
         let at = |c: u32| (c - base) as usize;
         let kids: Kids<Node> = children.iter().map(|&c| out[at(c)]).collect();
@@ -420,29 +464,82 @@ pub(super) fn inner_node(
     has_colors: bool,
     color_threshold: f32,
 ) -> Node {
-    let disks: Kids<ChildDisk> = kids
+    inner_nodes(&[kids], has_normals, has_colors, color_threshold)[0]
+}
+
+/// [`inner_node`] of up to [`errors::BATCH`] nodes at once, their bounding disks (balls)
+/// searched together ([`errors::bounding_disks`]): the same nodes as one at a time.
+pub(super) fn inner_nodes(
+    kids: &[&[Node]],
+    has_normals: bool,
+    has_colors: bool,
+    color_threshold: f32,
+) -> SmallVec<[Node; errors::BATCH]> {
+    let disks: SmallVec<[Kids<ChildDisk>; errors::BATCH]> = kids
         .iter()
-        .map(|c| ChildDisk {
-            p: c.p,
-            n: c.n,
-            r: c.r,
+        .map(|k| {
+            k.iter()
+                .map(|c| ChildDisk {
+                    p: c.p,
+                    n: c.n,
+                    r: c.r,
+                })
+                .collect()
         })
         .collect();
-    let (p, n, r, mut e_p, mut e_t, mut e_g);
-    if has_normals {
-        n = kids
+    let normals: SmallVec<[Vec3; errors::BATCH]> = kids
+        .iter()
+        .map(|k| {
+            if has_normals {
+                k.iter()
+                    .map(|c| c.n)
+                    .sum::<Vec3>()
+                    .try_normalize()
+                    .unwrap_or(k[0].n)
+            } else {
+                Vec3::Z
+            }
+        })
+        .collect();
+    let spheres = if has_normals {
+        let problems: SmallVec<[errors::DiskProblem; errors::BATCH]> = normals
             .iter()
-            .map(|c| c.n)
-            .sum::<Vec3>()
-            .try_normalize()
-            .unwrap_or(kids[0].n);
-        (p, r) = errors::bounding_disk(n, &disks);
-        e_p = errors::perpendicular_error(p, n, &disks);
-        e_t = errors::tangential_error(n, 2.0 * r, &disks);
+            .zip(&disks)
+            .map(|(&n, d)| errors::DiskProblem::new(n, d))
+            .collect();
+        errors::bounding_disks(&problems)
+    } else {
+        let problems: SmallVec<[errors::Problem<Vec3>; errors::BATCH]> =
+            disks.iter().map(|d| errors::ball_problem(d)).collect();
+        let refs: SmallVec<[&errors::Problem<Vec3>; errors::BATCH]> = problems.iter().collect();
+        errors::bounding_balls(&refs)
+    };
+    kids.iter()
+        .zip(&disks)
+        .zip(normals.iter().zip(spheres))
+        .map(|((k, d), (&n, pr))| {
+            finish_inner(k, d, n, pr, has_normals, has_colors, color_threshold)
+        })
+        .collect()
+}
+
+/// The inner node over `kids` (disks `disks`) with normal `n` and bounding disk (or ball)
+/// `(p, r)`: its errors, colour and quantised φ.
+fn finish_inner(
+    kids: &[Node],
+    disks: &[ChildDisk],
+    n: Vec3,
+    (p, r): (Vec3, f32),
+    has_normals: bool,
+    has_colors: bool,
+    color_threshold: f32,
+) -> Node {
+    let (mut e_p, mut e_t, mut e_g);
+    if has_normals {
+        e_p = errors::perpendicular_error(p, n, disks);
+        e_t = errors::tangential_error(n, 2.0 * r, disks);
         e_g = errors::geometric_error(e_p, e_t);
     } else {
-        n = Vec3::Z;
-        (p, r) = errors::bounding_ball(&disks);
         e_p = 0.0;
         e_t = 0.0;
         e_g = 2.0 * r;

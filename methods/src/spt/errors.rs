@@ -44,84 +44,140 @@ pub fn tangent_basis(n: Vec3) -> (Vec3, Vec3) {
     (t1, n.cross(t1))
 }
 
-/// Smallest-found circle enclosing circles `(c, r)` (see the module doc): `(centre, radius)`.
-fn enclosing<V>(
-    items: &[(V, f32)],
+/// One bounding problem of [`enclosing_batch`]: circles (or balls) `(centre, radius)`, the
+/// start of the search (their mean centre) and the centre of their bounding box.
+pub(super) struct Problem<V> {
+    items: SmallVec<[(V, f32); 8]>,
+    mean: V,
+    mid: V,
+}
+
+/// Bounding problems solved together by [`enclosing_batch`].
+pub(super) const BATCH: usize = 4;
+
+/// Smallest-found circle enclosing circles `(c, r)` (see the module doc), `(centre,
+/// radius)`, for each of up to [`BATCH`] independent problems. The problems are stepped
+/// together, one step of each in turn: a problem's 26 evaluations are one dependent chain
+/// (a square root and a division per step), so a node alone leaves the core waiting, and
+/// interleaving independent nodes fills it. Each problem's result is what it would be alone,
+/// bit for bit: the same operations in the same order.
+fn enclosing_batch<V>(
+    problems: &[&Problem<V>],
     sub: impl Fn(V, V) -> V,
     len: impl Fn(V) -> f32,
     add_scaled: impl Fn(V, V, f32) -> V,
-    mean: V,
-    mid: V,
-) -> (V, f32)
+) -> SmallVec<[(V, f32); BATCH]>
 where
     V: Copy,
 {
     // The radius around `c` and the farthest point of the farthest circle from `c`, in
     // one pass (a Bădoiu–Clarkson step needs the second at the centre whose radius the step
     // before measured: one pass per step instead of two).
-    let eval = |c: V| {
-        let (mut radius, mut fd, mut far) = (0.0f32, -1.0f32, None);
-        for &(q, r) in items {
-            let v = sub(q, c);
-            let l = len(v);
-            radius = radius.max(l + r);
-            if l + r > fd {
-                fd = l + r;
-                far = Some(if l > 0.0 { add_scaled(q, v, r / l) } else { q });
-            }
+    // The farthest circle is chosen by selects, not branches (which circle is farthest
+    // changes from step to step and was mispredicted), and its point computed once.
+    let eval = |items: &[(V, f32)], c: V| {
+        let (mut radius, mut fd, mut fi, mut fl) = (0.0f32, -1.0f32, usize::MAX, 0.0f32);
+        for (i, &(q, r)) in items.iter().enumerate() {
+            let l = len(sub(q, c));
+            let t = l + r;
+            radius = radius.max(t);
+            let gt = t > fd;
+            fd = if gt { t } else { fd };
+            fi = if gt { i } else { fi };
+            fl = if gt { l } else { fl };
         }
+        let far = items.get(fi).map(|&(q, r)| {
+            if fl > 0.0 {
+                add_scaled(q, sub(q, c), r / fl)
+            } else {
+                q
+            }
+        });
         (radius, far)
     };
-    let (r0, mut far) = eval(mean);
-    let mut best = (mean, r0);
-    let rm = eval(mid).0;
-    if rm < best.1 {
-        best = (mid, rm);
-    }
-    let mut c = mean;
-    for step in 1..=BC_STEPS {
-        let Some(f) = far else { break };
-        c = add_scaled(c, sub(f, c), 1.0 / (step as f32 + 1.0));
-        let (rc, next) = eval(c);
-        if rc < best.1 {
-            best = (c, rc);
-        }
-        far = next;
-    }
-    best
-}
-
-/// The node's bounding disk in the plane with unit normal `n` through the children's mean
-/// centre: `(centre, radius)`; the radius bounds every child disk (each projected child is
-/// bounded by its full radius).
-pub fn bounding_disk(n: Vec3, children: &[ChildDisk]) -> (Vec3, f32) {
-    let k = children.len().max(1) as f32;
-    let mean = children.iter().map(|c| c.p).sum::<Vec3>() / k;
-    let (t1, t2) = tangent_basis(n);
-    let items: SmallVec<[(Vec2, f32); 8]> = children
+    // Per problem: the best (centre, radius) so far, the farthest point, the centre.
+    type State<V> = ((V, f32), Option<V>, V);
+    let mut state: SmallVec<[State<V>; BATCH]> = problems
         .iter()
-        .map(|c| {
-            let v = c.p - mean;
-            (Vec2::new(v.dot(t1), v.dot(t2)), c.r)
+        .map(|pb| {
+            let (r0, far) = eval(&pb.items, pb.mean);
+            let mut best = (pb.mean, r0);
+            let rm = eval(&pb.items, pb.mid).0;
+            if rm < best.1 {
+                best = (pb.mid, rm);
+            }
+            (best, far, pb.mean)
         })
         .collect();
-    let (lo, hi) = items.iter().fold(
-        (Vec2::splat(f32::INFINITY), Vec2::splat(f32::NEG_INFINITY)),
-        |(lo, hi), &(q, r)| (lo.min(q - r), hi.max(q + r)),
-    );
-    let (c, r) = enclosing(
-        &items,
-        |a, b| a - b,
-        Vec2::length,
-        |a, v, s| a + v * s,
-        Vec2::ZERO,
-        (lo + hi) * 0.5,
-    );
-    (mean + t1 * c.x + t2 * c.y, r)
+    for step in 1..=BC_STEPS {
+        let t = 1.0 / (step as f32 + 1.0);
+        for (pb, (best, far, c)) in problems.iter().zip(state.iter_mut()) {
+            // A problem whose farthest circle was not found stops (as the search alone
+            // breaks off).
+            let Some(f) = *far else { continue };
+            *c = add_scaled(*c, sub(f, *c), t);
+            let (rc, next) = eval(&pb.items, *c);
+            if rc < best.1 {
+                *best = (*c, rc);
+            }
+            *far = next;
+        }
+    }
+    state.into_iter().map(|(best, _, _)| best).collect()
 }
 
-/// Without normals: a ball bounding the children's balls, `(centre, radius)`.
-pub fn bounding_ball(children: &[ChildDisk]) -> (Vec3, f32) {
+/// A node's bounding disk as a problem in its plane: the plane's basis `(t1, t2)` and its
+/// origin (the children's mean centre), and the circles in plane coordinates.
+pub(super) struct DiskProblem {
+    origin: Vec3,
+    t1: Vec3,
+    t2: Vec3,
+    problem: Problem<Vec2>,
+}
+
+impl DiskProblem {
+    /// The problem of [`bounding_disk`]`(n, children)`.
+    pub(super) fn new(n: Vec3, children: &[ChildDisk]) -> Self {
+        let k = children.len().max(1) as f32;
+        let mean = children.iter().map(|c| c.p).sum::<Vec3>() / k;
+        let (t1, t2) = tangent_basis(n);
+        let items: SmallVec<[(Vec2, f32); 8]> = children
+            .iter()
+            .map(|c| {
+                let v = c.p - mean;
+                (Vec2::new(v.dot(t1), v.dot(t2)), c.r)
+            })
+            .collect();
+        let (lo, hi) = items.iter().fold(
+            (Vec2::splat(f32::INFINITY), Vec2::splat(f32::NEG_INFINITY)),
+            |(lo, hi), &(q, r)| (lo.min(q - r), hi.max(q + r)),
+        );
+        DiskProblem {
+            origin: mean,
+            t1,
+            t2,
+            problem: Problem {
+                items,
+                mean: Vec2::ZERO,
+                mid: (lo + hi) * 0.5,
+            },
+        }
+    }
+}
+
+/// [`bounding_disk`] of up to [`BATCH`] nodes at once (see [`enclosing_batch`]): the same
+/// values as one at a time.
+pub(super) fn bounding_disks(problems: &[DiskProblem]) -> SmallVec<[(Vec3, f32); BATCH]> {
+    let plane: SmallVec<[&Problem<Vec2>; BATCH]> = problems.iter().map(|d| &d.problem).collect();
+    enclosing_batch(&plane, |a, b| a - b, Vec2::length, |a, v, s| a + v * s)
+        .into_iter()
+        .zip(problems)
+        .map(|((c, r), d)| (d.origin + d.t1 * c.x + d.t2 * c.y, r))
+        .collect()
+}
+
+/// The problem of [`bounding_ball`]`(children)`.
+pub(super) fn ball_problem(children: &[ChildDisk]) -> Problem<Vec3> {
     let k = children.len().max(1) as f32;
     let mean = children.iter().map(|c| c.p).sum::<Vec3>() / k;
     let items: SmallVec<[(Vec3, f32); 8]> = children.iter().map(|c| (c.p, c.r)).collect();
@@ -129,14 +185,29 @@ pub fn bounding_ball(children: &[ChildDisk]) -> (Vec3, f32) {
         (Vec3::splat(f32::INFINITY), Vec3::splat(f32::NEG_INFINITY)),
         |(lo, hi), &(q, r)| (lo.min(q - r), hi.max(q + r)),
     );
-    enclosing(
-        &items,
-        |a, b| a - b,
-        Vec3::length,
-        |a, v, s| a + v * s,
+    Problem {
+        items,
         mean,
-        (lo + hi) * 0.5,
-    )
+        mid: (lo + hi) * 0.5,
+    }
+}
+
+/// [`bounding_ball`] of up to [`BATCH`] nodes at once (see [`enclosing_batch`]): the same
+/// values as one at a time.
+pub(super) fn bounding_balls(problems: &[&Problem<Vec3>]) -> SmallVec<[(Vec3, f32); BATCH]> {
+    enclosing_batch(problems, |a, b| a - b, Vec3::length, |a, v, s| a + v * s)
+}
+
+/// The node's bounding disk in the plane with unit normal `n` through the children's mean
+/// centre: `(centre, radius)`; the radius bounds every child disk (each projected child is
+/// bounded by its full radius).
+pub fn bounding_disk(n: Vec3, children: &[ChildDisk]) -> (Vec3, f32) {
+    bounding_disks(&[DiskProblem::new(n, children)])[0]
+}
+
+/// Without normals: a ball bounding the children's balls, `(centre, radius)`.
+pub fn bounding_ball(children: &[ChildDisk]) -> (Vec3, f32) {
+    bounding_balls(&[&ball_problem(children)])[0]
 }
 
 /// `ρ = r·sqrt(1 − (a·b)²)`: the half-extent of a disk of radius `r`, normal `a`, along unit `b`.
@@ -207,6 +278,60 @@ pub fn color_spread(colors: &[[u8; 3]]) -> u8 {
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    /// Bounding problems searched together give each what it gives alone, bit for bit: for
+    /// disks and balls, batches of 1 to [`BATCH`] problems of 1 to 10 children (more than an
+    /// octree cell's 8 happen in cells of duplicates), among them coincident children.
+    #[test]
+    fn a_batch_solves_each_problem_as_alone() {
+        let mut state = 0x2545_f491_4f6c_dd1du64;
+        let mut next = || {
+            state ^= state << 13;
+            state ^= state >> 7;
+            state ^= state << 17;
+            (state >> 40) as f32 / (1u64 << 24) as f32
+        };
+        let bits = |(p, r): (Vec3, f32)| (p.to_array().map(f32::to_bits), r.to_bits());
+        for trial in 0..500 {
+            let problems: Vec<(Vec3, Vec<ChildDisk>)> = (0..1 + trial % BATCH)
+                .map(|j| {
+                    let k = 1 + (trial + j) % 10;
+                    let mut c: Vec<ChildDisk> = (0..k)
+                        .map(|_| ChildDisk {
+                            p: Vec3::new(next(), next(), next()) * 5.0,
+                            n: Vec3::new(next() - 0.5, next() - 0.5, 1.0).normalize(),
+                            r: next(),
+                        })
+                        .collect();
+                    if k > 1 && trial % 5 == 0 {
+                        c[1] = c[0];
+                    }
+                    (Vec3::new(next(), next() - 0.5, 1.0).normalize(), c)
+                })
+                .collect();
+            let disks: Vec<DiskProblem> = problems
+                .iter()
+                .map(|(n, c)| DiskProblem::new(*n, c))
+                .collect();
+            let together = bounding_disks(&disks);
+            let balls: Vec<Problem<Vec3>> = problems.iter().map(|(_, c)| ball_problem(c)).collect();
+            let refs: Vec<&Problem<Vec3>> = balls.iter().collect();
+            let together_balls = bounding_balls(&refs);
+            assert_eq!(together.len(), problems.len());
+            for (j, (n, c)) in problems.iter().enumerate() {
+                assert_eq!(
+                    bits(together[j]),
+                    bits(bounding_disk(*n, c)),
+                    "disk {j} of {c:?}"
+                );
+                assert_eq!(
+                    bits(together_balls[j]),
+                    bits(bounding_ball(c)),
+                    "ball {j} of {c:?}"
+                );
+            }
+        }
+    }
 
     #[test]
     fn bounding_disk_contains_children_and_is_tight_for_two() {

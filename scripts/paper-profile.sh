@@ -90,6 +90,9 @@ for arg in ${ORDER[*]}; do
   nice -n 10 bash -c "\$line --resume" >> "$WORK/log-\$k.txt" 2>&1
   rc=\$?
   echo "\$(date -u +%FT%TZ) part \$k rc=\$rc" >> "$WORK/drive.log"
+  # A part that failed stays pending, whatever its record says (a binary before 5b3f4ab
+  # marked a part whose tables failed as complete): the next start runs it again.
+  [ \$rc -ne 0 ] && sed -i 's/"complete": true/"complete": false/' "$parts/part-\$(printf %03d \$k)/reproduce-part.json"
   [ \$rc -eq 0 ] && [ -n "\$del" ] && rm -fv "$WORK/cache/\$del" >> "$WORK/drive.log"
 done
 "$ROOT/scripts/paper-profile.sh" save "$commit" > /dev/null 2>&1

@@ -69,7 +69,7 @@ start)
   # SIGPIPE when grep stops early, and the check fails on the right binary.
   [ "$(strings "$WORK/bin/splatbench" | grep -c "$short")" -gt 0 ] ||
     die "$WORK/bin/splatbench is not built at $short (delete it to rebuild)"
-  (cd "$wt" && "$WORK/bin/splatbench" reproduce --profile paper --emit-jobs jobs.txt --out "$OUT")
+  (cd "$wt" && "$WORK/bin/splatbench" reproduce --profile paper --publish paper --emit-jobs jobs.txt --out "$OUT")
   if [ -d "$saved/parts" ]; then
     mkdir -p "$parts"
     copy_parts "$saved/parts" "$parts"
@@ -122,7 +122,7 @@ merge)
     grep -qs '"complete": true' "$parts/part-$(printf %03d "$k")/reproduce-part.json" ||
       die "part $k is not done"
   done
-  (cd "$wt" && "$WORK/bin/splatbench" merge "$parts"/part-* --out "$OUT" --publish paper)
+  (cd "$wt" && "$WORK/bin/splatbench" merge "$parts"/part-* --out "$OUT")
   cp "$wt/paper/report-paper.md" "$wt/paper/results-paper.json" "$ROOT/paper/"
   rm -rf "$ROOT/paper/figures-paper"
   cp -r "$wt/paper/figures-paper" "$ROOT/paper/"

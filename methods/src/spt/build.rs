@@ -387,28 +387,13 @@ impl Ctx<'_> {
     /// and go [`errors::BATCH`] at a time through [`inner_nodes`].
     fn finish(&self, out: &mut [Node], base: u32, mut pending: Vec<Pending>) {
         pending.sort_by_key(|p| p.height);
-        let at = |c: u32| (c - base) as usize;
         for level in pending.chunk_by(|a, b| a.height == b.height) {
             for batch in level.chunks(errors::BATCH) {
-                let kids: SmallVec<[Kids<Node>; errors::BATCH]> = batch
+                let batch: SmallVec<[(usize, &[u32]); errors::BATCH]> = batch
                     .iter()
-                    .map(|p| p.children.iter().map(|&c| out[at(c)]).collect())
+                    .map(|p| (p.slot, p.children.as_slice()))
                     .collect();
-                let refs: SmallVec<[&[Node]; errors::BATCH]> =
-                    kids.iter().map(|k| k.as_slice()).collect();
-                let nodes = inner_nodes(
-                    &refs,
-                    self.s.normals.is_some(),
-                    self.s.colors.is_some(),
-                    self.color_threshold,
-                );
-                for (p, node) in batch.iter().zip(nodes) {
-                    out[p.slot] = node;
-                    let idx = base + p.slot as u32;
-                    for &c in &p.children {
-                        out[at(c)].parent = idx;
-                    }
-                }
+                self.write_inner(out, base, &batch);
             }
         }
     }
@@ -440,20 +425,33 @@ impl Ctx<'_> {
 
     /// Writes the inner node over `children` into the last slot of `out`.
     fn inner(&self, out: &mut [Node], base: u32, children: &[u32]) -> u32 {
-        let last = out.len() - 1;
-        let idx = base + last as u32;
+        let slot = out.len() - 1;
+        self.write_inner(out, base, &[(slot, children)]);
+        base + slot as u32
+    }
+
+    /// Computes the inner nodes over `batch`'s children (node indices; at most
+    /// [`errors::BATCH`] nodes, none a child of another) together, writes each into its slot of
+    /// `out` (node `base` first) and links its children to it.
+    fn write_inner(&self, out: &mut [Node], base: u32, batch: &[(usize, &[u32])]) {
         let at = |c: u32| (c - base) as usize;
-        let kids: Kids<Node> = children.iter().map(|&c| out[at(c)]).collect();
-        out[last] = inner_node(
-            &kids,
+        let kids: SmallVec<[Kids<Node>; errors::BATCH]> = batch
+            .iter()
+            .map(|(_, children)| children.iter().map(|&c| out[at(c)]).collect())
+            .collect();
+        let refs: SmallVec<[&[Node]; errors::BATCH]> = kids.iter().map(|k| k.as_slice()).collect();
+        let nodes = inner_nodes(
+            &refs,
             self.s.normals.is_some(),
             self.s.colors.is_some(),
             self.color_threshold,
         );
-        for &c in children {
-            out[at(c)].parent = idx;
+        for (&(slot, children), node) in batch.iter().zip(nodes) {
+            out[slot] = node;
+            for &c in children {
+                out[at(c)].parent = base + slot as u32;
+            }
         }
-        idx
     }
 }
 
@@ -511,8 +509,7 @@ pub(super) fn inner_nodes(
     } else {
         let problems: SmallVec<[errors::Problem<Vec3>; errors::BATCH]> =
             disks.iter().map(|d| errors::ball_problem(d)).collect();
-        let refs: SmallVec<[&errors::Problem<Vec3>; errors::BATCH]> = problems.iter().collect();
-        errors::bounding_balls(&refs)
+        errors::bounding_balls(&problems)
     };
     kids.iter()
         .zip(&disks)

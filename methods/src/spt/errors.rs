@@ -194,8 +194,9 @@ pub(super) fn ball_problem(children: &[ChildDisk]) -> Problem<Vec3> {
 
 /// [`bounding_ball`] of up to [`BATCH`] nodes at once (see [`enclosing_batch`]): the same
 /// values as one at a time.
-pub(super) fn bounding_balls(problems: &[&Problem<Vec3>]) -> SmallVec<[(Vec3, f32); BATCH]> {
-    enclosing_batch(problems, |a, b| a - b, Vec3::length, |a, v, s| a + v * s)
+pub(super) fn bounding_balls(problems: &[Problem<Vec3>]) -> SmallVec<[(Vec3, f32); BATCH]> {
+    let refs: SmallVec<[&Problem<Vec3>; BATCH]> = problems.iter().collect();
+    enclosing_batch(&refs, |a, b| a - b, Vec3::length, |a, v, s| a + v * s)
 }
 
 /// The node's bounding disk in the plane with unit normal `n` through the children's mean
@@ -207,7 +208,7 @@ pub fn bounding_disk(n: Vec3, children: &[ChildDisk]) -> (Vec3, f32) {
 
 /// Without normals: a ball bounding the children's balls, `(centre, radius)`.
 pub fn bounding_ball(children: &[ChildDisk]) -> (Vec3, f32) {
-    bounding_balls(&[&ball_problem(children)])[0]
+    bounding_balls(&[ball_problem(children)])[0]
 }
 
 /// `ρ = r·sqrt(1 − (a·b)²)`: the half-extent of a disk of radius `r`, normal `a`, along unit `b`.
@@ -315,8 +316,7 @@ mod tests {
                 .collect();
             let together = bounding_disks(&disks);
             let balls: Vec<Problem<Vec3>> = problems.iter().map(|(_, c)| ball_problem(c)).collect();
-            let refs: Vec<&Problem<Vec3>> = balls.iter().collect();
-            let together_balls = bounding_balls(&refs);
+            let together_balls = bounding_balls(&balls);
             assert_eq!(together.len(), problems.len());
             for (j, (n, c)) in problems.iter().enumerate() {
                 assert_eq!(

@@ -45,11 +45,12 @@ use crate::spill::samples::{self, SampleLayout};
 use crate::spill::{Budget, Spill, SpillDir, split};
 
 /// Working bytes per sample of a unit: its records as columns (input index 4, position 12,
-/// and the scene's radius 4, normal 12 and colour 3 when it has them), the split's order (4)
-/// and tree, and the splats of the tasks in flight with their encoded output. Measured:
-/// ≈ 27 bytes per unit sample on terrain 10 M (colours, no normals; peak RSS 40.5 MB with
-/// 16 units of 625 k, 88.4 MB with 4 of 2.5 M); 64 leaves room for normals and radii
-/// (+16) and the tasks' buffers.
+/// and the scene's radius 4, normal 12 and colour 3 when it has them), the split's items
+/// while it runs (16; its order, 4, after) and tree, and the splats of the tasks in flight
+/// with their encoded output. Measured: ≈ 27 bytes per unit sample on terrain 10 M
+/// (colours, no normals; peak RSS 40.5 MB with 16 units of 625 k, 88.4 MB with 4 of
+/// 2.5 M) when the split permuted only the order; with its items, 48 MB with 16 units at
+/// `mem_mb=64` (was 43). 64 leaves room for normals and radii (+16) and the tasks' buffers.
 pub const UNIT_BYTES_PER_SAMPLE: u64 = 64;
 
 /// Samples of the largest unit built in memory under a budget of `mem_bytes`.

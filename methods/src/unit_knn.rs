@@ -19,10 +19,19 @@
 //!    distance: the union holds every one of its true k nearest, and every distance in it is
 //!    a distance to another point, computed with the same `f32` arithmetic as in memory.
 //!
+//! **Groups.** The passes run over *groups* of consecutive units, as many as fit
+//! [`KNN_BYTES_PER_SAMPLE`] per sample in the build's working memory: the k-NN needs far
+//! less per sample than a method's unit build (QSplat 256, SPT 256 bytes), so its groups are
+//! larger than the units, and fewer group borders mean fewer queries to other groups and
+//! less spill traffic. Groups change nothing in the radii (each is exact); each unit's radii
+//! are written to a file of its own, as before.
+//!
 //! The degenerate-distance fallback (smallest positive distance of the cloud) and the cap
 //! on isolated samples (a quantile over the samples `0, s, 2s, …` by input index) need the
 //! whole cloud's distances: they are gathered in pass 3 and applied when a unit's radii are
 //! loaded ([`UnitRadii::load`]).
+
+use std::ops::Range;
 
 use glam::{DVec3, Vec3};
 use scenes::spacing::{KnnIndex, fallback_spacing, is_degenerate};
@@ -41,6 +50,12 @@ const QUERY_BYTES: usize = 24;
 /// Bytes per block of the query and answer spill files (one writer per unit is open at a
 /// time during passes 1 and 2, so these are small).
 const SMALL_BLOCK: usize = 1 << 16;
+
+/// Working bytes per sample of a k-NN group: while one group is searched (its indices and
+/// positions 16, the index 16 over the 16-byte items of its build, the lists in tree and in
+/// input order 2 · 4k) the group searched before it is being written (indices, positions and
+/// lists, 16 + 4k): ≈ 120 for k = 6, rounded up.
+pub const KNN_BYTES_PER_SAMPLE: u64 = 128;
 
 /// A unit as pass 1 needs it: its sample count and the bounding box of its positions.
 #[derive(Debug, Clone, Copy)]
@@ -268,32 +283,95 @@ impl Pass1<'_> {
     }
 }
 
+/// Consecutive units grouped greedily, each group at most `cap` samples (a larger unit is
+/// a group of its own).
+fn group_units(units: &[UnitBox], cap: u64) -> Vec<Range<usize>> {
+    let mut groups: Vec<Range<usize>> = Vec::new();
+    let mut n = 0u64;
+    for (u, unit) in units.iter().enumerate() {
+        match groups.last_mut() {
+            Some(g) if n + unit.n <= cap => {
+                g.end = u + 1;
+                n += unit.n;
+            }
+            _ => {
+                groups.push(u..u + 1);
+                n = unit.n;
+            }
+        }
+    }
+    groups
+}
+
 /// The leaf radii of a cloud of `total` samples (bounds `bounds`) held as `units`, whose
-/// positions `load` reads; spill files go in `dir`. Each pass is a `progress` phase of its
-/// own, named after `method` ("qsplat: leaf radii 1/3, own", …).
+/// positions `load` reads, searched in groups of units within `mem_bytes` (see the module
+/// docs); spill files go in `dir`. Each pass is a `progress` phase of its own, named after
+/// `method` ("qsplat: leaf radii 1/3, own", …).
+#[allow(clippy::too_many_arguments)]
 pub fn unit_radii(
     units: &[UnitBox],
     load: LoadPositions<'_>,
     total: usize,
     bounds: Aabb,
+    mem_bytes: u64,
     dir: &SpillDir,
     method: &str,
     progress: &dyn Progress,
 ) -> Result<UnitRadii, MethodError> {
+    let groups = group_units(units, (mem_bytes / KNN_BYTES_PER_SAMPLE).max(1));
+    let boxes: Vec<UnitBox> = groups
+        .iter()
+        .map(|g| {
+            let us = &units[g.clone()];
+            UnitBox {
+                n: us.iter().map(|u| u.n).sum(),
+                bbox: us
+                    .iter()
+                    .fold((Vec3::INFINITY, Vec3::NEG_INFINITY), |b, u| {
+                        (b.0.min(u.bbox.0), b.1.max(u.bbox.1))
+                    }),
+            }
+        })
+        .collect();
+    // A group's samples: its units' in order.
+    let load_group = |g: usize| -> Result<(Vec<u32>, Vec<[f32; 3]>), MethodError> {
+        let mut all = (Vec::new(), Vec::new());
+        for u in groups[g].clone() {
+            let (idx, pos) = load(u)?;
+            if idx.len() as u64 != units[u].n {
+                return Err(MethodError::Bug(format!(
+                    "leaf radii: unit {u} loaded {} samples, {} expected",
+                    idx.len(),
+                    units[u].n
+                )));
+            }
+            if groups[g].len() == 1 {
+                return Ok((idx, pos));
+            }
+            all.0.extend_from_slice(&idx);
+            all.1.extend_from_slice(&pos);
+        }
+        Ok(all)
+    };
+    let unit_sizes: Vec<Vec<u64>> = groups
+        .iter()
+        .map(|g| units[g.clone()].iter().map(|u| u.n).collect())
+        .collect();
     let phase = |i: usize, what: &str| {
         progress.finish();
         progress.start(&format!("{method}: leaf radii {i}/3, {what}"), total as u64);
     };
     let k = LEAF_K.clamp(1, total.saturating_sub(1).max(1));
     let passes = Passes {
-        units,
-        load,
+        units: &boxes,
+        unit_sizes: &unit_sizes,
+        load: &load_group,
         dir,
         progress,
         k,
         list_bytes: 4 + 4 * k,
     };
-    let boxes = BoxTree::new(units);
+    let boxes = BoxTree::new(&boxes);
     let stride = quantile_stride(total);
 
     phase(1, "own");
@@ -333,9 +411,11 @@ pub fn unit_radii(
     })
 }
 
-/// What the three passes of [`unit_radii`] share.
+/// What the three passes of [`unit_radii`] share. Their "units" are the groups of the
+/// module docs; `unit_sizes` are the sizes of each group's units.
 struct Passes<'a> {
     units: &'a [UnitBox],
+    unit_sizes: &'a [Vec<u64>],
     load: LoadPositions<'a>,
     dir: &'a SpillDir,
     progress: &'a dyn Progress,
@@ -345,8 +425,9 @@ struct Passes<'a> {
     list_bytes: usize,
 }
 
-/// What pass 3 of [`unit_radii`] gives: each unit's radii file, the smallest positive
-/// radius and the strided sample of the radii (before the fallback).
+/// What pass 3 of [`unit_radii`] gives: each unit's radii file (of every group, its units'
+/// in order), the smallest positive radius and the strided sample of the radii (before the
+/// fallback).
 struct Merged {
     files: Vec<Spill>,
     smallest: f32,
@@ -502,11 +583,16 @@ impl<'a> Passes<'a> {
                 sample.push(r[si as usize]);
                 next_strided += 1;
             }
-            let mut w = self.dir.writer("knn-radii", 4)?;
-            for d in &r {
-                w.push(&d.to_le_bytes())?;
+            let mut rest = r.as_slice();
+            for &n in &self.unit_sizes[u] {
+                let (mine, tail) = rest.split_at(n as usize);
+                rest = tail;
+                let mut w = self.dir.writer("knn-radii", 4)?;
+                for d in mine {
+                    w.push(&d.to_le_bytes())?;
+                }
+                files.push(w.finish()?);
             }
-            files.push(w.finish()?);
             raw.remove();
             own.remove();
             self.progress.inc(units[u].n);
@@ -570,5 +656,94 @@ impl<'a> Passes<'a> {
             r[i as usize] = l[k - 1].sqrt();
         }
         Ok(r)
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use scenes::PointCloud;
+    use scenes::progress::NoProgress;
+
+    #[test]
+    fn units_group_greedily_in_order_within_the_cap() {
+        let boxes = |ns: &[u64]| -> Vec<UnitBox> {
+            ns.iter()
+                .map(|&n| UnitBox {
+                    n,
+                    bbox: (Vec3::ZERO, Vec3::ONE),
+                })
+                .collect()
+        };
+        let u = boxes(&[3, 4, 2, 9, 1, 1]);
+        assert_eq!(group_units(&u, 1), vec![0..1, 1..2, 2..3, 3..4, 4..5, 5..6]);
+        assert_eq!(group_units(&u, 7), vec![0..2, 2..3, 3..4, 4..6]);
+        assert_eq!(group_units(&u, 9), vec![0..3, 3..4, 4..6]);
+        assert_eq!(group_units(&u, 100), vec![0..6]);
+        assert!(group_units(&[], 5).is_empty());
+    }
+
+    /// The radii do not depend on how the units are grouped: one unit per group, a few, or
+    /// all in one give the in-memory radii (fallback and cap included), unit by unit.
+    #[test]
+    fn every_grouping_gives_the_in_memory_radii() {
+        let mut r = scenes::rng::Pcg32::new(4);
+        let mut pos: Vec<[f32; 3]> = (0..1500)
+            .map(|i| {
+                let s = [1.0, 0.05][i % 2];
+                [r.f32() * s, r.f32() * s, r.f32() * 0.01]
+            })
+            .collect();
+        // Duplicates (zero distances: the fallback) and a far sample (the cap).
+        pos.extend_from_within(..12);
+        pos.push([40.0, 40.0, 0.0]);
+        let cloud =
+            PointCloud::new(glam::DVec3::ZERO, pos.clone().into(), None, None, None).unwrap();
+        let want = crate::leaf::leaf_radii(&cloud);
+        assert!(want.capped >= 1, "the cap is exercised");
+        let cuts = [0, 300, 550, 950, 1000, pos.len()];
+        let units: Vec<UnitBox> = cuts
+            .windows(2)
+            .map(|w| UnitBox {
+                n: (w[1] - w[0]) as u64,
+                bbox: pos[w[0]..w[1]]
+                    .iter()
+                    .fold((Vec3::INFINITY, Vec3::NEG_INFINITY), |b, p| {
+                        (b.0.min(Vec3::from(*p)), b.1.max(Vec3::from(*p)))
+                    }),
+            })
+            .collect();
+        let load = |u: usize| -> Result<(Vec<u32>, Vec<[f32; 3]>), MethodError> {
+            let range = cuts[u]..cuts[u + 1];
+            Ok((
+                range.clone().map(|i| i as u32).collect(),
+                pos[range].to_vec(),
+            ))
+        };
+        for mem in [1, 700 * KNN_BYTES_PER_SAMPLE, u64::MAX / 2] {
+            let tmp = tempfile::tempdir().unwrap();
+            let dir = SpillDir::create(tmp.path(), "knn").unwrap();
+            let radii = unit_radii(
+                &units,
+                &load,
+                pos.len(),
+                cloud.bounds(),
+                mem,
+                &dir,
+                "test",
+                &NoProgress,
+            )
+            .unwrap();
+            let mut got = Vec::new();
+            let mut capped = 0;
+            for u in 0..units.len() {
+                let (r, c) = radii.load(u).unwrap();
+                assert_eq!(r.len() as u64, units[u].n, "unit {u}");
+                got.extend(r);
+                capped += c;
+            }
+            assert_eq!(got, *want.radii, "mem {mem}");
+            assert_eq!(capped, want.capped, "mem {mem}");
+        }
     }
 }

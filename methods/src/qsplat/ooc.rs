@@ -114,7 +114,7 @@ pub fn build_file(
     let radii = if layout.radii {
         None
     } else {
-        Some(top.leaf_radii(layout, n, bounds, &spill, progress)?)
+        Some(top.leaf_radii(layout, n, bounds, mem_bytes, &spill, progress)?)
     };
     progress.start("qsplat: unit splits", n as u64);
     for u in &mut top.units {
@@ -495,12 +495,13 @@ fn halves_by(
 
 impl Top {
     /// The units' leaf radii (for a cloud without radii; `n` samples in `bounds`),
-    /// computed unit by unit.
+    /// computed group of units by group within `mem_bytes` ([`crate::unit_knn`]).
     fn leaf_radii(
         &self,
         layout: Layout,
         n: usize,
         bounds: Aabb,
+        mem_bytes: u64,
         spill: &SpillDir,
         progress: &dyn Progress,
     ) -> Result<UnitRadii, MethodError> {
@@ -513,7 +514,9 @@ impl Top {
             })
             .collect();
         let load = |u: usize| self.units[u].positions(layout);
-        unit_radii(&boxes, &load, n, bounds, spill, "qsplat", progress)
+        unit_radii(
+            &boxes, &load, n, bounds, mem_bytes, spill, "qsplat", progress,
+        )
     }
 
     fn child_cost(&self, c: Child) -> (u64, u64) {

@@ -559,7 +559,14 @@ pub(crate) fn list_in_units(
     let radii = if layout.radii {
         None
     } else {
-        Some(leaf_radii(cloud, &units, layout, &dir, progress)?)
+        Some(leaf_radii(
+            cloud,
+            &units,
+            layout,
+            budget.mem_bytes,
+            &dir,
+            progress,
+        )?)
     };
     let capped = std::cell::Cell::new(0u64);
     let load = |u: usize| {
@@ -641,11 +648,13 @@ pub(crate) fn list_in_units(
     })
 }
 
-/// The leaf radii of the units' samples (for a cloud without radii), computed unit by unit.
+/// The leaf radii of the units' samples (for a cloud without radii), computed group of units
+/// by group within `mem_bytes` ([`crate::unit_knn`]).
 fn leaf_radii(
     cloud: &PointCloud,
     units: &[Unit],
     layout: SampleLayout,
+    mem_bytes: u64,
     dir: &SpillDir,
     progress: &dyn Progress,
 ) -> Result<UnitRadii, MethodError> {
@@ -662,6 +671,7 @@ fn leaf_radii(
         &load,
         cloud.len(),
         cloud.bounds(),
+        mem_bytes,
         dir,
         "spt",
         progress,

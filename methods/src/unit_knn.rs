@@ -736,9 +736,9 @@ mod tests {
             .unwrap();
             let mut got = Vec::new();
             let mut capped = 0;
-            for u in 0..units.len() {
+            for (u, unit) in units.iter().enumerate() {
                 let (r, c) = radii.load(u).unwrap();
-                assert_eq!(r.len() as u64, units[u].n, "unit {u}");
+                assert_eq!(r.len() as u64, unit.n, "unit {u}");
                 got.extend(r);
                 capped += c;
             }

@@ -17,8 +17,9 @@
 //! `the_in_memory_files_do_not_depend_on_mem_mb`).
 //!
 //! **Split.** [`Tree::split`] permutes the samples' positions with their input indices
-//! (16 bytes per sample while it runs, a 4-byte index per sample after); a cloud larger than one unit of `mem_mb` is split by streaming instead and
-//! built unit by unit ([`super::ooc`]), into the same files.
+//! (16 bytes per sample while it runs, a 4-byte index per sample after); a cloud larger
+//! than one unit of `mem_mb` is split by streaming instead and built unit by unit
+//! ([`super::ooc`]), into the same files.
 //!
 //! **Leaf radii**: the scene's radii if it has them, else the distance to the 8th nearest
 //! neighbour ([`scenes::spacing`], as `full`) computed within the leaf ([`leaf_radii`]): a

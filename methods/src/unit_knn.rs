@@ -76,6 +76,8 @@ pub struct UnitRadii {
     pub fallback: f32,
     /// The cap on isolated samples' radii.
     pub cap: f32,
+    /// Queries sent to other groups in pass 1 (a sample near two other groups sends two).
+    pub queries: u64,
 }
 
 impl UnitRadii {
@@ -247,6 +249,8 @@ struct Searched {
 /// cap's quantile as (unit, position in unit).
 struct Pass1<'a> {
     queries: Writers<'a>,
+    /// Query records written.
+    sent: u64,
     raw: Vec<Spill>,
     own: Vec<Spill>,
     strided: Vec<(u32, u32)>,
@@ -291,6 +295,7 @@ impl Pass1<'_> {
             for &v in &near {
                 self.queries.get(v)?.push(&rec)?;
             }
+            self.sent += near.len() as u64;
         }
         self.raw.push(r.finish()?);
         self.own.push(o.finish()?);
@@ -394,6 +399,7 @@ pub fn unit_radii(
     phase(1, "own");
     let Pass1 {
         queries,
+        sent,
         raw,
         own,
         strided,
@@ -425,6 +431,7 @@ pub fn unit_radii(
         files,
         fallback,
         cap,
+        queries: sent,
     })
 }
 
@@ -465,6 +472,7 @@ impl<'a> Passes<'a> {
             raw: Vec::with_capacity(units.len()),
             own: Vec::with_capacity(units.len()),
             strided: Vec::new(),
+            sent: 0,
         };
         overlapped_with(
             pass1,
@@ -698,6 +706,59 @@ mod tests {
         assert_eq!(group_units(&u, 9), vec![0..3, 3..4, 4..6]);
         assert_eq!(group_units(&u, 100), vec![0..6]);
         assert!(group_units(&[], 5).is_empty());
+    }
+
+    /// Grouping never sends more queries than one group per unit, even when a group's units
+    /// are not neighbours: four strips of a plane in the order 0, 2, 1, 3, grouped two by
+    /// two, give groups whose boxes each span the whole plane; routed by those boxes every
+    /// sample would query the other group (the 555 s of the module's `BoxTree` docs).
+    #[test]
+    fn groups_of_distant_units_send_no_more_queries_than_units() {
+        let mut r = scenes::rng::Pcg32::new(8);
+        let strip = |s: usize, r: &mut scenes::rng::Pcg32| -> Vec<[f32; 3]> {
+            (0..400)
+                .map(|_| [s as f32 + r.f32(), r.f32(), 0.0])
+                .collect()
+        };
+        let strips: Vec<Vec<[f32; 3]>> = [0, 2, 1, 3].iter().map(|&s| strip(s, &mut r)).collect();
+        let pos: Vec<[f32; 3]> = strips.concat();
+        let units: Vec<UnitBox> = strips
+            .iter()
+            .map(|s| UnitBox {
+                n: s.len() as u64,
+                bbox: s.iter().fold((Vec3::INFINITY, Vec3::NEG_INFINITY), |b, p| {
+                    (b.0.min(Vec3::from(*p)), b.1.max(Vec3::from(*p)))
+                }),
+            })
+            .collect();
+        let load = |u: usize| -> Result<(Vec<u32>, Vec<[f32; 3]>), MethodError> {
+            let first = 400 * u as u32;
+            Ok(((first..first + 400).collect(), strips[u].clone()))
+        };
+        let cloud =
+            PointCloud::new(glam::DVec3::ZERO, pos.clone().into(), None, None, None).unwrap();
+        let run = |mem: u64| {
+            let tmp = tempfile::tempdir().unwrap();
+            let dir = SpillDir::create(tmp.path(), "knn").unwrap();
+            let radii = unit_radii(
+                &units,
+                &load,
+                pos.len(),
+                cloud.bounds(),
+                mem,
+                &dir,
+                "test",
+                &NoProgress,
+            )
+            .unwrap();
+            let r: Vec<f32> = (0..units.len()).flat_map(|u| radii.load(u).unwrap().0).collect();
+            (radii.queries, r)
+        };
+        let (per_unit, want) = run(1);
+        let (paired, got) = run(800 * KNN_BYTES_PER_SAMPLE);
+        assert_eq!(got, want);
+        assert!(per_unit > 0, "strips that touch send queries");
+        assert!(paired <= per_unit, "{paired} queries by groups, {per_unit} by units");
     }
 
     /// The radii do not depend on how the units are grouped: one unit per group, a few, or

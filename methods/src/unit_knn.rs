@@ -751,14 +751,19 @@ mod tests {
                 &NoProgress,
             )
             .unwrap();
-            let r: Vec<f32> = (0..units.len()).flat_map(|u| radii.load(u).unwrap().0).collect();
+            let r: Vec<f32> = (0..units.len())
+                .flat_map(|u| radii.load(u).unwrap().0)
+                .collect();
             (radii.queries, r)
         };
         let (per_unit, want) = run(1);
         let (paired, got) = run(800 * KNN_BYTES_PER_SAMPLE);
         assert_eq!(got, want);
         assert!(per_unit > 0, "strips that touch send queries");
-        assert!(paired <= per_unit, "{paired} queries by groups, {per_unit} by units");
+        assert!(
+            paired <= per_unit,
+            "{paired} queries by groups, {per_unit} by units"
+        );
     }
 
     /// The radii do not depend on how the units are grouped: one unit per group, a few, or

@@ -690,6 +690,51 @@ mod tests {
     use scenes::PointCloud;
     use scenes::progress::NoProgress;
 
+    /// The box of `points`, as a unit of them.
+    fn unit_of(points: &[[f32; 3]]) -> UnitBox {
+        UnitBox {
+            n: points.len() as u64,
+            bbox: points
+                .iter()
+                .fold((Vec3::INFINITY, Vec3::NEG_INFINITY), |b, p| {
+                    (b.0.min(Vec3::from(*p)), b.1.max(Vec3::from(*p)))
+                }),
+        }
+    }
+
+    /// [`unit_radii`] of `units` (of `pos`, loaded by `load`) within `mem`: the queries
+    /// sent, every radius in unit order (each unit's count checked) and the capped count.
+    fn radii_in(
+        units: &[UnitBox],
+        load: LoadPositions<'_>,
+        pos: &[[f32; 3]],
+        mem: u64,
+    ) -> (u64, Vec<f32>, u64) {
+        let cloud =
+            PointCloud::new(glam::DVec3::ZERO, pos.to_vec().into(), None, None, None).unwrap();
+        let tmp = tempfile::tempdir().unwrap();
+        let dir = SpillDir::create(tmp.path(), "knn").unwrap();
+        let radii = unit_radii(
+            units,
+            load,
+            pos.len(),
+            cloud.bounds(),
+            mem,
+            &dir,
+            "test",
+            &NoProgress,
+        )
+        .unwrap();
+        let (mut all, mut capped) = (Vec::new(), 0);
+        for (u, unit) in units.iter().enumerate() {
+            let (r, c) = radii.load(u).unwrap();
+            assert_eq!(r.len() as u64, unit.n, "unit {u}");
+            all.extend(r);
+            capped += c;
+        }
+        (radii.queries, all, capped)
+    }
+
     #[test]
     fn units_group_greedily_in_order_within_the_cap() {
         let boxes = |ns: &[u64]| -> Vec<UnitBox> {
@@ -722,42 +767,13 @@ mod tests {
         };
         let strips: Vec<Vec<[f32; 3]>> = [0, 2, 1, 3].iter().map(|&s| strip(s, &mut r)).collect();
         let pos: Vec<[f32; 3]> = strips.concat();
-        let units: Vec<UnitBox> = strips
-            .iter()
-            .map(|s| UnitBox {
-                n: s.len() as u64,
-                bbox: s.iter().fold((Vec3::INFINITY, Vec3::NEG_INFINITY), |b, p| {
-                    (b.0.min(Vec3::from(*p)), b.1.max(Vec3::from(*p)))
-                }),
-            })
-            .collect();
+        let units: Vec<UnitBox> = strips.iter().map(|s| unit_of(s)).collect();
         let load = |u: usize| -> Result<(Vec<u32>, Vec<[f32; 3]>), MethodError> {
             let first = 400 * u as u32;
             Ok(((first..first + 400).collect(), strips[u].clone()))
         };
-        let cloud =
-            PointCloud::new(glam::DVec3::ZERO, pos.clone().into(), None, None, None).unwrap();
-        let run = |mem: u64| {
-            let tmp = tempfile::tempdir().unwrap();
-            let dir = SpillDir::create(tmp.path(), "knn").unwrap();
-            let radii = unit_radii(
-                &units,
-                &load,
-                pos.len(),
-                cloud.bounds(),
-                mem,
-                &dir,
-                "test",
-                &NoProgress,
-            )
-            .unwrap();
-            let r: Vec<f32> = (0..units.len())
-                .flat_map(|u| radii.load(u).unwrap().0)
-                .collect();
-            (radii.queries, r)
-        };
-        let (per_unit, want) = run(1);
-        let (paired, got) = run(800 * KNN_BYTES_PER_SAMPLE);
+        let (per_unit, want, _) = radii_in(&units, &load, &pos, 1);
+        let (paired, got, _) = radii_in(&units, &load, &pos, 800 * KNN_BYTES_PER_SAMPLE);
         assert_eq!(got, want);
         assert!(per_unit > 0, "strips that touch send queries");
         assert!(
@@ -785,17 +801,7 @@ mod tests {
         let want = crate::leaf::leaf_radii(&cloud);
         assert!(want.capped >= 1, "the cap is exercised");
         let cuts = [0, 300, 550, 950, 1000, pos.len()];
-        let units: Vec<UnitBox> = cuts
-            .windows(2)
-            .map(|w| UnitBox {
-                n: (w[1] - w[0]) as u64,
-                bbox: pos[w[0]..w[1]]
-                    .iter()
-                    .fold((Vec3::INFINITY, Vec3::NEG_INFINITY), |b, p| {
-                        (b.0.min(Vec3::from(*p)), b.1.max(Vec3::from(*p)))
-                    }),
-            })
-            .collect();
+        let units: Vec<UnitBox> = cuts.windows(2).map(|w| unit_of(&pos[w[0]..w[1]])).collect();
         let load = |u: usize| -> Result<(Vec<u32>, Vec<[f32; 3]>), MethodError> {
             let range = cuts[u]..cuts[u + 1];
             Ok((
@@ -804,27 +810,7 @@ mod tests {
             ))
         };
         for mem in [1, 700 * KNN_BYTES_PER_SAMPLE, u64::MAX / 2] {
-            let tmp = tempfile::tempdir().unwrap();
-            let dir = SpillDir::create(tmp.path(), "knn").unwrap();
-            let radii = unit_radii(
-                &units,
-                &load,
-                pos.len(),
-                cloud.bounds(),
-                mem,
-                &dir,
-                "test",
-                &NoProgress,
-            )
-            .unwrap();
-            let mut got = Vec::new();
-            let mut capped = 0;
-            for (u, unit) in units.iter().enumerate() {
-                let (r, c) = radii.load(u).unwrap();
-                assert_eq!(r.len() as u64, unit.n, "unit {u}");
-                got.extend(r);
-                capped += c;
-            }
+            let (_, got, capped) = radii_in(&units, &load, &pos, mem);
             assert_eq!(got, *want.radii, "mem {mem}");
             assert_eq!(capped, want.capped, "mem {mem}");
         }

@@ -339,21 +339,11 @@ pub fn unit_radii(
     progress: &dyn Progress,
 ) -> Result<UnitRadii, MethodError> {
     let groups = group_units(units, (mem_bytes / KNN_BYTES_PER_SAMPLE).max(1));
-    // The groups as the passes' "units": their sizes (and the union of their units' boxes,
-    // which routes nothing: queries go by the units' own boxes, `BoxTree`).
-    let group_boxes: Vec<UnitBox> = groups
+    // The groups as the passes' "units": their sample counts (queries go by the units' own
+    // boxes, `BoxTree`).
+    let group_sizes: Vec<u64> = groups
         .iter()
-        .map(|g| {
-            let us = &units[g.clone()];
-            UnitBox {
-                n: us.iter().map(|u| u.n).sum(),
-                bbox: us
-                    .iter()
-                    .fold((Vec3::INFINITY, Vec3::NEG_INFINITY), |b, u| {
-                        (b.0.min(u.bbox.0), b.1.max(u.bbox.1))
-                    }),
-            }
-        })
+        .map(|g| units[g.clone()].iter().map(|u| u.n).sum())
         .collect();
     // A group's samples: its units' in order.
     let load_group = |g: usize| -> Result<(Vec<u32>, Vec<[f32; 3]>), MethodError> {
@@ -385,7 +375,7 @@ pub fn unit_radii(
     };
     let k = LEAF_K.clamp(1, total.saturating_sub(1).max(1));
     let passes = Passes {
-        units: &group_boxes,
+        units: &group_sizes,
         unit_sizes: &unit_sizes,
         load: &load_group,
         dir,
@@ -436,9 +426,10 @@ pub fn unit_radii(
 }
 
 /// What the three passes of [`unit_radii`] share. Their "units" are the groups of the
-/// module docs; `unit_sizes` are the sizes of each group's units.
+/// module docs, given by their sample counts; `unit_sizes` are the sizes of each group's
+/// units.
 struct Passes<'a> {
-    units: &'a [UnitBox],
+    units: &'a [u64],
     unit_sizes: &'a [Vec<u64>],
     load: LoadPositions<'a>,
     dir: &'a SpillDir,
@@ -485,18 +476,12 @@ impl<'a> Passes<'a> {
                 Ok(())
             },
             |feed| {
-                for (u, unit) in units.iter().enumerate() {
+                for (u, &n) in units.iter().enumerate() {
+                    // The loader checks each unit's count.
                     let (idx, pos) = load(u)?;
-                    if idx.len() as u64 != unit.n {
-                        return Err(MethodError::Bug(format!(
-                            "leaf radii: unit {u} loaded {} samples, {} expected",
-                            idx.len(),
-                            unit.n
-                        )));
-                    }
                     let lists = KnnIndex::new(&pos).self_lists(k);
                     feed.push(Searched { u, idx, pos, lists })?;
-                    progress.inc(unit.n);
+                    progress.inc(n);
                 }
                 Ok(())
             },
@@ -517,7 +502,7 @@ impl<'a> Passes<'a> {
                 self.answer_unit(v, &q, &mut answers, &mut rec)?;
                 q.remove();
             }
-            self.progress.inc(units[v].n);
+            self.progress.inc(units[v]);
         }
         answers.finish()
     }
@@ -620,7 +605,7 @@ impl<'a> Passes<'a> {
             }
             raw.remove();
             own.remove();
-            self.progress.inc(units[u].n);
+            self.progress.inc(units[u]);
         }
         Ok(Merged {
             files,
@@ -639,7 +624,7 @@ impl<'a> Passes<'a> {
         answers: Option<Spill>,
     ) -> Result<Vec<f32>, MethodError> {
         let (k, list_bytes) = (self.k, self.list_bytes);
-        let mut r: Vec<f32> = Vec::with_capacity(self.units[u].n as usize);
+        let mut r: Vec<f32> = Vec::with_capacity(self.units[u] as usize);
         raw.read(|b| {
             r.extend(f32s(b));
             Ok(())

@@ -179,20 +179,58 @@ impl<'a> Builder<'a> {
             .leaf_of
             .as_ref()
             .map(|l| l.iter().map(|&v| AtomicU32::new(v)).collect());
+        let starts = inner_starts(&self.keys);
         let ctx = Ctx {
             s: self.s,
             keys: &self.keys,
+            starts: &starts,
             color_threshold: self.color_threshold,
             leaf_of: leaf_of.as_deref(),
         };
         let base = self.nodes.len();
-        let count = ctx.count(lo, hi, level);
+        let count = ctx.count(lo, hi);
         self.nodes.resize(base + count, PLACEHOLDER);
         let r = ctx.subtree(&mut self.nodes[base..], base as u32, lo, hi, level);
         if let (Some(l), Some(a)) = (&mut self.leaf_of, leaf_of) {
             *l = a.into_iter().map(AtomicU32::into_inner).collect();
         }
         r
+    }
+}
+
+/// For each `k < keys.len()`, how many of the pairs of neighbouring keys `(keys[i],
+/// keys[i + 1])`, `i < k`, are the first pair of their inner node: an inner node at split
+/// level `l` (its cell's codes agree above `3·l` bits; 0 for a cell of equal codes) owns the
+/// pairs between its neighbouring children, exactly the pairs inside its cell that differ
+/// first at level `l`, so a pair starts a node unless the nearest earlier pair at level
+/// `≥ l` is at level `l` itself (then both lie in one cell at level `l`, hence one node).
+/// A cell's subtree over `keys[lo..hi]` therefore has `hi − lo` leaves and
+/// `starts[hi − 1] − starts[lo]` inner nodes ([`Ctx::count`], O(1) instead of a walk).
+fn inner_starts(keys: &[(u64, u32)]) -> Vec<u32> {
+    let mut out = Vec::with_capacity(keys.len());
+    if keys.is_empty() {
+        return out;
+    }
+    out.push(0);
+    // `last[l]`: the level of the latest pair at level ≥ l (u8::MAX before any).
+    let mut last = [u8::MAX; BITS as usize + 1];
+    let mut sum = 0u32;
+    for w in keys.windows(2) {
+        let level = split_level(w[0].0 ^ w[1].0) as usize;
+        sum += u32::from(last[level] != level as u8);
+        last[..=level].fill(level as u8);
+        out.push(sum);
+    }
+    out
+}
+
+/// The level (1..=[`BITS`]) of the highest octal digit set in `diff` (codes XORed), 0 if
+/// none.
+fn split_level(diff: u64) -> u32 {
+    if diff == 0 {
+        0
+    } else {
+        (63 - diff.leading_zeros()) / 3 + 1
     }
 }
 
@@ -223,6 +261,8 @@ struct Pending {
 struct Ctx<'a> {
     s: Samples<'a>,
     keys: &'a [(u64, u32)],
+    /// [`inner_starts`] of `keys`.
+    starts: &'a [u32],
     color_threshold: f32,
     leaf_of: Option<&'a [AtomicU32]>,
 }
@@ -253,31 +293,13 @@ impl Ctx<'_> {
         } else {
             (1u64 << bits) - 1
         };
-        let diff = (self.keys[lo].0 ^ self.keys[hi - 1].0) & mask;
-        if diff == 0 {
-            0
-        } else {
-            (63 - diff.leading_zeros()) / 3 + 1
-        }
+        split_level((self.keys[lo].0 ^ self.keys[hi - 1].0) & mask)
     }
 
-    /// Nodes of the subtree [`Self::subtree`] builds for the same cell (its structure
-    /// follows from the keys alone).
-    fn count(&self, lo: usize, hi: usize, level: u32) -> usize {
-        if hi - lo == 1 {
-            return 1;
-        }
-        let level = self.first_split(lo, hi, level);
-        if level == 0 {
-            return hi - lo + 1;
-        }
-        let ranges = self.child_ranges(lo, hi, level);
-        // At least two child cells: `first_split` found the keys differing here.
-        debug_assert!(ranges.len() >= 2);
-        1 + ranges
-            .iter()
-            .map(|&(s, e)| self.count(s, e, level - 1))
-            .sum::<usize>()
+    /// Nodes of the subtree [`Self::subtree`] builds for the cell holding `keys[lo..hi]`:
+    /// its leaves and its inner nodes ([`inner_starts`]).
+    fn count(&self, lo: usize, hi: usize) -> usize {
+        hi - lo + (self.starts[hi - 1] - self.starts[lo]) as usize
     }
 
     /// Builds the cell's subtree into `out`, exactly [`Self::count`] slots whose first is
@@ -304,10 +326,7 @@ impl Ctx<'_> {
         } else {
             let ranges = self.child_ranges(lo, hi, level);
             debug_assert!(ranges.len() >= 2, "first_split found a split here");
-            let counts: Vec<usize> = ranges
-                .iter()
-                .map(|&(s, e)| self.count(s, e, level - 1))
-                .collect();
+            let counts: Vec<usize> = ranges.iter().map(|&(s, e)| self.count(s, e)).collect();
             // The children's slots, in order, then this node's.
             let mut parts = Vec::with_capacity(ranges.len());
             let mut rest = &mut out[..];
@@ -610,5 +629,77 @@ fn finish_inner(
         parent: NO_PARENT,
         color,
         leaf: false,
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// The nodes of the cell over `keys[lo..hi]` at `level`, by walking the tree as the
+    /// build does (the count [`inner_starts`] replaced).
+    fn walked(keys: &[(u64, u32)], lo: usize, hi: usize, level: u32) -> usize {
+        if hi - lo == 1 {
+            return 1;
+        }
+        let diff = keys[lo].0 ^ keys[hi - 1].0;
+        let level = split_level(diff & ((1u64 << (3 * level)) - 1));
+        if level == 0 {
+            return hi - lo + 1;
+        }
+        let shift = 3 * (level - 1);
+        let mut total = 1;
+        let mut s = lo;
+        while s < hi {
+            let o = (keys[s].0 >> shift) & 7;
+            let e = s + keys[s..hi].partition_point(|k| (k.0 >> shift) & 7 == o);
+            total += walked(keys, s, e, level - 1);
+            s = e;
+        }
+        total
+    }
+
+    /// Every cell's count from [`inner_starts`] against the walk, on codes with chains,
+    /// duplicates and lone samples (few digits set, so cells repeat at every level).
+    #[test]
+    fn counting_by_pair_starts_gives_every_cells_nodes() {
+        let mut seed = 0x9e37_79b9_7f4a_7c15u64;
+        let mut next = move || {
+            seed ^= seed << 13;
+            seed ^= seed >> 7;
+            seed ^= seed << 17;
+            seed
+        };
+        for (n, digits) in [(1, 3), (2, 1), (9, 2), (300, 4), (2000, 21), (5000, 6)] {
+            let mut keys: Vec<(u64, u32)> = (0..n as u32)
+                .map(|i| {
+                    // Digits only at a few levels, each 0, 1 or 7: chains and duplicates.
+                    let mut code = 0u64;
+                    for _ in 0..digits {
+                        let level = next() % 21;
+                        code |= [0, 1, 7][(next() % 3) as usize] << (3 * level);
+                    }
+                    (code, i)
+                })
+                .collect();
+            keys.sort_unstable();
+            let starts = inner_starts(&keys);
+            let count = |lo: usize, hi: usize| hi - lo + (starts[hi - 1] - starts[lo]) as usize;
+            assert_eq!(count(0, n), walked(&keys, 0, n, BITS), "n = {n}");
+            // Every cell at every level: the runs of keys sharing a prefix.
+            for level in (0..BITS).rev() {
+                let mut s = 0;
+                while s < n {
+                    let e = s + keys[s..]
+                        .partition_point(|k| k.0 >> (3 * level) == keys[s].0 >> (3 * level));
+                    assert_eq!(
+                        count(s, e),
+                        walked(&keys, s, e, level.max(1)),
+                        "n = {n}, level {level}, cell {s}..{e}"
+                    );
+                    s = e;
+                }
+            }
+        }
     }
 }

@@ -38,13 +38,12 @@ use super::{Listed, SptMode, SptParams, cluster_of, list_key, lod_entry, non_fin
 use crate::MethodError;
 use crate::overlap::overlapped;
 use crate::spill::samples::{self, EMPTY_BOX, SampleLayout, f32_at, grow, pos_of, u32_at};
-use crate::spill::{Budget, Spill, SpillDir};
+use crate::spill::{Budget, Spill, SpillDir, SpillWriter};
 use crate::unit_knn::{UnitBox, UnitRadii, unit_radii};
 
 /// Working bytes per sample of a unit built in memory: samples (≤ 35 with the index),
-/// Morton keys (16), and per node (≈ 1.33–1.5 per sample) the node (52), its `lod` entry
-/// (16) and its sort key (32 with padding, while the unit's run is sorted and written; the
-/// run's records are encoded [`ENCODE_SLICE`] at a time).
+/// Morton keys (16) and the tree's node counts (4), and per node (≈ 1.33–1.5 per sample) the
+/// node (52) and its [`RunItem`] (≤ 72, while the unit's run is made, sorted and written).
 pub const UNIT_BYTES_PER_SAMPLE: u64 = 256;
 
 /// Samples of the largest unit built in memory under `mem_bytes`.
@@ -58,8 +57,6 @@ const FIRST_DEPTH: u32 = 6;
 const STEP: u32 = 3;
 /// Samples per block when streaming the cloud.
 const BLOCK: usize = 1 << 16;
-/// Run records encoded at a time (in parallel) by [`Walk::unit`].
-const ENCODE_SLICE: usize = 1 << 15;
 /// Samples per parallel piece of the routing pass.
 const ROUTE_PIECE: usize = 1 << 12;
 /// Nodes per batch handed from the merge to the list's writer.
@@ -349,10 +346,15 @@ impl RunRecord {
         debug_assert_eq!(at, self.bytes());
     }
 
+    /// The `lod` entry of record `r`.
+    fn lod(r: &[u8]) -> [f32; 4] {
+        [f32_at(r, 20), f32_at(r, 24), f32_at(r, 28), f32_at(r, 32)]
+    }
+
     /// The list key and node of record `r`.
     fn decode(self, r: &[u8]) -> (u128, ListNode) {
         let v = |i: usize| f32_at(r, 4 + 4 * i);
-        let lod = [v(4), v(5), v(6), v(7)];
+        let lod = Self::lod(r);
         let (n, cluster, c) = if self.normals {
             (Vec3::new(v(8), v(9), v(10)), u32_at(r, 48), 52)
         } else {
@@ -373,6 +375,64 @@ impl RunRecord {
         };
         (list_key(cluster, &lod, u32_at(r, 0)), nd)
     }
+}
+
+/// A non-root node of a unit while the unit's run is sorted: its list key (two words, so that
+/// the item packs without padding) and its run record of `N` bytes ([`RunRecord::bytes`]).
+/// Sorting the records themselves reads the nodes once in their own order; sorting keys and
+/// gathering each node and `lod` entry in list order afterwards was a random read per node
+/// (≈ 1.3 s of the 10 M terrain's point tree: `results/measurements/issue-40-builds.md`).
+#[derive(Clone, Copy)]
+struct RunItem<const N: usize> {
+    key: [u64; 2],
+    rec: [u8; N],
+}
+
+/// Writes the sorted run of a unit's non-root `nodes` (ids from `base`; each node's parent is
+/// in the unit) with records `rr` of `N` bytes to `w`: each node's `lod` entry, list key
+/// ([`list_key`] with `cluster`) and record, sorted by key. The first node in list order whose
+/// `lod` entry is not finite is the error.
+fn sorted_run<const N: usize>(
+    rr: RunRecord,
+    nodes: &[Node],
+    base: u64,
+    cluster: impl Fn(&Node) -> u32 + Sync,
+    w: &mut SpillWriter,
+) -> Result<(), MethodError> {
+    let root = nodes.len() - 1;
+    let mut items: Vec<RunItem<N>> = nodes[..root]
+        .par_iter()
+        .enumerate()
+        .map(|(i, nd)| {
+            let lod = lod_entry(nd, Some(&nodes[nd.parent as usize]));
+            let (c, id) = (cluster(nd), (base + i as u64) as u32);
+            let key = list_key(c, &lod, id);
+            let mut rec = [0; N];
+            rr.encode(id, &ListNode::of(nd, lod, c), &mut rec);
+            RunItem {
+                key: [(key >> 64) as u64, key as u64],
+                rec,
+            }
+        })
+        .collect();
+    if let Some((_, i)) = items
+        .par_iter()
+        .enumerate()
+        .filter(|(_, it)| !RunRecord::lod(&it.rec).iter().all(|v| v.is_finite()))
+        .map(|(i, it)| (it.key, i))
+        .min()
+    {
+        return Err(non_finite(
+            base + i as u64,
+            &RunRecord::lod(&items[i].rec),
+            &nodes[i],
+        ));
+    }
+    items.par_sort_unstable_by_key(|it| it.key);
+    for it in &items {
+        w.push(&it.rec)?;
+    }
+    Ok(())
 }
 
 /// The walk of step 3.
@@ -475,53 +535,19 @@ impl Walk<'_> {
         let (p, has_n) = (self.p, self.has_normals);
         let root = nodes.len() - 1;
         self.extent = std::mem::take(&mut self.extent).merge(&Extent::of(&nodes[..root]));
-        // Each non-root node's `lod` entry (its parent is in the unit), then the list keys.
-        let lods: Vec<[f32; 4]> = nodes[..root]
-            .par_iter()
-            .map(|nd| lod_entry(nd, Some(&nodes[nd.parent as usize])))
-            .collect();
-        let mut keyed: Vec<(u128, u32)> = lods
-            .par_iter()
-            .zip(&nodes[..root])
-            .enumerate()
-            .map(|(i, (lod, nd))| {
-                let id = (base + i as u64) as u32;
-                (list_key(cluster_of(p, has_n, nd.n), lod, id), i as u32)
-            })
-            .collect();
-        keyed.par_sort_unstable();
-        // The first node in list order with a non-finite `lod` entry is the error.
-        if let Some(&(_, i)) = keyed
-            .par_iter()
-            .find_first(|&&(_, i)| !lods[i as usize].iter().all(|v| v.is_finite()))
-        {
-            return Err(non_finite(
-                base + u64::from(i),
-                &lods[i as usize],
-                &nodes[i as usize],
-            ));
-        }
         // Small blocks: every run has a reader open during the merge.
         let rr = RunRecord {
             normals: self.has_normals,
             colors: self.has_colors,
         };
-        let rb = rr.bytes();
-        let mut w = self.dir.writer_with_block("run", rb, 1 << 16)?;
-        // Encoded in parallel a slice of keys at a time (a buffer for the whole unit would
-        // add a record per node to the unit's peak).
-        let mut recs = vec![0u8; ENCODE_SLICE.min(keyed.len()) * rb];
-        for slice in keyed.chunks(ENCODE_SLICE) {
-            let recs = &mut recs[..slice.len() * rb];
-            recs.par_chunks_mut(rb)
-                .zip(slice)
-                .for_each(|(out, &(key, i))| {
-                    let (nd, lod) = (&nodes[i as usize], lods[i as usize]);
-                    rr.encode(key as u32, &ListNode::of(nd, lod, (key >> 96) as u32), out);
-                });
-            for rec in recs.chunks_exact(rb) {
-                w.push(rec)?;
-            }
+        let mut w = self.dir.writer_with_block("run", rr.bytes(), 1 << 16)?;
+        let cluster = |nd: &Node| cluster_of(p, has_n, nd.n);
+        match rr.bytes() {
+            36 => sorted_run::<36>(rr, &nodes, base, cluster, &mut w)?,
+            40 => sorted_run::<40>(rr, &nodes, base, cluster, &mut w)?,
+            52 => sorted_run::<52>(rr, &nodes, base, cluster, &mut w)?,
+            56 => sorted_run::<56>(rr, &nodes, base, cluster, &mut w)?,
+            b => return Err(MethodError::Bug(format!("spt: a run record of {b} bytes"))),
         }
         self.runs.push(w.finish()?);
         // The unit's root is counted here and not again when it is kept.

@@ -122,19 +122,26 @@ pub fn lod_entry(nd: &build::Node, parent: Option<&build::Node>) -> [f32; 4] {
         ),
         Some(par) => {
             let delta = nd.p.distance(par.p) * (1.0 + 1e-5) + f32::MIN_POSITIVE;
-            let angle = |a: Vec3, b: Vec3| a.dot(b).clamp(-1.0, 1.0).acos();
-            let stored = |n: Vec3| quant::decode_normal(quant::normal_code(n));
-            let gamma = angle(nd.n, par.n).max(angle(stored(nd.n), stored(par.n))) + 1e-3;
-            select::pack_lod(
-                nd.e_g,
-                par.e_g,
-                delta,
-                nd.phi_q,
-                par.phi_q,
-                select::quantize_gamma(gamma),
-            )
+            // Without normals every node's normal is `Vec3::Z`: the same γ for all, computed
+            // once by the same function (it was most of this function's time there).
+            static GAMMA_Z: std::sync::LazyLock<u32> =
+                std::sync::LazyLock::new(|| gamma_code(Vec3::Z, Vec3::Z));
+            let gamma = if nd.n == Vec3::Z && par.n == Vec3::Z {
+                *GAMMA_Z
+            } else {
+                gamma_code(nd.n, par.n)
+            };
+            select::pack_lod(nd.e_g, par.e_g, delta, nd.phi_q, par.phi_q, gamma)
         }
     }
+}
+
+/// The quantised γ of a node of normal `n` whose parent's normal is `par`: the larger of the
+/// angles between the exact and between the stored normals, plus 1e-3.
+fn gamma_code(n: Vec3, par: Vec3) -> u32 {
+    let angle = |a: Vec3, b: Vec3| a.dot(b).clamp(-1.0, 1.0).acos();
+    let stored = |n: Vec3| quant::decode_normal(quant::normal_code(n));
+    select::quantize_gamma(angle(n, par).max(angle(stored(n), stored(par))) + 1e-3)
 }
 
 /// The list's sort key of node `id` with `lod` entry `lod` in normal cluster `cluster`:

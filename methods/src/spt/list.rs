@@ -17,6 +17,7 @@ use std::io::{Read, Seek, SeekFrom, Write};
 use std::path::{Path, PathBuf};
 
 use glam::Vec3;
+use rayon::prelude::*;
 use scenes::Attributes;
 use scenes::hash::Fnv64;
 
@@ -59,6 +60,8 @@ impl ListNode {
 }
 
 const BLOCK: usize = 1 << 16;
+/// Records per parallel piece of [`ListWriter::finish`]'s second pass.
+const PASS_PIECE: usize = 1 << 12;
 
 /// One of the two files, written to `<name>.tmp` and renamed when finished (removed if the
 /// writer is dropped unfinished).
@@ -317,14 +320,25 @@ impl ListWriter {
                 let m = left.min(BLOCK);
                 let b = &mut block[..m * rec];
                 f.read_exact(b).map_err(io)?;
-                for r_ in b.chunks_exact(rec) {
-                    // The half-angle only matters with normal clusters (else π).
-                    if l.normals && self.normal_clusters {
-                        let n = quant::decode_normal(l.normal_code(r_));
-                        angle = angle.max(axis.dot(n).clamp(-1.0, 1.0).acos());
-                    }
-                    r = r.max(l.position(r_).distance(centre) + 0.0);
-                }
+                // Maxima, so the block's pieces go in parallel with the same result.
+                let cone = l.normals && self.normal_clusters;
+                let (a, d) = b
+                    .par_chunks(rec * PASS_PIECE)
+                    .map(|piece| {
+                        let (mut angle, mut r) = (0.0f32, 0.0f32);
+                        for r_ in piece.chunks_exact(rec) {
+                            // The half-angle only matters with normal clusters (else π).
+                            if cone {
+                                let n = quant::decode_normal(l.normal_code(r_));
+                                angle = angle.max(axis.dot(n).clamp(-1.0, 1.0).acos());
+                            }
+                            r = r.max(l.position(r_).distance(centre) + 0.0);
+                        }
+                        (angle, r)
+                    })
+                    .reduce(|| (0.0, 0.0), |x, y| (x.0.max(y.0), x.1.max(y.1)));
+                angle = angle.max(a);
+                r = r.max(d);
                 left -= m;
             }
             c.half_angle = if self.normal_clusters {

@@ -21,8 +21,9 @@
 //!   and likewise `e_t`: the stored split errors are exactly what the GPU decodes, and they
 //!   stay monotone along every chain. Inner nodes have `e_g > 0` (at least
 //!   [`MIN_INNER_ERROR`]). Without normals `e_p = e_t = 0` and `e_g = d` (QSplat's LOD).
-//! - Positions are read from the (possibly memory-mapped) cloud by index; the only per-sample
-//!   copies are the Morton keys and the node array.
+//! - The per-sample copies are the Morton keys, each sorted together with its sample's
+//!   position, radius and colour (so that the leaves read them in order: gathered by index
+//!   they were a cache miss per leaf), and the node array; normals are read by index.
 
 use glam::Vec3;
 use std::sync::atomic::{AtomicU32, Ordering};
@@ -114,9 +115,20 @@ impl MortonGrid {
     }
 }
 
+/// A sample in Morton order: its code, index, and what its leaf needs besides the normal.
+#[derive(Debug, Clone, Copy, Default)]
+struct Key {
+    code: u64,
+    idx: u32,
+    pos: [f32; 3],
+    r: f32,
+    /// Black without colours.
+    color: [u8; 3],
+}
+
 pub(super) struct Builder<'a> {
     s: Samples<'a>,
-    keys: Vec<(u64, u32)>,
+    keys: Vec<Key>,
     pub nodes: Vec<Node>,
     /// Each sample's leaf (filled only when asked for: the build in units does not need it).
     leaf_of: Option<Vec<u32>>,
@@ -155,13 +167,19 @@ impl<'a> Builder<'a> {
         color_threshold: f32,
         leaf_of: bool,
     ) -> Self {
-        let mut keys: Vec<(u64, u32)> = s
+        let mut keys: Vec<Key> = s
             .pos
             .par_iter()
             .enumerate()
-            .map(|(i, &p)| (grid.code(p), i as u32))
+            .map(|(i, &p)| Key {
+                code: grid.code(p),
+                idx: i as u32,
+                pos: p,
+                r: s.radii[i],
+                color: s.colors.map_or([0; 3], |c| c[i]),
+            })
             .collect();
-        keys.par_sort_unstable();
+        keys.par_sort_unstable_by_key(|k| (k.code, k.idx));
         let n = s.pos.len();
         Self {
             s,
@@ -206,7 +224,7 @@ impl<'a> Builder<'a> {
 /// `≥ l` is at level `l` itself (then both lie in one cell at level `l`, hence one node).
 /// A cell's subtree over `keys[lo..hi]` therefore has `hi − lo` leaves and
 /// `starts[hi − 1] − starts[lo]` inner nodes ([`Ctx::count`], O(1) instead of a walk).
-fn inner_starts(keys: &[(u64, u32)]) -> Vec<u32> {
+fn inner_starts(keys: &[Key]) -> Vec<u32> {
     let mut out = Vec::with_capacity(keys.len());
     if keys.is_empty() {
         return out;
@@ -216,7 +234,7 @@ fn inner_starts(keys: &[(u64, u32)]) -> Vec<u32> {
     let mut last = [u8::MAX; BITS as usize + 1];
     let mut sum = 0u32;
     for w in keys.windows(2) {
-        let level = split_level(w[0].0 ^ w[1].0) as usize;
+        let level = split_level(w[0].code ^ w[1].code) as usize;
         sum += u32::from(last[level] != level as u8);
         last[..=level].fill(level as u8);
         out.push(sum);
@@ -260,7 +278,7 @@ struct Pending {
 #[derive(Clone, Copy)]
 struct Ctx<'a> {
     s: Samples<'a>,
-    keys: &'a [(u64, u32)],
+    keys: &'a [Key],
     /// [`inner_starts`] of `keys`.
     starts: &'a [u32],
     color_threshold: f32,
@@ -271,7 +289,7 @@ impl Ctx<'_> {
     /// The ranges of `keys[lo..hi]`'s occupied child cells at `level` (> 0).
     fn child_ranges(&self, lo: usize, hi: usize, level: u32) -> Kids<(usize, usize)> {
         let shift = 3 * (level - 1);
-        let oct = |k: &(u64, u32)| (k.0 >> shift) & 7;
+        let oct = |k: &Key| (k.code >> shift) & 7;
         let mut ranges = Kids::new();
         let mut s = lo;
         while s < hi {
@@ -293,7 +311,7 @@ impl Ctx<'_> {
         } else {
             (1u64 << bits) - 1
         };
-        split_level((self.keys[lo].0 ^ self.keys[hi - 1].0) & mask)
+        split_level((self.keys[lo].code ^ self.keys[hi - 1].code) & mask)
     }
 
     /// Nodes of the subtree [`Self::subtree`] builds for the cell holding `keys[lo..hi]`:
@@ -419,24 +437,25 @@ impl Ctx<'_> {
 
     /// Writes the leaf of `keys[k]` into slot `j` of `out` (node `base + j`).
     fn leaf(&self, out: &mut [Node], base: u32, j: usize, k: usize) -> u32 {
-        let i = self.keys[k].1 as usize;
+        let key = &self.keys[k];
+        let i = key.idx as usize;
         let idx = base + j as u32;
         if let Some(l) = self.leaf_of {
             l[i].store(idx, Ordering::Relaxed);
         }
         out[j] = Node {
-            p: Vec3::from(self.s.pos[i]),
+            p: Vec3::from(key.pos),
             n: self
                 .s
                 .normals
                 .map_or(Vec3::Z, |n| Vec3::from(n[i]).normalize_or(Vec3::Z)),
-            r: self.s.radii[i].max(MIN_RADIUS),
+            r: key.r.max(MIN_RADIUS),
             e_p: 0.0,
             e_t: 0.0,
             e_g: 0.0,
             phi_q: 0,
             parent: NO_PARENT,
-            color: self.s.colors.map_or([0; 3], |c| c[i]),
+            color: key.color,
             leaf: true,
         };
         idx
@@ -638,11 +657,11 @@ mod tests {
 
     /// The nodes of the cell over `keys[lo..hi]` at `level`, by walking the tree as the
     /// build does (the count [`inner_starts`] replaced).
-    fn walked(keys: &[(u64, u32)], lo: usize, hi: usize, level: u32) -> usize {
+    fn walked(keys: &[Key], lo: usize, hi: usize, level: u32) -> usize {
         if hi - lo == 1 {
             return 1;
         }
-        let diff = keys[lo].0 ^ keys[hi - 1].0;
+        let diff = keys[lo].code ^ keys[hi - 1].code;
         let level = split_level(diff & ((1u64 << (3 * level)) - 1));
         if level == 0 {
             return hi - lo + 1;
@@ -651,8 +670,8 @@ mod tests {
         let mut total = 1;
         let mut s = lo;
         while s < hi {
-            let o = (keys[s].0 >> shift) & 7;
-            let e = s + keys[s..hi].partition_point(|k| (k.0 >> shift) & 7 == o);
+            let o = (keys[s].code >> shift) & 7;
+            let e = s + keys[s..hi].partition_point(|k| (k.code >> shift) & 7 == o);
             total += walked(keys, s, e, level - 1);
             s = e;
         }
@@ -671,7 +690,7 @@ mod tests {
             seed
         };
         for (n, digits) in [(1, 3), (2, 1), (9, 2), (300, 4), (2000, 21), (5000, 6)] {
-            let mut keys: Vec<(u64, u32)> = (0..n as u32)
+            let mut keys: Vec<Key> = (0..n as u32)
                 .map(|i| {
                     // Digits only at a few levels, each 0, 1 or 7: chains and duplicates.
                     let mut code = 0u64;
@@ -679,10 +698,14 @@ mod tests {
                         let level = next() % 21;
                         code |= [0, 1, 7][(next() % 3) as usize] << (3 * level);
                     }
-                    (code, i)
+                    Key {
+                        code,
+                        idx: i,
+                        ..Key::default()
+                    }
                 })
                 .collect();
-            keys.sort_unstable();
+            keys.sort_unstable_by_key(|k| (k.code, k.idx));
             let starts = inner_starts(&keys);
             let count = |lo: usize, hi: usize| hi - lo + (starts[hi - 1] - starts[lo]) as usize;
             assert_eq!(count(0, n), walked(&keys, 0, n, BITS), "n = {n}");
@@ -691,7 +714,7 @@ mod tests {
                 let mut s = 0;
                 while s < n {
                     let e = s + keys[s..]
-                        .partition_point(|k| k.0 >> (3 * level) == keys[s].0 >> (3 * level));
+                        .partition_point(|k| k.code >> (3 * level) == keys[s].code >> (3 * level));
                     assert_eq!(
                         count(s, e),
                         walked(&keys, s, e, level.max(1)),

@@ -41,9 +41,11 @@ use crate::spill::samples::{self, EMPTY_BOX, SampleLayout, f32_at, grow, pos_of,
 use crate::spill::{Budget, Spill, SpillDir, SpillWriter};
 use crate::unit_knn::{UnitBox, UnitRadii, unit_radii};
 
-/// Working bytes per sample of a unit built in memory: samples (≤ 35 with the index),
-/// Morton keys (16) and the tree's node counts (4), and per node (≈ 1.33–1.5 per sample) the
-/// node (52) and its [`RunItem`] (≤ 72, while the unit's run is made, sorted and written).
+/// Working bytes per sample of a unit built in memory, the larger of two peaks (≤ 186):
+/// while the tree is built, the samples (≤ 35 with the index), the Morton keys with their
+/// positions, radii and colours (32), the tree's node counts (4) and per node (≈ 1.33–1.5
+/// per sample) the node (52); then the nodes and their [`RunItem`]s (≤ 72 per node, while
+/// the unit's run is made, sorted and written).
 pub const UNIT_BYTES_PER_SAMPLE: u64 = 256;
 
 /// Samples of the largest unit built in memory under `mem_bytes`.

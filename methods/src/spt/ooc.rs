@@ -798,6 +798,71 @@ fn merge_runs(
 mod tests {
     use super::*;
 
+    /// A node for [`sorted_run`]'s tests: at `x`, error `e_g`, child of node `parent`.
+    fn node(x: f32, e_g: f32, parent: u32) -> Node {
+        Node {
+            p: Vec3::new(x, 0.0, 0.0),
+            n: Vec3::Z,
+            r: 1.0,
+            e_p: 0.0,
+            e_t: 0.0,
+            e_g,
+            phi_q: 0,
+            parent,
+            color: [1, 2, 3],
+            leaf: parent != NO_PARENT,
+        }
+    }
+
+    /// The run is sorted by list key, each record that of its node; and of two nodes with
+    /// non-finite `lod` entries the error names the first in list order (a NaN error sorts
+    /// before an infinite one: descending total order), not the first by index.
+    #[test]
+    fn a_unit_run_is_in_list_order_and_its_error_is_the_first_in_that_order() {
+        let tmp = tempfile::tempdir().unwrap();
+        let dir = SpillDir::create(tmp.path(), "t").unwrap();
+        let rr = RunRecord {
+            normals: false,
+            colors: true,
+        };
+        let cluster = |_: &Node| 0;
+        let nodes = [
+            node(0.0, 1.0, 3),
+            node(1.0, 3.0, 3),
+            node(2.0, 2.0, 3),
+            node(1.0, 4.0, NO_PARENT),
+        ];
+        let mut w = dir.writer("run", rr.bytes()).unwrap();
+        sorted_run::<40>(rr, &nodes, 7, cluster, &mut w).unwrap();
+        let run = w.finish().unwrap();
+        let mut got = Vec::new();
+        run.read(|b| {
+            got.extend(b.chunks_exact(40).map(|r| rr.decode(r)));
+            Ok(())
+        })
+        .unwrap();
+        let keys: Vec<u128> = got.iter().map(|g| g.0).collect();
+        // Parent error equal: own error descending, so nodes 1, 2, 0 (ids 8, 9, 7).
+        assert_eq!(
+            keys.iter().map(|&k| k as u32).collect::<Vec<_>>(),
+            [8, 9, 7]
+        );
+        for (k, nd) in &got {
+            let i = (*k as u32 - 7) as usize;
+            assert_eq!(nd.p, nodes[i].p);
+            assert_eq!(nd.lod, lod_entry(&nodes[i], Some(&nodes[3])));
+        }
+        let bad = [
+            node(0.0, 1.0, 3),
+            node(1.0, f32::INFINITY, 3),
+            node(2.0, f32::NAN, 3),
+            node(1.0, 4.0, NO_PARENT),
+        ];
+        let mut w = dir.writer("run", rr.bytes()).unwrap();
+        let e = sorted_run::<40>(rr, &bad, 7, cluster, &mut w).unwrap_err();
+        assert!(e.to_string().contains("node 9 "), "{e}");
+    }
+
     #[test]
     fn run_records_give_back_the_node_and_its_list_key_with_every_attribute_set() {
         for (normals, colors) in [(false, false), (false, true), (true, false), (true, true)] {

@@ -144,11 +144,18 @@ fn list_in_memory(
         p.mode == SptMode::Split,
     )?;
     progress.start("spt: writing", keys.len() as u64);
+    // Each block's nodes gathered in list order in parallel (a random read per node), then
+    // written in order.
     for block in keys.chunks(1 << 16) {
-        for &k in block {
-            let i = k as u32 as usize;
-            let nd = &nodes[i];
-            w.push(&list::ListNode::of(nd, lod[i], cluster(i)))?;
+        let listed: Vec<list::ListNode> = block
+            .par_iter()
+            .map(|&k| {
+                let i = k as u32 as usize;
+                list::ListNode::of(&nodes[i], lod[i], cluster(i))
+            })
+            .collect();
+        for nd in &listed {
+            w.push(nd)?;
         }
         progress.inc(block.len() as u64);
     }

@@ -242,6 +242,12 @@ fn inner_starts(keys: &[Key]) -> Vec<u32> {
     out
 }
 
+/// Nodes of the subtree of the cell over `keys[lo..hi]` (non-empty), from the keys'
+/// [`inner_starts`]: its leaves and its inner nodes.
+fn cell_nodes(starts: &[u32], lo: usize, hi: usize) -> usize {
+    hi - lo + (starts[hi - 1] - starts[lo]) as usize
+}
+
 /// The level (1..=[`BITS`]) of the highest octal digit set in `diff` (codes XORed), 0 if
 /// none.
 fn split_level(diff: u64) -> u32 {
@@ -314,10 +320,10 @@ impl Ctx<'_> {
         split_level((self.keys[lo].code ^ self.keys[hi - 1].code) & mask)
     }
 
-    /// Nodes of the subtree [`Self::subtree`] builds for the cell holding `keys[lo..hi]`:
-    /// its leaves and its inner nodes ([`inner_starts`]).
+    /// Nodes of the subtree [`Self::subtree`] builds for the cell holding `keys[lo..hi]`
+    /// ([`cell_nodes`]).
     fn count(&self, lo: usize, hi: usize) -> usize {
-        hi - lo + (self.starts[hi - 1] - self.starts[lo]) as usize
+        cell_nodes(self.starts, lo, hi)
     }
 
     /// Builds the cell's subtree into `out`, exactly [`Self::count`] slots whose first is
@@ -678,8 +684,9 @@ mod tests {
         total
     }
 
-    /// Every cell's count from [`inner_starts`] against the walk, on codes with chains,
-    /// duplicates and lone samples (few digits set, so cells repeat at every level).
+    /// Every cell's count ([`cell_nodes`] of [`inner_starts`], as [`Ctx::count`]) against
+    /// the walk, on codes with chains, duplicates and lone samples (few digits set, so cells
+    /// repeat at every level).
     #[test]
     fn counting_by_pair_starts_gives_every_cells_nodes() {
         let mut seed = 0x9e37_79b9_7f4a_7c15u64;
@@ -707,7 +714,7 @@ mod tests {
                 .collect();
             keys.sort_unstable_by_key(|k| (k.code, k.idx));
             let starts = inner_starts(&keys);
-            let count = |lo: usize, hi: usize| hi - lo + (starts[hi - 1] - starts[lo]) as usize;
+            let count = |lo: usize, hi: usize| cell_nodes(&starts, lo, hi);
             assert_eq!(count(0, n), walked(&keys, 0, n, BITS), "n = {n}");
             // Every cell at every level: the runs of keys sharing a prefix.
             for level in (0..BITS).rev() {
